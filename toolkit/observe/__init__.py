@@ -1,0 +1,92 @@
+"""The observer protocol: how algorithms report what they compute.
+
+Algorithms never import rerun.  They take an optional ``observer`` and call
+``observer.report(kind, **data)`` with plain numpy arrays; an observer decides
+what to do with the report (log it to rerun, keep it for a test, ignore it).
+
+Report kinds and their fields are listed in :data:`REPORT_KINDS`, so that the
+rerun observer and tests agree on them.  Every report may carry ``frame``
+(int) and ``camera`` (str) to place it on the timeline and in the camera tree.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+
+@runtime_checkable
+class Observer(Protocol):
+    """Anything with a ``report(kind, **data)`` method."""
+
+    def report(self, kind: str, **data: Any) -> None:  # pragma: no cover - protocol
+        ...
+
+
+class NullObserver:
+    """Ignores every report."""
+
+    def report(self, kind: str, **data: Any) -> None:
+        return None
+
+
+@dataclass
+class RecordingObserver:
+    """Keeps every report in memory (for tests and for post-hoc inspection).
+
+    Attributes
+    ----------
+    reports : list of (str, dict)
+    """
+
+    reports: list = field(default_factory=list)
+
+    def report(self, kind: str, **data: Any) -> None:
+        self.reports.append((kind, data))
+
+    def of_kind(self, kind: str) -> list[dict]:
+        """All reports of one kind, in order."""
+        return [d for k, d in self.reports if k == kind]
+
+    @property
+    def kinds(self) -> set[str]:
+        return {k for k, _ in self.reports}
+
+
+class MultiObserver:
+    """Forwards each report to several observers."""
+
+    def __init__(self, *observers: Observer):
+        self.observers = [o for o in observers if o is not None]
+
+    def report(self, kind: str, **data: Any) -> None:
+        for o in self.observers:
+            o.report(kind, **data)
+
+
+def as_observer(observer: Observer | None) -> Observer:
+    """``observer`` itself, or a :class:`NullObserver` when ``None``."""
+    return NullObserver() if observer is None else observer
+
+
+#: Report kinds understood by :mod:`toolkit.viz.rerun_observer`, with their fields.
+#: Arrays are numpy; shapes and units as documented.
+REPORT_KINDS: dict[str, str] = {
+    "rig": "rig: Rig; path: str = 'world/cams' (static: cameras as Transform3D + Pinhole)",
+    "skeleton": "skeleton: Skeleton; class_id: int (static AnnotationContext with keypoint connections)",
+    "image": "camera: str; image: (H, W, 3) uint8 RGB; name: str = 'image'",
+    "mask": "camera: str; mask: (H, W) bool or uint8; name: str",
+    "labels": "camera: str; labels: (H, W) uint8 part ids (0 background); name: str",
+    "depth": "camera: str; depth: (H, W) float metres (0 = none); name: str",
+    "joints2d": "camera: str; joints: (J, 2) pixels, NaN missing; name: str; skeleton: Skeleton",
+    "joints3d": "joints: (J, 3) metres; name: str; skeleton: Skeleton",
+    "points3d": "points: (N, 3) metres; colors: (N, 3) uint8 optional; radii optional; name: str",
+    "rays": "origins: (N, 3); ends: (N, 3) metres; name: str",
+    "scalar": "name: str; value: float",
+    "text": "name: str; text: str",
+    "mesh": "name: str; vertices: (V, 3); triangles: (F, 3); vertex_colors: (V, 3) uint8 optional",
+    "boxes2d": "camera: str; mins: (N, 2); sizes: (N, 2) pixels; name: str; labels optional",
+    "quads": "name: str; corners: (N, 4, 3) metres; textures: list of (h, w, 4) uint8 RGBA optional",
+}

@@ -1,0 +1,17 @@
+"""Skeletons as data and mappings between skeleton conventions."""
+
+from toolkit.skeleton.skeleton import (
+    JOINTS_13,
+    JOINTS_14,
+    JOINTS_17,
+    PARTS_14,
+    SKELETON_13,
+    SKELETON_14,
+    SKELETON_17,
+    TORSO_PATCH_13,
+    Part,
+    Skeleton,
+)
+
+__all__ = ["JOINTS_13", "JOINTS_14", "JOINTS_17", "PARTS_14", "SKELETON_13", "SKELETON_14",
+           "SKELETON_17", "TORSO_PATCH_13", "Part", "Skeleton"]
