@@ -89,4 +89,7 @@ REPORT_KINDS: dict[str, str] = {
     "mesh": "name: str; vertices: (V, 3); triangles: (F, 3); vertex_colors: (V, 3) uint8 optional",
     "boxes2d": "camera: str; mins: (N, 2); sizes: (N, 2) pixels; name: str; labels optional",
     "quads": "name: str; corners: (N, 4, 3) metres; textures: list of (h, w, 4) uint8 RGBA optional",
+    "points2d": "camera: str; points: (N, 2) pixels, NaN missing; colors: (N, 3) uint8 optional; name: str",
+    "lines2d": "camera: str; strips: list of (K, 2) pixels; colors: (S, 3) uint8 optional; name: str",
+    "lines3d": "strips: list of (K, 3) metres (e.g. trajectories, seams); colors optional; name: str",
 }
