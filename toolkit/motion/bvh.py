@@ -228,7 +228,6 @@ class _Tokens:
     def __init__(self, text: str, source: str):
         self.source = source
         self.items = []
-        self.line_starts = {}
         for n, line in enumerate(text.splitlines(), start=1):
             for tok in line.split():
                 self.items.append((tok, n))
