@@ -1,0 +1,167 @@
+"""Stage 1 per frame: silhouettes -> candidates -> multi-view selection -> edits; bad input as states."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from toolkit.errors import InputError
+from toolkit.observe import RecordingObserver
+from toolkit.silhouettes import (
+    JointEdit,
+    SilhouetteDatabase,
+    SilhouettePoseEstimator,
+    normalise_joints,
+    stack_estimates,
+)
+from toolkit.silhouettes.descriptor import (
+    STATE_EMPTY,
+    STATE_FULL_FRAME,
+    STATE_NO_FRAME,
+    STATE_OK,
+    STATE_TRUNCATED,
+)
+from toolkit.silhouettes.pipeline import FRAME_NOT_PROCESSED, FRAME_OK, FRAME_TOO_FEW_VIEWS
+from toolkit.skeleton import SKELETON_14
+
+#: 3D joint error on the small walking scenes with exact silhouettes and a 960-entry walking
+#: database: measured 29-95 mm per frame (54 mm on average); bounds with a 1.5x margin.
+MPJPE_BOUND_M = 0.15
+MEAN_MPJPE_BOUND_M = 0.08
+#: Mean 2D error of the chosen pose per view and frame: measured 2.1-9.3 px (3.7 px on average)
+#: on a ~175 px tall subject; bounds with a 1.5x margin.
+POSE2D_BOUND_PX = 14.0
+MEAN_POSE2D_BOUND_PX = 6.0
+
+
+def run(scene, db, frames=None, observer=None, masks=None, edits=None):
+    est = SilhouettePoseEstimator(scene.rig, db, observer=observer)
+    out = []
+    for t in frames if frames is not None else range(len(scene.joints)):
+        m = scene.masks[t] if masks is None else masks(t)
+        out.append(est.step(m, t, (edits or {}).get(t)))
+    return est, out
+
+
+def test_walk_scene_mpjpe_and_2d(walk_scene, walk_db):
+    _, estimates = run(walk_scene, walk_db)
+    mpjpe, err2d = [], []
+    for t, e in enumerate(estimates):
+        assert e.ok and e.state == FRAME_OK
+        np.testing.assert_array_equal(e.view_states, STATE_OK)
+        mpjpe.append(np.linalg.norm(e.joints3d - walk_scene.joints[t], axis=-1).mean())
+        for v, cam in enumerate(walk_scene.rig):
+            gt = cam.project(walk_scene.joints[t])
+            err2d.append(np.linalg.norm(e.poses2d[v] - gt, axis=-1).mean())
+        assert e.candidates_px.shape == (2, 3, 14, 2)
+        assert all(len(c) == 3 for c in e.candidates)
+        # after the first frame the temporal term is on
+        assert all(c.lam == (0.0 if t == 0 else 0.5) for c in e.candidates)
+    assert max(mpjpe) < MPJPE_BOUND_M and np.mean(mpjpe) < MEAN_MPJPE_BOUND_M
+    assert max(err2d) < POSE2D_BOUND_PX and np.mean(err2d) < MEAN_POSE2D_BOUND_PX
+
+
+def test_reports_every_intermediate(walk_scene, walk_db):
+    obs = RecordingObserver()
+    run(walk_scene, walk_db, frames=[0, 1], observer=obs)
+    names = {(k, d.get("name")) for k, d in obs.reports}
+    for cam in walk_scene.rig.names:
+        assert any(d.get("camera") == cam for d in obs.of_kind("mask"))
+    assert ("image", "silhouettes/grid") in names
+    assert ("boxes2d", "silhouettes/bbox") in names
+    assert {("joints2d", f"silhouettes/candidate_{i}") for i in range(3)} <= names
+    assert ("joints2d", "silhouettes/pose") in names and ("joints3d", "silhouettes/pose3d") in names
+    assert any(k == "scalar" and n.startswith("silhouettes/E_S/") for k, n in names)
+    assert any(k == "text" and n.startswith("silhouettes/candidates/") for k, n in names)
+    # from the multi-view stage: rays, closest points, offsets
+    assert {"rays", "points3d", "lines2d"} <= obs.kinds
+    grid = [d["image"] for k, d in obs.reports if k == "image" and d.get("name") == "silhouettes/grid"][0]
+    assert grid.shape == (160, 128)
+
+
+@pytest.mark.parametrize("bad, state", [("empty", STATE_EMPTY), ("full", STATE_FULL_FRAME),
+                                        ("border", STATE_TRUNCATED), ("missing", STATE_NO_FRAME)])
+def test_one_bad_view_of_three_still_gives_an_estimate(walk_scene3, walk_db, bad, state):
+    def masks(t):
+        m = list(walk_scene3.masks[t])
+        h, w = m[2].shape
+        if bad == "empty":
+            m[2] = np.zeros((h, w), bool)
+        elif bad == "full":
+            m[2] = np.ones((h, w), bool)
+        elif bad == "border":
+            cut = m[2].copy()
+            rows = np.flatnonzero(cut.any(1))
+            cut[rows[len(rows) // 2]:] = False
+            cut = np.roll(cut, h - rows[len(rows) // 2], axis=0)  # the legs are below the image
+            m[2] = cut
+        else:
+            m[2] = None
+        return m
+
+    _, estimates = run(walk_scene3, walk_db, frames=[0, 1], masks=masks)
+    for t, e in zip((0, 1), estimates):
+        assert e.ok
+        assert e.view_states.tolist() == [STATE_OK, STATE_OK, state]
+        assert np.isnan(e.poses2d[2]).all() and np.isnan(e.offsets[2]).all() and e.candidates[2] is None
+        assert np.linalg.norm(e.joints3d - walk_scene3.joints[t], axis=-1).mean() < MPJPE_BOUND_M
+
+
+def test_too_few_views_gives_nan_and_recovers(walk_scene, walk_db):
+    def masks(t):
+        return [walk_scene.masks[t][0], np.zeros_like(walk_scene.masks[t][1])] if t == 1 else walk_scene.masks[t]
+
+    est, estimates = run(walk_scene, walk_db, frames=[0, 1, 2], masks=masks)
+    assert estimates[1].state == FRAME_TOO_FEW_VIEWS and not estimates[1]
+    assert np.isnan(estimates[1].joints3d).all() and np.isnan(estimates[1].offsets).all()
+    assert np.isfinite(estimates[1].poses2d[0]).sum() == 0
+    assert estimates[2].ok  # the next frame is estimated again
+    assert estimates[2].candidates[1].lam == 0.0  # no previous pose in that view
+
+
+def test_empty_database_and_bad_arguments(walk_scene):
+    with pytest.raises(InputError, match="empty database"):
+        SilhouettePoseEstimator(walk_scene.rig, SilhouetteDatabase.empty())
+    from toolkit.cameras import Rig
+
+    with pytest.raises(InputError, match="rig"):
+        SilhouettePoseEstimator(Rig((walk_scene.rig[0],)), SilhouetteDatabase(np.zeros((1, 1280)),
+                                                                              np.zeros((1, 14, 2))))
+
+
+def test_edits_replace_joints_join_the_database_and_retriangulate(walk_scene, walk_db):
+    db = walk_db.subset(np.arange(len(walk_db)))  # a private copy that may grow
+    n0 = len(db)
+    cam = walk_scene.rig[0]
+    t = 1
+    truth = cam.project(walk_scene.joints[t])
+    corrected = {"l_wrist": tuple(truth[SKELETON_14.index("l_wrist")] + [6.0, -4.0]),
+                 "r_ankle": tuple(truth[SKELETON_14.index("r_ankle")])}
+    edit = JointEdit(t, cam.name, tuple(corrected.items()))
+    _, (auto,) = run(walk_scene, walk_db.subset(np.arange(len(walk_db))), frames=[t])
+    _, (e,) = run(walk_scene, db, frames=[t], edits={t: {cam.name: edit}})
+    assert e.edited.tolist() == [True, False]
+    for name, xy in corrected.items():
+        np.testing.assert_allclose(e.poses2d[0, SKELETON_14.index(name)], xy)
+    untouched = [i for i in range(14) if SKELETON_14.joint_names[i] not in corrected]
+    np.testing.assert_allclose(e.poses2d[0, untouched], auto.poses2d[0, untouched])
+    assert len(db) == n0 + 1 and e.added == (n0,)
+    np.testing.assert_allclose(db.joints[n0], normalise_joints(e.poses2d[0], e.bboxes[0]), atol=1e-6)
+    assert db.motion[n0] == "user" and db.frame[n0] == t
+    assert not np.allclose(e.joints3d, auto.joints3d)  # re-triangulated with the corrected joints
+    assert e.ok
+
+
+def test_stack_estimates(walk_scene, walk_db):
+    _, estimates = run(walk_scene, walk_db, frames=[0, 1])
+    arrays = stack_estimates(estimates, 4, walk_scene.rig.names, 3)
+    p2 = arrays["poses2d"]
+    assert p2["cam0"].shape == (4, 14, 2) and p2["candidates"].shape == (4, 2, 3, 14, 2)
+    np.testing.assert_array_equal(p2["cam1"][1], estimates[1].poses2d[1])
+    assert np.isnan(p2["cam0"][2:]).all()
+    p3 = arrays["poses3d"]
+    assert p3["joints"].shape == (4, 14, 3) and list(p3["names"]) == list(SKELETON_14.joint_names)
+    assert p3["state"].tolist() == [FRAME_OK, FRAME_OK, FRAME_NOT_PROCESSED, FRAME_NOT_PROCESSED]
+    assert arrays["offsets"]["offsets"].shape == (4, 2, 2)
+    with pytest.raises(InputError, match="camera names"):
+        stack_estimates(estimates, 4, ["bbox", "cam1"], 3)

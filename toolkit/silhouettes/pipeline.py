@@ -1,0 +1,425 @@
+"""Stage 1 per frame: silhouettes -> database candidates -> multi-view selection (source 000 §2.1).
+
+:class:`SilhouettePoseEstimator` takes one silhouette per camera and frame
+(from :mod:`toolkit.foreground` or any other segmentation), checks it,
+queries the database for the k best entries (E_S with the temporal term
+after the first frame, the previous pose being the one the multi-view step
+chose), hands the candidates in pixels to
+:class:`toolkit.multiview.MultiViewTracker` (every combination, rays,
+closest points, per-view offsets by Levenberg-Marquardt) and applies the
+user's edits (claim 7): corrected joints replace the automatic ones, the
+frame is re-triangulated with the corrected poses, and each corrected pose
+joins the database with its silhouette.
+
+Bad input never raises: a view whose silhouette is empty, tiny, fills the
+frame, touches the border (a person leaving the image) or is missing (a
+shorter video) is left out and its state recorded; a frame with fewer than
+two usable views gets NaN and a frame state.  :func:`stack_estimates` turns
+the per-frame results into the arrays of the recipe's ``.npz`` files.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from toolkit.cameras import Rig
+from toolkit.errors import InputError
+from toolkit.multiview import MultiViewConfig, MultiViewSelection, MultiViewTracker, select_multiview
+from toolkit.observe import as_observer
+from toolkit.silhouettes.database import USER_MOTION, DatabaseEntry, SilhouetteDatabase
+from toolkit.silhouettes.descriptor import (
+    MAX_FILL_FRACTION,
+    MIN_SILHOUETTE_PIXELS,
+    SILHOUETTE_STATES,
+    STATE_NO_FRAME,
+    STATE_OK,
+    check_silhouette,
+    normalise_joints,
+    silhouette_descriptor,
+    silhouette_grid,
+)
+from toolkit.silhouettes.edits import JointEdit
+from toolkit.silhouettes.query import Candidates, QueryConfig, query_database
+from toolkit.skeleton import SKELETON_14
+
+#: Frame states (one per frame) and their codes.
+FRAME_OK = 0
+FRAME_TOO_FEW_VIEWS = 1
+FRAME_SELECTION_FAILED = 2
+FRAME_NOT_PROCESSED = 3
+FRAME_STATES = {
+    FRAME_OK: "ok",
+    FRAME_TOO_FEW_VIEWS: "fewer than two usable silhouettes",
+    FRAME_SELECTION_FAILED: "multi-view selection failed (no joint seen by two views)",
+    FRAME_NOT_PROCESSED: "not processed (run stopped early or --max-frames)",
+}
+#: Prefix of the names of this stage's reports.
+REPORT_PREFIX = "silhouettes"
+#: Scale of the 32 x 40 grid image logged per camera (pixels per cell).
+GRID_DISPLAY_SCALE = 4
+
+_J = SKELETON_14.n_joints
+
+
+@dataclass(frozen=True)
+class Stage1Config:
+    """Options of the silhouette-based 2D/3D pose stage.
+
+    Parameters
+    ----------
+    query : QueryConfig
+        k, λ and the matching variant.
+    multiview : MultiViewConfig
+        Combination search and offsets (owned by :mod:`toolkit.multiview`).
+    min_pixels : int
+        Fewest pixels of a usable silhouette.
+    max_fill : float
+        Largest usable fraction of the image.
+    border_px : int
+        A silhouette within this many pixels of the border counts as cut off.
+    add_edits_to_database : bool
+        Add corrected poses to the database (unless an edit says otherwise).
+    """
+
+    query: QueryConfig = QueryConfig()
+    multiview: MultiViewConfig = field(default_factory=MultiViewConfig)
+    min_pixels: int = MIN_SILHOUETTE_PIXELS
+    max_fill: float = MAX_FILL_FRACTION
+    border_px: int = 0
+    add_edits_to_database: bool = True
+
+
+@dataclass(frozen=True, eq=False)
+class FrameEstimate:
+    """Stage-1 result of one frame.
+
+    Attributes
+    ----------
+    frame : int
+    state : int
+        ``FRAME_*`` code (:data:`FRAME_STATES`).
+    view_states : ndarray of shape (n_views,), uint8
+        Silhouette ``STATE_*`` codes (:data:`toolkit.silhouettes.descriptor.SILHOUETTE_STATES`).
+    bboxes : ndarray of shape (n_views, 4)
+        Silhouette boxes, pixel edges; NaN where none.
+    candidates : tuple of (Candidates or None)
+        Database candidates per view (None for unusable views).
+    candidates_px : ndarray of shape (n_views, k, 14, 2)
+        Candidate joints in pixels; NaN for unusable views.
+    poses2d : ndarray of shape (n_views, 14, 2)
+        Chosen 2D pose per view in image pixels (flip applied, before the
+        offset; after the user's edits); NaN for views without one.
+    offsets : ndarray of shape (n_views, 2)
+        Per-view 2D offsets (pixels) that make the rays meet: the pose aligned
+        with the calibration is ``poses2d + offsets``; NaN for unused views.
+    joints3d : ndarray of shape (14, 3)
+        Metres, world; NaN without an estimate.
+    cost : float
+        Mean ray distance of the chosen combination, metres (NaN without one).
+    edited : ndarray of shape (n_views,), bool
+        Views whose joints were corrected by the user.
+    added : tuple of int
+        Database rows added from the corrections.
+    selection : MultiViewSelection or None
+    """
+
+    frame: int
+    state: int
+    view_states: np.ndarray
+    bboxes: np.ndarray
+    candidates: tuple
+    candidates_px: np.ndarray
+    poses2d: np.ndarray
+    offsets: np.ndarray
+    joints3d: np.ndarray
+    cost: float
+    edited: np.ndarray
+    added: tuple = ()
+    selection: MultiViewSelection | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.state == FRAME_OK
+
+    def __bool__(self) -> bool:
+        return self.ok
+
+
+class SilhouettePoseEstimator:
+    """Frame-by-frame stage 1 over a rig, keeping the previous poses for the temporal term.
+
+    Parameters
+    ----------
+    rig : Rig
+        At least two cameras, in the order masks are given.
+    database : SilhouetteDatabase
+        Must not be empty; grows with user corrections.
+    config : Stage1Config, optional
+    observer : Observer, optional
+        Receives, per frame and camera: the silhouette (``mask``), its 32 x 40
+        grid (``image``, enlarged), its box (``boxes2d``), the k candidates
+        (``joints2d``) with their E_S terms (``scalar``, ``text``), the chosen
+        pose; from :mod:`toolkit.multiview`: candidates, rays, closest points,
+        ray distances, offsets, 3D joints.
+
+    Raises
+    ------
+    InputError
+        An empty database, fewer than two cameras.
+    """
+
+    def __init__(self, rig: Rig, database: SilhouetteDatabase, config: Stage1Config | None = None,
+                 observer=None):
+        if not isinstance(database, SilhouetteDatabase):
+            raise InputError("database", "a SilhouetteDatabase", type(database).__name__)
+        if len(database) == 0:
+            raise InputError("database", "a silhouette database with at least one entry", "an empty database")
+        if len(rig) < 2:
+            raise InputError("rig", "at least two cameras", f"{len(rig)}")
+        self.rig = rig
+        self.database = database
+        self.config = config or Stage1Config()
+        self.observer = as_observer(observer)
+        self.tracker = MultiViewTracker(rig, self.config.multiview, self.observer)
+        self._previous: list[np.ndarray | None] = [None] * len(rig)
+
+    @property
+    def n_views(self) -> int:
+        return len(self.rig)
+
+    def reset(self) -> None:
+        """Forget the previous frame (the next query uses λ = 0)."""
+        self._previous = [None] * self.n_views
+        self.tracker = MultiViewTracker(self.rig, self.config.multiview, self.observer)
+
+    # ------------------------------------------------------------ per view
+    def _view(self, v: int, mask, frame: int):
+        cam = self.rig[v]
+        obs = self.observer
+        P = REPORT_PREFIX
+        if mask is None:
+            return STATE_NO_FRAME, None, None
+        m = np.asarray(mask)
+        if m.ndim != 2:
+            raise InputError(f"masks[{v}] ({cam.name})", "a 2D (H, W) mask", f"shape {m.shape}")
+        check = check_silhouette(m, min_pixels=self.config.min_pixels, max_fill=self.config.max_fill,
+                                 border_px=self.config.border_px)
+        obs.report("mask", camera=cam.name, mask=m.astype(bool), name=f"{P}/silhouette", frame=frame)
+        if check.bbox is not None:
+            b = check.bbox
+            obs.report("boxes2d", camera=cam.name, mins=b[None, :2], sizes=(b[2:] - b[:2])[None],
+                       name=f"{P}/bbox", labels=[check.reason], frame=frame)
+        if not check.ok:
+            obs.report("text", name=f"{P}/{cam.name}", text=f"frame {frame}: view left out: {check.reason}",
+                       level="WARN", frame=frame)
+            return check.state, check.bbox, None
+        grid = silhouette_grid(m, check.bbox)
+        big = np.kron(grid, np.ones((GRID_DISPLAY_SCALE, GRID_DISPLAY_SCALE), np.float32))
+        obs.report("image", camera=cam.name, image=big, name=f"{P}/grid", frame=frame)
+        cands = query_database(self.database, grid.reshape(-1), self._previous[v], self.config.query)
+        return STATE_OK, check.bbox, cands
+
+    def _report_candidates(self, v: int, cands: Candidates, cand_px: np.ndarray, frame: int) -> None:
+        cam = self.rig[v]
+        P = REPORT_PREFIX
+        lines = [f"frame {frame}, {cam.name}: {len(cands)} best of {len(self.database)} entries "
+                 f"(lambda = {cands.lam:g}, {cands.metric})"]
+        for i in range(len(cands)):
+            self.observer.report("joints2d", camera=cam.name, joints=cand_px[i], name=f"{P}/candidate_{i}",
+                                 skeleton=SKELETON_14, frame=frame)
+            self.observer.report("scalar", name=f"{P}/E_S/{cam.name}/candidate_{i}", value=float(cands.errors[i]),
+                                 frame=frame)
+            r = int(cands.indices[i])
+            lines.append(f"  {i}: entry {r} ({self.database.motion[r]}, az {self.database.azimuth_deg[r]:.0f}, "
+                         f"el {self.database.elevation_deg[r]:.0f}) E_S {cands.errors[i]:.4f} = silhouette "
+                         f"{cands.silhouette_errors[i]:.4f}, joints {cands.temporal_errors[i]:.4f}")
+        self.observer.report("text", name=f"{P}/candidates/{cam.name}", text="\n".join(lines), frame=frame)
+
+    # ----------------------------------------------------------- per frame
+    def step(self, masks: Sequence[np.ndarray | None], frame: int,
+             edits: dict[str, JointEdit] | None = None) -> FrameEstimate:
+        """Estimate one frame.
+
+        Parameters
+        ----------
+        masks : sequence of (ndarray of shape (H, W), bool, or None)
+            One silhouette per camera of the rig; None when the camera has no
+            frame (a shorter video).
+        frame : int
+        edits : dict of str to JointEdit, optional
+            This frame's corrections by camera name (:meth:`Edits.for_frame`).
+
+        Returns
+        -------
+        FrameEstimate
+        """
+        if len(masks) != self.n_views:
+            raise InputError("masks", f"one mask per camera ({self.n_views})", f"{len(masks)}")
+        n_views, k = self.n_views, self.config.query.k
+        states = np.zeros(n_views, np.uint8)
+        boxes = np.full((n_views, 4), np.nan)
+        cands: list[Candidates | None] = [None] * n_views
+        cand_px = np.full((n_views, k, _J, 2), np.nan)
+        for v in range(n_views):
+            state, box, c = self._view(v, masks[v], frame)
+            states[v] = state
+            if box is not None:
+                boxes[v] = box
+            if c is not None:
+                cands[v] = c
+                cand_px[v, :len(c)] = c.joints_px(box)
+                self._report_candidates(v, c, cand_px[v], frame)
+        usable = states == STATE_OK
+        poses = np.full((n_views, _J, 2), np.nan)
+        offsets = np.full((n_views, 2), np.nan)
+        joints = np.full((_J, 3), np.nan)
+        cost = float("nan")
+        sel = None
+        if usable.sum() < 2:
+            fstate = FRAME_TOO_FEW_VIEWS
+        else:
+            sel = self.tracker.step(cand_px, frame=frame)
+            fstate = FRAME_OK if sel.success else FRAME_SELECTION_FAILED
+            if sel.success:
+                used = sel.views_used
+                poses = np.where(used[:, None, None], sel.poses2d_raw, np.nan)
+                offsets = np.where(used[:, None], sel.offsets, np.nan)
+                joints, cost = sel.joints3d, float(sel.cost)
+        edited = np.zeros(n_views, bool)
+        added: list[int] = []
+        if edits:
+            poses, offsets, joints, cost, edited, added, fstate, sel = self._apply_edits(
+                edits, masks, poses, offsets, joints, cost, fstate, sel, frame)
+        # the temporal term of the next frame uses this frame's chosen pose in its own box
+        for v in range(n_views):
+            ok = np.isfinite(boxes[v]).all() and np.isfinite(poses[v]).all()
+            self._previous[v] = normalise_joints(poses[v], boxes[v]) if ok else None
+        P = REPORT_PREFIX
+        for v, cam in enumerate(self.rig):
+            if np.isfinite(poses[v]).any():
+                self.observer.report("joints2d", camera=cam.name, joints=poses[v], name=f"{P}/pose",
+                                     skeleton=SKELETON_14, frame=frame)
+        if np.isfinite(joints).any():
+            self.observer.report("joints3d", joints=joints, name=f"{P}/pose3d", skeleton=SKELETON_14, frame=frame)
+        self.observer.report("text", name=f"{P}/frame", frame=frame,
+                             text=f"frame {frame}: {FRAME_STATES[fstate]}; views: "
+                                  + ", ".join(f"{c.name} {SILHOUETTE_STATES[int(s)]}" for c, s in zip(self.rig, states)),
+                             level="INFO" if fstate == FRAME_OK else "WARN")
+        return FrameEstimate(frame, fstate, states, boxes, tuple(cands), cand_px, poses, offsets, joints, cost,
+                             edited, tuple(added), sel)
+
+    def _apply_edits(self, edits, masks, poses, offsets, joints, cost, fstate, sel, frame):
+        n_views = self.n_views
+        names = self.rig.names
+        edited = np.zeros(n_views, bool)
+        added: list[int] = []
+        poses = poses.copy()
+        for cam_name, e in edits.items():
+            if cam_name not in names:
+                raise InputError(f"edits: frame {frame} camera", f"one of {names}", repr(cam_name))
+            v = names.index(cam_name)
+            poses[v] = e.apply(poses[v])
+            edited[v] = True
+            mask = masks[v]
+            if not (self.config.add_edits_to_database and e.add_to_database):
+                continue
+            if mask is None or not np.asarray(mask).any() or not np.isfinite(poses[v]).all():
+                self.observer.report("text", name=f"{REPORT_PREFIX}/edits", level="WARN", frame=frame,
+                                     text=f"frame {frame}, {cam_name}: corrected pose not added to the database "
+                                          "(no silhouette or not all 14 joints known)")
+                continue
+            entry = DatabaseEntry.from_silhouette(np.asarray(mask, bool), poses[v], motion=USER_MOTION, frame=frame,
+                                                  source=f"{cam_name} frame {frame}")
+            added.append(self.database.add(entry))
+        # re-triangulate with the corrected poses (one candidate per view, no flips)
+        have = np.isfinite(poses).all(-1).sum(-1) >= 1
+        if have.sum() >= 2:
+            cfg = replace(self.config.multiview, flips=())
+            init = self.tracker.offsets
+            sel = select_multiview(poses[:, None], self.rig, cfg, initial_offsets=init,
+                                   previous_joints3d=self.tracker.joints3d, observer=self.observer, frame=frame)
+            if sel.success:
+                used = sel.views_used
+                offsets = np.where(used[:, None], sel.offsets, np.nan)
+                joints, cost = sel.joints3d, float(sel.cost)
+                fstate = FRAME_OK
+                self.tracker.offsets = np.where(used[:, None], sel.offsets,
+                                                0.0 if init is None else init)
+                if np.isfinite(joints).all():
+                    self.tracker.joints3d = joints
+        self.observer.report("text", name=f"{REPORT_PREFIX}/edits", frame=frame,
+                             text=f"frame {frame}: corrected {[names[v] for v in np.flatnonzero(edited)]}; "
+                                  f"{len(added)} pose(s) added to the database ({len(self.database)} entries)")
+        return poses, offsets, joints, cost, edited, added, fstate, sel
+
+
+def stack_estimates(estimates: Sequence[FrameEstimate | None], n_frames: int, camera_names: Sequence[str],
+                    k: int) -> dict[str, dict[str, np.ndarray]]:
+    """Per-frame estimates as the arrays of ``poses2d.npz``, ``poses3d.npz`` and ``offsets.npz``.
+
+    Parameters
+    ----------
+    estimates : sequence of FrameEstimate or None
+        Indexed by frame; missing or None frames are ``FRAME_NOT_PROCESSED``.
+    n_frames : int
+    camera_names : sequence of str
+    k : int
+        Candidates per view.
+
+    Returns
+    -------
+    dict
+        ``"poses2d"``: one (T, 14, 2) array per camera name (image pixels,
+        chosen pose), ``view_state`` (T, n_views) uint8, ``bbox`` (T, n_views,
+        4), ``candidates`` (T, n_views, k, 14, 2), ``candidate_errors`` (T,
+        n_views, k), ``candidate_index`` (T, n_views, k), ``edited`` (T,
+        n_views), ``cameras`` (n_views,);
+        ``"poses3d"``: ``joints`` (T, 14, 3), ``names`` (14,), ``state`` (T,)
+        uint8, ``cost`` (T,) metres;
+        ``"offsets"``: ``offsets`` (T, n_views, 2) pixels, ``cameras``, ``state``.
+    """
+    T, C = int(n_frames), len(camera_names)
+    poses = np.full((C, T, _J, 2), np.nan)
+    vstate = np.full((T, C), STATE_NO_FRAME, np.uint8)
+    bbox = np.full((T, C, 4), np.nan)
+    cand = np.full((T, C, k, _J, 2), np.nan)
+    cerr = np.full((T, C, k), np.nan)
+    cidx = np.full((T, C, k), -1, np.int64)
+    edited = np.zeros((T, C), bool)
+    joints = np.full((T, _J, 3), np.nan)
+    state = np.full(T, FRAME_NOT_PROCESSED, np.uint8)
+    cost = np.full(T, np.nan)
+    offsets = np.full((T, C, 2), np.nan)
+    for e in estimates:
+        if e is None or not 0 <= e.frame < T:
+            continue
+        t = e.frame
+        poses[:, t] = e.poses2d
+        vstate[t] = e.view_states
+        bbox[t] = e.bboxes
+        cand[t, :, :e.candidates_px.shape[1]] = e.candidates_px[:, :k]
+        for v, c in enumerate(e.candidates):
+            if c is not None:
+                cerr[t, v, :len(c)] = c.errors[:k]
+                cidx[t, v, :len(c)] = c.indices[:k]
+        edited[t] = e.edited
+        joints[t] = e.joints3d
+        state[t] = e.state
+        cost[t] = e.cost
+        offsets[t] = e.offsets
+    cams = np.array(list(camera_names))
+    p2 = {name: poses[v] for v, name in enumerate(camera_names)}
+    reserved = {"view_state", "bbox", "candidates", "candidate_errors", "candidate_index", "edited", "cameras"}
+    clash = reserved & set(camera_names)
+    if clash:
+        raise InputError("camera names", f"names other than {sorted(reserved)}", f"{sorted(clash)}")
+    p2.update(view_state=vstate, bbox=bbox, candidates=cand, candidate_errors=cerr, candidate_index=cidx,
+              edited=edited, cameras=cams)
+    return {
+        "poses2d": p2,
+        "poses3d": dict(joints=joints, names=np.array(SKELETON_14.joint_names), state=state, cost=cost),
+        "offsets": dict(offsets=offsets, cameras=cams, state=state),
+    }
