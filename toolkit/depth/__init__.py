@@ -1,0 +1,75 @@
+"""Skeleton fitting and tracking in depth-camera point clouds (source 001).
+
+A markerless 13-point skeleton fitted and tracked over time in the point cloud
+of a depth camera, with a fitting cost that does not depend on the depth
+resolution.  Stages, one module each:
+
+=================  ============================================================
+module             stage
+=================  ============================================================
+``readers``        depth files (16-bit PNG, raw uint16, Open3D images) and intrinsics
+``cloud``          depth to points, the gravity-aligned view frame, centroid, PCA
+``mask``           the user mask (given, or background model + components)
+``normals``        normal maps from depth gradients with a 3 x 3 kernel
+``orus``           the orthographic user grid (fixed bin size)
+``curvature``      curvature centres and osculating spheres
+``radial``         the radial-distance profile and its peaks
+``model``          the 13 control points, body primitives and dimensions
+``init``           the initial pose (key points, head candidates, back-tracking)
+``energy``         the fitting energy as stacked residual blocks
+``constraints``    topological, geometric, velocity, collision constraints
+``fit``            local Levenberg-Marquardt and guided global changes
+``moves``          the guided configuration changes
+``stabilise``      threshold-gated progressive filtering
+``complete``       completion of unseen points (Kalman, gravity, IK, limits)
+``tracker``        the per-frame pipeline and its states
+=================  ============================================================
+
+See ``docs/depth_tracking.md``.
+"""
+
+from toolkit.depth.cloud import ViewFrame, depth_to_points, principal_direction, user_cloud
+from toolkit.depth.constraints import ConstraintConfig, LengthEstimator, constraint_violations
+from toolkit.depth.curvature import CONCAVE, CONVEX, PLANAR, CurvatureConfig, curvature_centres
+from toolkit.depth.energy import EnergyConfig, fit_data
+from toolkit.depth.fit import FitConfig, GlobalSearch, fit_local, levenberg_marquardt
+from toolkit.depth.init import InitConfig
+from toolkit.depth.mask import BackgroundModel, MaskConfig, user_mask
+from toolkit.depth.model import BodyDimensions, control_points, rest_pose13
+from toolkit.depth.normals import grid_normals, normal_map
+from toolkit.depth.orus import ORUS_BIN_SIZE_M, OrusConfig, OrusGrid, build_orus
+from toolkit.depth.radial import RadialConfig, radial_profile
+from toolkit.depth.readers import (
+    KINECT_V1_FOCAL_PX,
+    DepthCameraInfo,
+    default_depth_camera,
+    depth_intrinsics_text,
+    list_depth_frames,
+    read_depth,
+    read_depth_intrinsics,
+)
+from toolkit.depth.stabilise import Stabiliser, StabiliserConfig
+from toolkit.depth.complete import CompletionConfig, PointKalman, complete
+from toolkit.depth.tracker import (
+    LOST,
+    RECOVERING,
+    STATE_NAMES,
+    TRACKING,
+    DepthTracker,
+    FrameResult,
+    TrackerConfig,
+)
+
+__all__ = [
+    "ViewFrame", "depth_to_points", "principal_direction", "user_cloud",
+    "ConstraintConfig", "LengthEstimator", "constraint_violations",
+    "CONCAVE", "CONVEX", "PLANAR", "CurvatureConfig", "curvature_centres",
+    "EnergyConfig", "fit_data", "FitConfig", "GlobalSearch", "fit_local", "levenberg_marquardt",
+    "InitConfig", "BackgroundModel", "MaskConfig", "user_mask",
+    "BodyDimensions", "control_points", "rest_pose13", "grid_normals", "normal_map",
+    "ORUS_BIN_SIZE_M", "OrusConfig", "OrusGrid", "build_orus", "RadialConfig", "radial_profile",
+    "KINECT_V1_FOCAL_PX", "DepthCameraInfo", "default_depth_camera", "depth_intrinsics_text",
+    "list_depth_frames", "read_depth", "read_depth_intrinsics",
+    "Stabiliser", "StabiliserConfig", "CompletionConfig", "PointKalman", "complete",
+    "LOST", "RECOVERING", "STATE_NAMES", "TRACKING", "DepthTracker", "FrameResult", "TrackerConfig",
+]

@@ -1,0 +1,680 @@
+"""The fitting energy of the depth tracker (source 001, step 230) as stacked residual blocks.
+
+The energy of a skeleton ``X`` (13 control points, view frame) is a sum of
+squared residuals, in blocks:
+
+``surface``
+    distance to the object: each filled bin of the orthographic grid is given
+    to the nearest primitive of the body model (limb capsules, head / hand /
+    foot spheres, the torso's elliptic cylinder); its residual is its distance
+    to that primitive's axis minus the primitive's radius, i.e. the distance
+    between the bin's osculating sphere of the model's radius and the skeleton;
+``centres``
+    distance to the object measured by the curvature centres: each osculating
+    sphere centre is given to the nearest limb axis or end sphere, residual =
+    its distance to that axis;
+``contour``
+    the skeleton lies behind the visible surface and inside the silhouette:
+    for the control points and the limb midpoints, the distance outside the
+    grid's silhouette (distance transform) and how far in front of the surface
+    they are (only where the camera sees them);
+``previous``
+    distance to the previous (predicted) skeleton;
+``rest``
+    a weak pull of the hands and feet towards where they hang when relaxed
+    (below the shoulders along the torso, below the hips), so that limbs the
+    data say little about hang rather than wander (``rest_sigma_m``);
+``length``, ``topology``, ``collision``, ``ground``
+    the constraints of :mod:`toolkit.depth.constraints`.
+
+Residuals are divided by their standard deviations (:class:`EnergyConfig`), so
+the energy is dimensionless.  Data farther than ``gate_m`` from every
+primitive are *unexplained*: they get no residual in the local minimisation
+but cost ``(gate_m / sigma)^2`` each when energies of different skeletons are
+compared (the global step), so a skeleton that explains more of the user wins.
+Within ``gate_m`` a Huber weight keeps outliers from dominating.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from toolkit.depth.cloud import ViewFrame
+from toolkit.depth.constraints import ConstraintConfig, constraint_residuals
+from toolkit.depth.curvature import PLANAR, CurvatureResult
+from toolkit.depth.model import END_SPHERES, LIMBS, N_POINTS, BodyDimensions
+from toolkit.depth.orus import OrusGrid
+
+__all__ = ["EnergyConfig", "FitData", "fit_data", "Assignment", "assign", "Residuals", "EnergyTerms",
+           "energy_terms", "support_fraction", "N_PRIMITIVES", "PRIMITIVE_NAMES", "TORSO", "CONTOUR_SAMPLES"]
+
+#: Primitive order: the 8 limb capsules, the 5 end spheres, the torso.
+PRIMITIVE_NAMES = tuple(n for n, *_ in LIMBS) + tuple(n for n, *_ in END_SPHERES) + ("torso",)
+N_PRIMITIVES = len(PRIMITIVE_NAMES)
+TORSO = N_PRIMITIVES - 1
+_N_CAPS = len(LIMBS)
+_CAP_A = np.array([a for _, a, _, _ in LIMBS])
+_CAP_B = np.array([b for _, _, b, _ in LIMBS])
+_SPH = np.array([p for _, p, _ in END_SPHERES])
+
+
+def _contour_samples() -> np.ndarray:
+    """Weights (S, 13) of the points checked against the silhouette: control points and limb midpoints."""
+    W = [np.eye(N_POINTS)]
+    for _, a, b, _ in LIMBS:
+        w = np.zeros(N_POINTS)
+        w[a] = w[b] = 0.5
+        W.append(w[None])
+    return np.concatenate(W)
+
+
+#: Weights (S, 13) of the contour samples.
+CONTOUR_SAMPLES = _contour_samples()
+
+
+@dataclass(frozen=True)
+class EnergyConfig:
+    """Standard deviations and gates of the energy terms.
+
+    Attributes
+    ----------
+    surface_sigma_m : float
+        Surface points' distance to the model surface.
+    centre_sigma_m : float
+        Curvature centres' distance to the axes.
+    contour_sigma_m : float
+        Outside the silhouette / in front of the surface.
+    previous_sigma_m : float
+        Distance to the predicted skeleton.
+    rest_sigma_m : float
+        Distance of hands and feet to their relaxed positions.
+    gate_m : float
+        Data farther from every primitive are unexplained ...
+    torso_gate_m : float
+        ... and data are given to the torso only within this distance of its
+        surface (the torso's shape is known well; data farther out belong to a
+        limb in front of it or beside it).
+    centre_gate_m : float
+        Gate of the curvature centres.
+    huber_sigmas : float
+        Residuals beyond this many sigmas are down-weighted (Huber).
+    behind_fraction : float
+        A control point must be at least this fraction of its primitive's radius behind the surface ...
+    max_behind_m : float
+        ... and at most this far behind it (the thickness of a body seen from any side).
+    """
+
+    surface_sigma_m: float = 0.02
+    centre_sigma_m: float = 0.05
+    contour_sigma_m: float = 0.03
+    previous_sigma_m: float = 0.10
+    rest_sigma_m: float = 0.6
+    gate_m: float = 0.25
+    torso_gate_m: float = 0.08
+    centre_gate_m: float = 0.12
+    huber_sigmas: float = 2.0
+    behind_fraction: float = 0.5
+    max_behind_m: float = 0.35
+
+
+@dataclass(frozen=True)
+class FitData:
+    """What the energy compares the skeleton with (view frame).
+
+    Attributes
+    ----------
+    surface : ndarray of shape (B, 3)
+        Filled bins' mean positions.
+    surface_weight : ndarray of shape (B,)
+        1 for occupied bins, less for bins filled from neighbours.
+    planar : ndarray of shape (B,), bool
+        Bins labelled planar.
+    centres : ndarray of shape (K, 3)
+        Osculating sphere centres.
+    centre_weight : ndarray of shape (K,)
+    outside : ndarray of shape (ny, nx)
+        Distance outside the silhouette, metres (0 inside).
+    outside_grad : ndarray of shape (ny, nx, 2)
+        Its gradient (per metre).
+    surface_z : ndarray of shape (ny, nx)
+        Depth of the visible surface per bin (NaN outside).
+    origin : ndarray of shape (2,)
+    bin_size : float
+    frame : ViewFrame
+    index : ndarray of shape (B, 2), int
+        Grid (row, column) of each surface datum.
+    """
+
+    surface: np.ndarray
+    surface_weight: np.ndarray
+    planar: np.ndarray
+    centres: np.ndarray
+    centre_weight: np.ndarray
+    outside: np.ndarray
+    outside_grad: np.ndarray
+    surface_z: np.ndarray
+    origin: np.ndarray
+    bin_size: float
+    frame: ViewFrame
+    index: np.ndarray
+
+    @property
+    def n_surface(self) -> int:
+        return len(self.surface)
+
+
+def fit_data(grid: OrusGrid, curvature: CurvatureResult | None, frame: ViewFrame,
+             filled_weight: float = 0.5, keep: np.ndarray | None = None) -> FitData:
+    """Collect the fitting data of one frame.
+
+    Parameters
+    ----------
+    grid : OrusGrid
+    curvature : CurvatureResult or None
+    frame : ViewFrame
+    filled_weight : float
+        Weight of bins filled from neighbours.
+    keep : ndarray of shape (ny, nx), bool, optional
+        Bins that belong to the user (default: all filled bins); used to leave
+        out a second person touching the user.
+    """
+    sel = grid.filled if keep is None else grid.filled & keep
+    r, c = np.nonzero(sel)
+    surface = grid.mean[r, c]
+    w = np.where(grid.occupied[r, c], 1.0, filled_weight)
+    planar = np.zeros(len(r), bool) if curvature is None else curvature.label[r, c] == PLANAR
+    if curvature is not None and len(curvature.spheres):
+        cen = curvature.spheres.centres
+        cw = np.minimum(curvature.spheres.weights / 2.0, 1.5)
+        if keep is not None:
+            b = np.floor((cen[:, :2] - grid.origin) / grid.bin_size).astype(int)
+            ny, nx = grid.shape
+            ok = (b[:, 0] >= 0) & (b[:, 0] < nx) & (b[:, 1] >= 0) & (b[:, 1] < ny)
+            ok[ok] = keep[b[ok, 1], b[ok, 0]]
+            cen, cw = cen[ok], cw[ok]
+    else:
+        cen, cw = np.zeros((0, 3)), np.zeros(0)
+    inside = sel.astype(np.uint8)
+    if inside.any():
+        dt = cv2.distanceTransform((1 - inside).astype(np.uint8), cv2.DIST_L2, 3).astype(np.float64)
+    else:
+        dt = np.full(sel.shape, 1e3)
+    dt *= grid.bin_size
+    gx = cv2.Sobel(dt, cv2.CV_64F, 1, 0, ksize=3) / (8.0 * grid.bin_size)
+    gy = cv2.Sobel(dt, cv2.CV_64F, 0, 1, ksize=3) / (8.0 * grid.bin_size)
+    zs = np.where(sel, grid.zmin, np.nan)
+    return FitData(surface, w, planar, cen, cw, dt, np.stack([gx, gy], -1), zs, grid.origin.copy(), grid.bin_size,
+                   frame, np.stack([r, c], -1))
+
+
+# ------------------------------------------------------------ geometry
+def _torso_frame(X: np.ndarray, dims: BodyDimensions):
+    """Torso axis ends, unit axes (up, lateral, forward), half-widths at top and bottom, half-depths."""
+    from toolkit.depth.model import L_HIP, L_SHOULDER, R_HIP, R_SHOULDER, TYPICAL_RADII
+
+    s = dims.scale
+    ms = 0.5 * (X[L_SHOULDER] + X[R_SHOULDER])
+    mh = 0.5 * (X[L_HIP] + X[R_HIP])
+    d = ms - mh
+    eu = d / max(np.linalg.norm(d), 1e-9)
+    lat = (X[R_SHOULDER] - X[L_SHOULDER]) + (X[R_HIP] - X[L_HIP])
+    lat_p = lat - (lat @ eu) * eu
+    nl = np.linalg.norm(lat_p)
+    el = lat_p / nl if nl > 1e-9 else np.cross(eu, [0.0, 0.0, 1.0]) / max(np.linalg.norm(np.cross(eu, [0, 0, 1.0])), 1e-9)
+    ef = np.cross(eu, el)
+    top = ms + TYPICAL_RADII["torso_top_extent"] * s * eu
+    bot = mh - TYPICAL_RADII["torso_bottom_extent"] * s * eu
+    ext_s, ext_h = (x * s for x in TYPICAL_RADII["torso_side_extent"])
+    ws = 0.5 * np.linalg.norm(X[R_SHOULDER] - X[L_SHOULDER]) + ext_s
+    wh = 0.5 * np.linalg.norm(X[R_HIP] - X[L_HIP]) + ext_h
+    ds, dh = (x * s for x in TYPICAL_RADII["torso_half_depth"])
+    return top, bot, eu, el, ef, ws, wh, ds, dh, nl
+
+
+def _torso_distance(P: np.ndarray, X: np.ndarray, dims: BodyDimensions):
+    """Signed distance of points (n, 3) to the torso's elliptic cylinder and the quantities for its Jacobian."""
+    top, bot, eu, el, ef, ws, wh, ds, dh, nl = _torso_frame(X, dims)
+    L = max(np.linalg.norm(top - bot), 1e-9)
+    v_raw = ((top - P) @ eu) / L
+    v = np.clip(v_raw, 0.0, 1.0)
+    C = top[None] + v[:, None] * (bot - top)[None]
+    q = P - C
+    qu = q @ eu
+    qp = q - qu[:, None] * eu[None]
+    rp = np.linalg.norm(qp, axis=1)
+    qh = qp / np.maximum(rp, 1e-9)[:, None]
+    cl = qh @ el
+    cf = qh @ ef
+    a = (1 - v) * ws + v * wh
+    b = (1 - v) * ds + v * dh
+    rho = 1.0 / np.sqrt(cl ** 2 / a ** 2 + cf ** 2 / b ** 2)
+    d_rad = rp - rho
+    beyond = (v_raw - v) * L
+    d = np.where(np.abs(beyond) > 1e-9, np.sqrt(np.maximum(d_rad, 0.0) ** 2 + beyond ** 2) * np.sign(
+        np.maximum(d_rad, 0.0) + np.abs(beyond)), d_rad)
+    aux = dict(v=v, qh=qh, cl=cl, a=a, b=b, rho=rho, eu=eu, el=el, nl=nl, rp=rp, beyond=beyond, d_rad=d_rad)
+    return d, aux
+
+
+def _capsule_distances(P: np.ndarray, X: np.ndarray, radii: np.ndarray):
+    """Distances (n, 8) of points to the limb capsules' surfaces, with projections t and unit offsets."""
+    A = X[_CAP_A]
+    B = X[_CAP_B]
+    AB = B - A                                            # (8, 3)
+    L2 = np.maximum(np.einsum("ij,ij->i", AB, AB), 1e-12)
+    AP = P[:, None, :] - A[None]                           # (n, 8, 3)
+    t = np.clip(np.einsum("nij,ij->ni", AP, AB) / L2, 0.0, 1.0)
+    q = AP - t[..., None] * AB[None]
+    dist = np.linalg.norm(q, axis=-1)
+    r = radii[:, 0][None] + t * (radii[:, 1] - radii[:, 0])[None]
+    return dist - r, dist, t, q
+
+
+def _sphere_distances(P: np.ndarray, X: np.ndarray, radii: np.ndarray):
+    q = P[:, None, :] - X[_SPH][None]
+    dist = np.linalg.norm(q, axis=-1)
+    return dist - radii[None], dist, q
+
+
+def _radii(dims: BodyDimensions) -> tuple[np.ndarray, np.ndarray]:
+    caps = np.array([dims.radius(key) for *_, key in LIMBS])
+    sph = np.array([dims.radius(key) for *_, key in END_SPHERES])
+    return caps, sph
+
+
+# ---------------------------------------------------------- assignment
+@dataclass(frozen=True)
+class Assignment:
+    """Which primitive explains each datum.
+
+    Attributes
+    ----------
+    surface_prim : ndarray of shape (B,), int
+        Primitive index (see :data:`PRIMITIVE_NAMES`), -1 when unexplained.
+    surface_dist : ndarray of shape (B,)
+        Signed distance to that primitive's surface, metres.
+    centre_prim : ndarray of shape (K,), int
+        Primitive of each curvature centre (capsules and end spheres only), -1 when unexplained.
+    centre_dist : ndarray of shape (K,)
+    """
+
+    surface_prim: np.ndarray
+    surface_dist: np.ndarray
+    centre_prim: np.ndarray
+    centre_dist: np.ndarray
+
+    def explained_fraction(self) -> float:
+        n = len(self.surface_prim)
+        return float((self.surface_prim >= 0).mean()) if n else 0.0
+
+
+def assign(data: FitData, X: np.ndarray, dims: BodyDimensions, config: EnergyConfig) -> Assignment:
+    """Give every datum to its nearest primitive (or none beyond the gates)."""
+    cr, sr = _radii(dims)
+    P = data.surface
+    if len(P):
+        dc, _, _, _ = _capsule_distances(P, X, cr)
+        ds, _, _ = _sphere_distances(P, X, sr)
+        dt, _ = _torso_distance(P, X, dims)
+        D = np.abs(np.concatenate([dc, ds, dt[:, None]], axis=1))
+        gates = np.full(N_PRIMITIVES, config.gate_m)
+        gates[TORSO] = config.torso_gate_m
+        D = np.where(D <= gates, D, np.inf)
+        k = np.argmin(D, axis=1)
+        d = np.concatenate([dc, ds, dt[:, None]], axis=1)[np.arange(len(P)), k]
+        k = np.where(np.isfinite(D[np.arange(len(P)), k]), k, -1)
+    else:
+        k, d = np.zeros(0, int), np.zeros(0)
+    C = data.centres
+    if len(C):
+        _, dc, _, _ = _capsule_distances(C, X, cr)
+        _, ds, _ = _sphere_distances(C, X, np.zeros(len(sr)))
+        D = np.concatenate([dc, ds], axis=1)
+        kc = np.argmin(D, axis=1)
+        dcen = D[np.arange(len(C)), kc]
+        kc = np.where(dcen <= config.centre_gate_m, kc, -1)
+    else:
+        kc, dcen = np.zeros(0, int), np.zeros(0)
+    return Assignment(k, d, kc, dcen)
+
+
+# ------------------------------------------------------------ residuals
+class Residuals:
+    """The stacked residual vector and its Jacobian for a fixed assignment.
+
+    Parameters
+    ----------
+    data : FitData
+    assignment : Assignment
+    dims : BodyDimensions
+    X_pred : ndarray of shape (13, 3)
+        Predicted skeleton (the "previous skeleton" term).
+    w_prev : ndarray of shape (13,)
+        Per-point weights of the previous-skeleton term (0 = off).
+    config : EnergyConfig
+    constraints : ConstraintConfig
+    ground_y : float or None
+        View-frame y of the ground.
+    """
+
+    BLOCKS = ("surface", "centres", "contour", "previous", "rest", "length", "topology", "collision", "ground")
+
+    def __init__(self, data: FitData, assignment: Assignment, dims: BodyDimensions, X_pred: np.ndarray,
+                 w_prev: np.ndarray, config: EnergyConfig, constraints: ConstraintConfig, ground_y=None,
+                 X_ref: np.ndarray | None = None):
+        self.data = data
+        self.dims = dims
+        self.config = config
+        self.constraints = constraints
+        self.X_pred = np.asarray(X_pred, float)
+        self.w_prev = np.asarray(w_prev, float)
+        self.ground_y = ground_y
+        self.cap_r, self.sph_r = _radii(dims)
+        a = assignment
+        self.s_idx = np.nonzero(a.surface_prim >= 0)[0]
+        self.s_prim = a.surface_prim[self.s_idx]
+        # Huber weights from the distances at assignment time
+        k = config.huber_sigmas * config.surface_sigma_m
+        ad = np.abs(a.surface_dist[self.s_idx])
+        self.s_w = data.surface_weight[self.s_idx] * np.sqrt(np.minimum(1.0, k / np.maximum(ad, 1e-9))) \
+            / config.surface_sigma_m
+        self.c_idx = np.nonzero(a.centre_prim >= 0)[0]
+        self.c_prim = a.centre_prim[self.c_idx]
+        kc = config.huber_sigmas * config.centre_sigma_m
+        adc = np.abs(a.centre_dist[self.c_idx])
+        self.c_w = data.centre_weight[self.c_idx] * np.sqrt(np.minimum(1.0, kc / np.maximum(adc, 1e-9))) \
+            / config.centre_sigma_m
+        self.sizes = None
+        self._cache_x = None
+        self._cache = None
+
+    # ---------------------------------------------------------------- data
+    def _points_block(self, X, P, prim, w, with_radius: bool):
+        """Residuals and Jacobian rows of points given to capsules / spheres / the torso."""
+        n = len(P)
+        r = np.zeros(n)
+        J = np.zeros((n, N_POINTS, 3))
+        if n == 0:
+            return r, J
+        caps = prim < _N_CAPS
+        if caps.any():
+            i = np.nonzero(caps)[0]
+            k = prim[i]
+            A, B = X[_CAP_A[k]], X[_CAP_B[k]]
+            AB = B - A
+            L2 = np.maximum(np.einsum("ij,ij->i", AB, AB), 1e-12)
+            AP = P[i] - A
+            t = np.clip(np.einsum("ij,ij->i", AP, AB) / L2, 0.0, 1.0)
+            q = AP - t[:, None] * AB
+            dist = np.linalg.norm(q, axis=1)
+            qh = q / np.maximum(dist, 1e-9)[:, None]
+            rad = self.cap_r[k, 0] + t * (self.cap_r[k, 1] - self.cap_r[k, 0]) if with_radius else 0.0
+            r[i] = dist - rad
+            J[i, _CAP_A[k]] = -(1 - t)[:, None] * qh
+            J[i, _CAP_B[k]] = -t[:, None] * qh
+        sph = (prim >= _N_CAPS) & (prim < TORSO)
+        if sph.any():
+            i = np.nonzero(sph)[0]
+            k = prim[i] - _N_CAPS
+            q = P[i] - X[_SPH[k]]
+            dist = np.linalg.norm(q, axis=1)
+            r[i] = dist - (self.sph_r[k] if with_radius else 0.0)
+            J[i, _SPH[k]] = -q / np.maximum(dist, 1e-9)[:, None]
+        tor = prim == TORSO
+        if tor.any():
+            i = np.nonzero(tor)[0]
+            r[i], J[i] = self._torso_block(X, P[i])
+        return r * w, J * w[:, None, None]
+
+    def _torso_block(self, X, P):
+        from toolkit.depth.model import L_HIP, L_SHOULDER, R_HIP, R_SHOULDER
+
+        d, x = _torso_distance(P, X, self.dims)
+        n = len(P)
+        J = np.zeros((n, N_POINTS, 3))
+        v, qh, cl, a, b, rho = x["v"], x["qh"], x["cl"], x["a"], x["b"], x["rho"]
+        # distance to the axis line through ms and mh: d/dms = -(1 - w) qh, d/dmh = -w qh,
+        # w the projection parameter of the point along ms -> mh
+        ms = 0.5 * (X[L_SHOULDER] + X[R_SHOULDER])
+        mh = 0.5 * (X[L_HIP] + X[R_HIP])
+        axis = mh - ms
+        wpar = ((P - ms) @ axis) / max(axis @ axis, 1e-12)
+        # moving the axis also turns the direction qh of the point, hence its angle on the ellipse
+        drho_dcl = -rho ** 3 * cl * (1.0 / a ** 2 - 1.0 / b ** 2)
+        el = x["el"]
+        gC = -qh + (drho_dcl / np.maximum(x["rp"], 1e-6))[:, None] * (el[None] - cl[:, None] * qh)
+        for idx, wgt in ((L_SHOULDER, (1 - wpar) / 2), (R_SHOULDER, (1 - wpar) / 2), (L_HIP, wpar / 2),
+                         (R_HIP, wpar / 2)):
+            J[:, idx] += wgt[:, None] * gC
+        # the ellipse radius rho depends on the half-width a (shoulder and hip spans) and on the lateral axis
+        drho_da = rho ** 3 * cl ** 2 / a ** 3
+        es = X[R_SHOULDER] - X[L_SHOULDER]
+        eh = X[R_HIP] - X[L_HIP]
+        es_u = es / max(np.linalg.norm(es), 1e-9)
+        eh_u = eh / max(np.linalg.norm(eh), 1e-9)
+        ga_s = (-drho_da * (1 - v) / 2)[:, None] * es_u[None]
+        ga_h = (-drho_da * v / 2)[:, None] * eh_u[None]
+        J[:, R_SHOULDER] += ga_s
+        J[:, L_SHOULDER] -= ga_s
+        J[:, R_HIP] += ga_h
+        J[:, L_HIP] -= ga_h
+        eu, nl = x["eu"], x["nl"]
+        Pm = (np.eye(3) - np.outer(el, el)) @ (np.eye(3) - np.outer(eu, eu)) / max(nl, 1e-9)
+        g_lat = (-drho_dcl)[:, None] * (qh @ Pm.T)
+        J[:, R_SHOULDER] += g_lat
+        J[:, R_HIP] += g_lat
+        J[:, L_SHOULDER] -= g_lat
+        J[:, L_HIP] -= g_lat
+        # beyond the ends: d = sqrt(max(d_rad, 0)^2 + beyond^2), the axial excess moving with the nearer end
+        beyond = x["beyond"]
+        out = np.abs(beyond) > 1e-9
+        if out.any():
+            dd = np.maximum(d[out], 1e-9)
+            kr = np.maximum(x["d_rad"][out], 0.0) / dd
+            kb = beyond[out] / dd
+            Jo = J[out] * kr[:, None, None]
+            above = x["v"][out] <= 0.0
+            ends = np.where(above[:, None], np.array([L_SHOULDER, R_SHOULDER])[None], np.array([L_HIP, R_HIP])[None])
+            rows = np.arange(len(kb))
+            for c in range(2):
+                Jo[rows, ends[:, c]] += 0.5 * kb[:, None] * eu[None]
+            J[out] = Jo
+        return d, J
+
+    def _contour_block(self, X):
+        data = self.data
+        cfg = self.config
+        S = CONTOUR_SAMPLES @ X                                      # (S, 3)
+        nS = len(S)
+        w = 1.0 / cfg.contour_sigma_m
+        r = np.zeros(2 * nS)
+        J = np.zeros((2 * nS, N_POINTS, 3))
+        uv = data.frame.project(S)
+        wimg, himg = data.frame.camera.size
+        seen = np.all(np.isfinite(uv), axis=1) & (uv[:, 0] >= 1) & (uv[:, 0] <= wimg - 2) & \
+            (uv[:, 1] >= 1) & (uv[:, 1] <= himg - 2)
+        g = (S[:, :2] - data.origin) / data.bin_size - 0.5
+        ny, nx = data.outside.shape
+        gi = np.clip(np.round(g[:, 1]).astype(int), 0, ny - 1)
+        gj = np.clip(np.round(g[:, 0]).astype(int), 0, nx - 1)
+        ingrid = (g[:, 0] >= -0.5) & (g[:, 0] <= nx - 0.5) & (g[:, 1] >= -0.5) & (g[:, 1] <= ny - 0.5)
+        # outside the silhouette: bilinear distance transform
+        x0 = np.clip(np.floor(g[:, 0]).astype(int), 0, nx - 2)
+        y0 = np.clip(np.floor(g[:, 1]).astype(int), 0, ny - 2)
+        fx = np.clip(g[:, 0] - x0, 0, 1)
+        fy = np.clip(g[:, 1] - y0, 0, 1)
+        D = data.outside
+        val = (D[y0, x0] * (1 - fx) * (1 - fy) + D[y0, x0 + 1] * fx * (1 - fy) + D[y0 + 1, x0] * (1 - fx) * fy
+               + D[y0 + 1, x0 + 1] * fx * fy)
+        act = seen & ingrid & (val > 0)
+        r[:nS] = np.where(act, val, 0.0) * w
+        gx = ((D[y0, x0 + 1] - D[y0, x0]) * (1 - fy) + (D[y0 + 1, x0 + 1] - D[y0 + 1, x0]) * fy) / data.bin_size
+        gy = ((D[y0 + 1, x0] - D[y0, x0]) * (1 - fx) + (D[y0 + 1, x0 + 1] - D[y0, x0 + 1]) * fx) / data.bin_size
+        grad = np.stack([gx, gy], -1)
+        Jin = np.zeros((nS, 3))
+        Jin[:, :2] = np.where(act[:, None], grad, 0.0) * w
+        J[:nS] = CONTOUR_SAMPLES[:, :, None] * Jin[:, None, :]
+        # behind the visible surface, but not deeper than a body can be
+        zs = data.surface_z[gi, gj]
+        rad = self._sample_radius()
+        front = zs + cfg.behind_fraction * rad - S[:, 2]
+        back = S[:, 2] - (zs + cfg.max_behind_m)
+        ok = seen & ingrid & np.isfinite(zs)
+        act2 = ok & (front > 0)
+        act3 = ok & (back > 0)
+        r[nS:] = (np.where(act2, front, 0.0) + np.where(act3, back, 0.0)) * w
+        Jb = np.zeros((nS, 3))
+        Jb[:, 2] = np.where(act2, -w, 0.0) + np.where(act3, w, 0.0)
+        J[nS:] = CONTOUR_SAMPLES[:, :, None] * Jb[:, None, :]
+        return r, J
+
+    def _rest_block(self, X):
+        from toolkit.depth.model import L_FOOT, L_HAND, L_HIP, L_SHOULDER, R_FOOT, R_HAND, R_HIP, R_SHOULDER
+
+        w = 1.0 / self.config.rest_sigma_m
+        down = 0.5 * (X[L_HIP] + X[R_HIP]) - 0.5 * (X[L_SHOULDER] + X[R_SHOULDER])
+        down = down / max(np.linalg.norm(down), 1e-9)
+        r = np.zeros(12)
+        J = np.zeros((12, N_POINTS, 3))
+        for k, (base, end, dirn) in enumerate(((L_SHOULDER, L_HAND, down), (R_SHOULDER, R_HAND, down),
+                                               (L_HIP, L_FOOT, np.array([0.0, 1.0, 0.0])),
+                                               (R_HIP, R_FOOT, np.array([0.0, 1.0, 0.0])))):
+            L = self._rest_lengths[k]
+            r[3 * k:3 * k + 3] = w * (X[end] - X[base] - L * dirn)
+            for c in range(3):
+                J[3 * k + c, end, c] = w
+                J[3 * k + c, base, c] = -w
+        return r, J
+
+    @property
+    def _rest_lengths(self):
+        from toolkit.depth.model import L_ELBOW, L_FOOT, L_HAND, L_HIP, L_KNEE, L_SHOULDER
+
+        d = self.dims
+        arm = 0.97 * (d.length(L_SHOULDER, L_ELBOW) + d.length(L_ELBOW, L_HAND))
+        leg = 0.97 * (d.length(L_HIP, L_KNEE) + d.length(L_KNEE, L_FOOT))
+        return (arm, arm, leg, leg)
+
+    def _sample_radius(self):
+        if self.sizes is None:
+            from toolkit.depth.model import HEAD, L_FOOT, L_HAND, R_FOOT, R_HAND
+
+            rad = np.full(N_POINTS, self.dims.radius("upper_arm")[1])
+            rad[HEAD] = self.sph_r[0]
+            rad[[L_HAND, R_HAND]] = self.dims.radius("hand") * 0.5
+            rad[[L_FOOT, R_FOOT]] = self.dims.radius("foot") * 0.5
+            torso = self.dims.radius("torso_half_depth")[0]
+            from toolkit.depth.model import L_HIP, L_SHOULDER, R_HIP, R_SHOULDER
+
+            rad[[L_SHOULDER, R_SHOULDER, L_HIP, R_HIP]] = 0.6 * torso
+            mids = self.cap_r.mean(1)
+            self.sizes = np.concatenate([rad, mids])
+        return self.sizes
+
+    # ------------------------------------------------------------- assembly
+    def evaluate(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residual vector (M,) and Jacobian (M, 39) at ``x`` (39,)."""
+        if self._cache_x is not None and np.array_equal(x, self._cache_x):
+            return self._cache
+        X = x.reshape(N_POINTS, 3)
+        blocks = []
+        rs, Js = self._points_block(X, self.data.surface[self.s_idx], self.s_prim, self.s_w, True)
+        blocks.append((rs, Js))
+        rc, Jc = self._points_block(X, self.data.centres[self.c_idx], self.c_prim, self.c_w, False)
+        blocks.append((rc, Jc))
+        blocks.append(self._contour_block(X))
+        wp = self.w_prev / self.config.previous_sigma_m
+        rp = ((X - self.X_pred) * wp[:, None]).ravel()
+        Jp = np.zeros((3 * N_POINTS, N_POINTS, 3))
+        idx = np.arange(3 * N_POINTS)
+        Jp[idx, idx // 3, idx % 3] = np.repeat(wp, 3)
+        blocks.append((rp, Jp))
+        blocks.append(self._rest_block(X))
+        for rr, JJ in constraint_residuals(X, self.dims, self.constraints, self.ground_y):
+            blocks.append((rr, JJ))
+        self.sizes_of_blocks = [len(b[0]) for b in blocks]
+        r = np.concatenate([b[0] for b in blocks])
+        J = np.concatenate([b[1].reshape(len(b[0]), 3 * N_POINTS) for b in blocks], axis=0)
+        self._cache_x = x.copy()
+        self._cache = (r, J)
+        return r, J
+
+    def fun(self, x):
+        return self.evaluate(x)[0]
+
+    def jac(self, x):
+        return self.evaluate(x)[1]
+
+    def block_energies(self, x: np.ndarray) -> dict:
+        """Sum of squared residuals per block at ``x``."""
+        r, _ = self.evaluate(x)
+        out = {}
+        k = 0
+        names = list(self.BLOCKS)
+        for name, n in zip(names, self.sizes_of_blocks):
+            out[name] = float(np.sum(r[k:k + n] ** 2))
+            k += n
+        return out
+
+
+def support_fraction(data: FitData, X: np.ndarray, config: EnergyConfig = EnergyConfig()) -> float:
+    """Fraction of the skeleton's contour samples seen by the camera that the data support.
+
+    A sample (control point or limb midpoint) inside the image is supported when
+    its grid bin belongs to the user and its depth is between the visible surface
+    (minus 10 cm) and ``max_behind_m`` behind it.  A skeleton that explains all
+    the data but sits beside or behind the user scores low.
+    """
+    S = CONTOUR_SAMPLES @ np.asarray(X, float)
+    uv = data.frame.project(S)
+    wimg, himg = data.frame.camera.size
+    seen = np.all(np.isfinite(uv), axis=1) & (uv[:, 0] >= 0) & (uv[:, 0] <= wimg - 1) & (uv[:, 1] >= 0) & \
+        (uv[:, 1] <= himg - 1)
+    if not seen.any():
+        return 0.0
+    g = np.round((S[:, :2] - data.origin) / data.bin_size - 0.5).astype(int)
+    ny, nx = data.outside.shape
+    ing = (g[:, 0] >= 0) & (g[:, 0] < nx) & (g[:, 1] >= 0) & (g[:, 1] < ny)
+    zs = np.full(len(S), np.nan)
+    zs[ing] = data.surface_z[g[ing, 1], g[ing, 0]]
+    with np.errstate(invalid="ignore"):
+        ok = ing & np.isfinite(zs) & (S[:, 2] > zs - 0.1) & (S[:, 2] < zs + config.max_behind_m)
+    return float(ok[seen].mean())
+
+
+@dataclass(frozen=True)
+class EnergyTerms:
+    """Energy of a skeleton with the data assigned at that skeleton.
+
+    Attributes
+    ----------
+    terms : dict
+        Sum of squared residuals per block, plus ``unexplained`` (the penalty
+        of data beyond the gates).
+    total : float
+    explained : float
+        Fraction of surface bins explained.
+    assignment : Assignment
+    """
+
+    terms: dict = field(default_factory=dict)
+    total: float = 0.0
+    explained: float = 0.0
+    assignment: Assignment | None = None
+
+
+def energy_terms(data: FitData, X: np.ndarray, dims: BodyDimensions, X_pred: np.ndarray, w_prev: np.ndarray,
+                 config: EnergyConfig, constraints: ConstraintConfig, ground_y=None) -> EnergyTerms:
+    """The energy of ``X`` (13, 3), re-assigning the data first (used to compare skeletons)."""
+    a = assign(data, X, dims, config)
+    res = Residuals(data, a, dims, X_pred, w_prev, config, constraints, ground_y)
+    terms = res.block_energies(np.asarray(X, float).ravel())
+    n_un = int((a.surface_prim < 0).sum())
+    wun = data.surface_weight[a.surface_prim < 0].sum() if n_un else 0.0
+    terms["unexplained"] = float(wun * (config.gate_m / config.surface_sigma_m) ** 2 * 0.25)
+    nc = int((a.centre_prim < 0).sum())
+    terms["unexplained"] += float(nc * 0.25 * (config.centre_gate_m / config.centre_sigma_m) ** 2 * 0.5)
+    return EnergyTerms(terms, float(sum(terms.values())), a.explained_fraction(), a)

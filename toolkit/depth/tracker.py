@@ -1,0 +1,567 @@
+"""The depth tracker: one depth frame in, 13 control points and a state out (source 001, figure 2).
+
+Per frame: user mask -> normals -> user point cloud (view frame) -> ORUS grid
+-> curvature centres and osculating spheres -> radial profile -> initial pose
+(when there is no previous skeleton) or local + global fitting from the
+predicted skeleton -> hard constraints -> stabilisation -> completion ->
+output in world (camera pose known) or camera coordinates.
+
+Per-frame **states**:
+
+``lost`` (0)
+    no user in the frame (empty or all-invalid depth, mask too small) or no
+    initial pose could be found; joints are NaN;
+``recovering`` (1)
+    a skeleton was (re)initialised and has not yet fitted well for
+    :attr:`TrackerConfig.confirm_frames` frames, or the fit has been poor;
+``tracking`` (2)
+    the fit explains the user well.
+
+A skeleton that fits poorly for :attr:`TrackerConfig.reinit_after` frames is
+dropped and searched for again.  When tracking, grid bins farther than
+:attr:`TrackerConfig.person_gate_m` from the predicted body are left out, so a
+second person touching the user is not fitted (the frame's ``reason`` says
+``"touching"``).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from toolkit.cameras import Camera
+from toolkit.depth.cloud import ViewFrame, user_cloud
+from toolkit.depth.complete import CompletionConfig, PointKalman, complete
+from toolkit.depth.constraints import (
+    ConstraintConfig, LengthEstimator, enforce_collisions, enforce_joint_limits, enforce_lengths, enforce_velocity,
+)
+from toolkit.depth.curvature import CONVEX, PLANAR, CurvatureConfig, curvature_centres
+from toolkit.depth.energy import (
+    END_SPHERES, LIMBS, EnergyConfig, FitData, _capsule_distances, _radii, _sphere_distances,
+    _torso_distance, fit_data, support_fraction,
+)
+from toolkit.depth.fit import FitConfig, GlobalSearch, LocalFit, fit_local
+from toolkit.depth.init import InitConfig, head_candidates, initial_poses, key_points
+from toolkit.depth.mask import BackgroundModel, MaskConfig, user_mask
+from toolkit.depth.model import N_POINTS, BodyDimensions
+from toolkit.depth.moves import MoveContext, default_moves
+from toolkit.depth.normals import normal_map
+from toolkit.depth.orus import OrusConfig, build_orus
+from toolkit.depth.radial import RadialConfig, radial_profile
+from toolkit.depth.stabilise import Stabiliser, StabiliserConfig
+from toolkit.errors import InputError
+from toolkit.observe import as_observer
+from toolkit.skeleton import SKELETON_13
+
+__all__ = ["LOST", "RECOVERING", "TRACKING", "STATE_NAMES", "TrackerConfig", "FrameResult", "DepthTracker"]
+
+LOST, RECOVERING, TRACKING = 0, 1, 2
+STATE_NAMES = ("lost", "recovering", "tracking")
+
+#: Which primitives support each control point (for the observed flags).
+_SUPPORT = {
+    0: {"head"},
+    1: {"l_upper_arm", "torso"}, 2: {"r_upper_arm", "torso"},
+    3: {"l_upper_arm", "l_forearm"}, 4: {"r_upper_arm", "r_forearm"},
+    5: {"l_forearm", "l_hand"}, 6: {"r_forearm", "r_hand"},
+    7: {"l_thigh", "torso"}, 8: {"r_thigh", "torso"},
+    9: {"l_thigh", "l_shank"}, 10: {"r_thigh", "r_shank"},
+    11: {"l_shank", "l_foot"}, 12: {"r_shank", "r_foot"},
+}
+_PRIM_NAMES = tuple(n for n, *_ in LIMBS) + tuple(n for n, *_ in END_SPHERES) + ("torso",)
+_SUPPORT_MASK = np.array([[name in _SUPPORT[j] for name in _PRIM_NAMES] for j in range(N_POINTS)])
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """Settings of the whole tracker (one frozen config per stage inside).
+
+    Attributes
+    ----------
+    fps : float
+        Frame rate (sets ``dt``).
+    output : {"world", "camera"}
+        Coordinates of the output joints ("world" falls back to camera coordinates
+        when the camera pose is unknown).
+    min_bins : int
+        Fewer filled grid bins than this: no user.
+    confirm_frames : int
+        Good frames before ``recovering`` becomes ``tracking``.
+    reinit_after : int
+        Poor frames before the skeleton is searched for again.
+    good_explained : float
+        A fit is good when it explains at least this fraction of the user's bins ...
+    good_support : float
+        ... and the data support at least this fraction of its samples seen by the
+        camera (:func:`toolkit.depth.energy.support_fraction`).
+    person_gate_m : float
+        Bins farther than this from the predicted body are not the user ...
+    touching_fraction : float
+        ... when they are more than this fraction of the user's bins (a second
+        person touching the user); fewer far bins are the user moving away from
+        the prediction and are kept.
+    support_radius_m : float
+        A control point is observed when grid bins given to its primitives lie this close to it ...
+    support_min_bins : int
+        ... at least this many.
+    prev_weight_tracking, prev_weight_recovering, prev_weight_unseen : float
+        Weights of the previous-skeleton term (the last for points unseen in the previous frame).
+    single_thread_blas : bool
+        Limit BLAS to one thread while processing a frame: the fit multiplies
+        small matrices, which multi-threaded BLAS slows down by 10-30x on a busy machine.
+    """
+
+    mask: MaskConfig = MaskConfig()
+    orus: OrusConfig = OrusConfig(normal_source="pixels")
+    curvature: CurvatureConfig = CurvatureConfig()
+    radial: RadialConfig = RadialConfig()
+    init: InitConfig = InitConfig()
+    energy: EnergyConfig = EnergyConfig()
+    fit: FitConfig = FitConfig()
+    constraints: ConstraintConfig = ConstraintConfig()
+    stabiliser: StabiliserConfig = StabiliserConfig()
+    completion: CompletionConfig = CompletionConfig()
+    fps: float = 30.0
+    output: str = "world"
+    min_bins: int = 25
+    confirm_frames: int = 3
+    reinit_after: int = 8
+    good_explained: float = 0.9
+    good_support: float = 0.8
+    person_gate_m: float = 0.30
+    touching_fraction: float = 0.3
+    support_radius_m: float = 0.15
+    support_min_bins: int = 2
+    prev_weight_tracking: float = 0.3
+    prev_weight_recovering: float = 0.1
+    prev_weight_unseen: float = 1.0
+    single_thread_blas: bool = True
+
+    def __post_init__(self):
+        if self.output not in ("world", "camera"):
+            raise InputError("TrackerConfig.output", "'world' or 'camera'", repr(self.output))
+        if not self.fps > 0:
+            raise InputError("TrackerConfig.fps", "a positive frame rate", repr(self.fps))
+
+
+@dataclass(frozen=True)
+class FrameResult:
+    """The tracker's answer for one frame.
+
+    Attributes
+    ----------
+    index : int
+    state : int
+        :data:`LOST`, :data:`RECOVERING` or :data:`TRACKING`.
+    joints : ndarray of shape (13, 3)
+        Output coordinates (world or camera), metres; NaN when lost.
+    joints_view : ndarray of shape (13, 3)
+        The same in the view frame.
+    observed : ndarray of shape (13,), bool
+        Points supported by this frame's data (the others were completed).
+    explained : float
+        Fraction of the user's grid bins the skeleton explains.
+    supported : float
+        Fraction of the skeleton's samples seen by the camera that the data support.
+    energy : float
+    reason : str
+        Why the state is what it is (``"ok"``, ``"no depth"``, ``"no user"``, ``"init"``,
+        ``"poor fit"``, ``"touching"``, ...).
+    n_points : int
+        User points.
+    timings : dict
+        CPU seconds of the calling thread per stage (``mask_cloud``, ``orus_curvature``,
+        ``fit``, ``post``, ``total``); CPU rather than wall time so that other
+        processes on the machine do not inflate it.
+    """
+
+    index: int
+    state: int
+    joints: np.ndarray
+    joints_view: np.ndarray
+    observed: np.ndarray
+    explained: float = 0.0
+    supported: float = 0.0
+    energy: float = float("nan")
+    reason: str = "ok"
+    n_points: int = 0
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def state_name(self) -> str:
+        return STATE_NAMES[self.state]
+
+
+_CONTROLLER = None
+
+
+def _single_thread_blas():
+    """A context limiting BLAS to one thread (small matrices are much slower multi-threaded on a busy machine)."""
+    global _CONTROLLER
+    try:
+        from threadpoolctl import ThreadpoolController
+    except ImportError:  # pragma: no cover - threadpoolctl comes with scikit-learn
+        import contextlib
+
+        return contextlib.nullcontext()
+    if _CONTROLLER is None:
+        _CONTROLLER = ThreadpoolController()
+    return _CONTROLLER.limit(limits=1, user_api="blas")
+
+
+def _nan13():
+    return np.full((N_POINTS, 3), np.nan)
+
+
+class DepthTracker:
+    """Fit and track the 13-point skeleton in a sequence of depth frames.
+
+    Parameters
+    ----------
+    camera : Camera
+        The depth camera (intrinsics; ``cam_from_world`` used if ``pose_known``).
+    pose_known : bool
+        Whether ``camera.cam_from_world`` is the true pose (gives gravity, the
+        ground and world output).
+    config : TrackerConfig
+    background : BackgroundModel or ndarray of shape (H, W), optional
+        Depth of the empty scene for the user mask.
+    rng : numpy.random.Generator or int or None
+        Seeds the key-point clustering.
+    observer : Observer, optional
+        Receives the point cloud, ORUS grid, normals, curvature centres and
+        spheres, radial profile, energy terms per iteration and skeleton.
+
+    Examples
+    --------
+    >>> tracker = DepthTracker(camera, background=bg)          # doctest: +SKIP
+    >>> for depth in frames:                                   # doctest: +SKIP
+    ...     result = tracker.process(depth)
+    """
+
+    def __init__(self, camera: Camera, pose_known: bool = True, config: TrackerConfig = TrackerConfig(),
+                 background=None, rng=None, observer=None):
+        if not isinstance(camera, Camera):
+            raise InputError("camera", "a toolkit.cameras.Camera", type(camera).__name__)
+        self.camera = camera
+        self.frame = ViewFrame.from_camera(camera, pose_known)
+        self.config = config
+        if background is not None and not isinstance(background, BackgroundModel):
+            background = BackgroundModel(np.asarray(background, np.float32))
+        if background is not None and background.depth.shape != (camera.size[1], camera.size[0]):
+            raise InputError("background", f"a depth map of shape {(camera.size[1], camera.size[0])}",
+                             f"shape {background.depth.shape}")
+        self.background = background
+        self.rng = np.random.default_rng(rng)
+        self.observer = observer
+        self._obs = as_observer(observer)
+        self.dt = 1.0 / config.fps
+        self.search = GlobalSearch(default_moves(), config.fit)
+        self.stabiliser = Stabiliser(N_POINTS, config.stabiliser)
+        self.index = 0
+        self._reported_static = False
+        self.reset()
+
+    # ---------------------------------------------------------------- state
+    def reset(self) -> None:
+        """Forget the user (the next frame starts with the initial-pose search)."""
+        self.X = None                  # last output skeleton, view frame
+        self.observed_prev = np.ones(N_POINTS, bool)
+        self.dims = None
+        self.lengths = None
+        self.kalman = PointKalman(N_POINTS, self.config.completion)
+        self.stabiliser.reset()
+        self.prev_mask = None
+        self.good = 0
+        self.poor = 0
+        self.state = LOST
+
+    @property
+    def ground_y(self):
+        return self.frame.ground_y
+
+    def _lost(self, reason: str, n_points: int = 0, timings=None) -> FrameResult:
+        self.X = None
+        self.kalman = PointKalman(N_POINTS, self.config.completion)
+        self.stabiliser.reset()
+        self.good = self.poor = 0
+        self.state = LOST
+        self.prev_mask = None
+        r = FrameResult(self.index, LOST, _nan13(), _nan13(), np.zeros(N_POINTS, bool), 0.0, 0.0, float("nan"),
+                        reason, n_points, timings or {})
+        self._report_result(r)
+        self.index += 1
+        return r
+
+    # ------------------------------------------------------------ one frame
+    def process(self, depth: np.ndarray, mask: np.ndarray | None = None) -> FrameResult:
+        """Track one depth frame (BLAS limited to one thread meanwhile, see ``TrackerConfig.single_thread_blas``).
+
+        Parameters
+        ----------
+        depth : ndarray of shape (H, W)
+            Float metres, NaN or 0 = no reading (uint16 millimetres are accepted too).
+        mask : ndarray of shape (H, W), bool, optional
+            The user's pixels, if known.
+
+        Returns
+        -------
+        FrameResult
+
+        Raises
+        ------
+        InputError
+            If ``depth`` (or ``mask``) does not have the camera's image shape.
+        """
+        if not self.config.single_thread_blas:
+            return self._process(depth, mask)
+        with _single_thread_blas():
+            return self._process(depth, mask)
+
+    def _process(self, depth, mask) -> FrameResult:
+        cfg = self.config
+        w, h = self.camera.size
+        d = np.asarray(depth)
+        if d.shape != (h, w):
+            raise InputError("depth", f"a depth map of shape ({h}, {w})", f"shape {d.shape}")
+        if d.dtype == np.uint16:
+            d = np.where(d > 0, d.astype(np.float32) / 1000.0, np.nan).astype(np.float32)
+        elif not np.issubdtype(d.dtype, np.floating):
+            raise InputError("depth", "float metres or uint16 millimetres", f"dtype {d.dtype}")
+        timings = {}
+        t0 = time.thread_time()
+        obs = self._obs
+        if self.observer is not None:
+            obs.report("depth", camera=self.camera.name, depth=np.nan_to_num(d, nan=0.0), name="depth",
+                       frame=self.index)
+        if not np.any(np.isfinite(d) & (d > 0)):
+            return self._lost("no depth")
+        um = user_mask(d, self.camera, background=self.background, given=mask, previous=self.prev_mask,
+                       config=cfg.mask)
+        if not um.found:
+            return self._lost("no user")
+        self.prev_mask = um.mask
+        nmap = normal_map(d, self.camera, um.mask) if cfg.orus.normal_source == "pixels" else None
+        cloud = user_cloud(d, um.mask, self.frame, nmap)
+        timings["mask_cloud"] = time.thread_time() - t0
+        if cloud is None:
+            return self._lost("no user")
+        t1 = time.thread_time()
+        predicted = None
+        if self.X is not None:
+            predicted = self.kalman.predict(self.dt)
+            centre = predicted.mean(0)
+        else:
+            centre = cloud.centroid
+        grid = build_orus(cloud.points, centre, cfg.orus, cloud.normals)
+        reason = "ok"
+        keep = None
+        if predicted is not None:
+            keep = self._near_body(grid, predicted)
+            n_far = int((grid.filled & ~keep).sum())
+            if n_far > max(cfg.min_bins, cfg.touching_fraction * grid.filled.sum()):
+                # much more than one body: a second person touches the user; fit only the user's part
+                reason = "touching"
+                grid = replace(grid, filled=grid.filled & keep, occupied=grid.occupied & keep)
+        if grid.filled.sum() < cfg.min_bins:
+            return self._lost("no user", cloud.n_points, timings)
+        curv = curvature_centres(grid, cfg.curvature)
+        centroid = grid.mean[grid.filled].mean(0)
+        profile = radial_profile(grid, centroid, cfg.radial)
+        data = fit_data(grid, curv, self.frame)
+        timings["orus_curvature"] = time.thread_time() - t1
+        t2 = time.thread_time()
+        if self.observer is not None:
+            self._report_data(cloud, grid, curv, profile)
+        if self.X is None:
+            fit = self._initialise(grid, profile, cloud, data)
+            if fit is None:
+                timings["fit"] = time.thread_time() - t2
+                return self._lost("no initial pose", cloud.n_points, timings)
+            X_fit = fit.X
+            state = RECOVERING
+            reason = "init"
+            X_before = None
+        else:
+            w_prev = np.full(N_POINTS, cfg.prev_weight_tracking if self.state == TRACKING
+                             else cfg.prev_weight_recovering)
+            w_prev[~self.observed_prev] = cfg.prev_weight_unseen
+            fit = fit_local(predicted, data, self.dims, predicted, w_prev, cfg.fit, cfg.energy, cfg.constraints,
+                            self.ground_y, self.observer, self.index)
+            if fit.energy.explained < cfg.fit.move_trigger_explained or self.index % cfg.fit.move_every == 0:
+                ctx = MoveContext(profile=profile, grid=grid, data=data, dims=self.dims, frame=self.frame,
+                                  predicted=predicted, tracker=self, assignment=fit.energy.assignment,
+                                  data_index=data.index)
+                fit, won = self.search.run(fit, ctx, lambda X0: fit_local(
+                    X0, data, self.dims, predicted, w_prev, cfg.fit, cfg.energy, cfg.constraints, self.ground_y),
+                    observer=self.observer, frame=self.index)
+            X_fit = fit.X
+            X_before = self.X
+            state = self.state
+        timings["fit"] = time.thread_time() - t2
+        t3 = time.thread_time()
+        # hard constraints
+        X, _ = enforce_velocity(X_fit, X_before, self.dt, cfg.constraints)
+        X, _ = enforce_collisions(X, X_before, self.dims, cfg.constraints)
+        X = enforce_lengths(X)
+        X, _ = enforce_joint_limits(X)
+        observed = self._observed(data, fit, X)
+        quality_ok, supported = self._quality(data, fit, X)
+        # stabilisation and completion
+        Xs = self.stabiliser(X, observed)
+        Xc = complete(Xs, observed, predicted, self.dims, self.dt, cfg.completion, self.ground_y, self.X)
+        if not self.kalman.initialised:
+            self.kalman.reset(Xc)
+        else:
+            self.kalman.update(Xc, observed)
+        # states
+        if quality_ok:
+            self.good += 1
+            self.poor = 0
+        else:
+            self.poor += 1
+            self.good = 0
+        if state != TRACKING and self.good >= cfg.confirm_frames:
+            state = TRACKING
+        elif state == TRACKING and not quality_ok:
+            state = RECOVERING
+            reason = "poor fit" if reason == "ok" else reason
+        if quality_ok and state == TRACKING and observed.all():
+            self.dims = self.dims.with_lengths(self.lengths.update(Xc, np.ones(len(self.dims.lengths), bool)))
+        self.X = Xc
+        self.observed_prev = observed
+        self.state = state
+        if self.poor >= cfg.reinit_after:
+            self.X = None           # search again next frame
+            self.poor = 0
+        timings["post"] = time.thread_time() - t3
+        timings["total"] = time.thread_time() - t0
+        out = self.frame.to_world(Xc) if cfg.output == "world" else self.frame.to_camera(Xc)
+        r = FrameResult(self.index, state, out, Xc, observed, fit.energy.explained, supported, fit.energy.total,
+                        reason, cloud.n_points, timings)
+        self._report_result(r, fit)
+        self.index += 1
+        return r
+
+    # ------------------------------------------------------------- helpers
+    def _initialise(self, grid, profile, cloud, data: FitData) -> LocalFit | None:
+        cfg = self.config
+        kp = key_points(grid, profile, self.rng, cfg.init)
+        heads = head_candidates(kp, cloud.centroid, cloud.principal_axis, profile, cfg.init, grid)
+        if not heads:
+            return None
+        cut_bottom = cloud.touches_border[3]
+        poses = initial_poses(grid, kp, heads, cloud.centroid, cloud.principal_axis, self.ground_y, cut_bottom,
+                              cfg.init)
+        best = None
+        best_dims = None
+        for p in poses:
+            f = fit_local(p.X, data, p.dims, p.X, np.full(N_POINTS, cfg.prev_weight_recovering), cfg.fit,
+                          cfg.energy, cfg.constraints, self.ground_y, self.observer, self.index, tag="init")
+            if best is None or f.energy.total < best.energy.total:
+                best, best_dims = f, p.dims
+        if self.observer is not None:
+            P = self.frame.to_world(kp.positions)
+            colors = np.array([[255, 80, 80], [80, 200, 80], [80, 120, 255]], np.uint8)[kp.classes]
+            self._obs.report("points3d", points=P, colors=colors, radii=0.03, name="depth/keypoints",
+                             frame=self.index)
+        self.dims = best_dims
+        self.lengths = LengthEstimator(best_dims)
+        self.kalman = PointKalman(N_POINTS, cfg.completion)
+        self.stabiliser.reset()
+        self.good = self.poor = 0
+        return best
+
+    def _near_body(self, grid, X: np.ndarray) -> np.ndarray:
+        """Grid bins within ``person_gate_m`` of the body primitives placed at ``X``."""
+        keep = np.zeros(grid.shape, bool)
+        r, c = np.nonzero(grid.filled)
+        if len(r) == 0:
+            return keep
+        P = grid.mean[r, c]
+        cr, sr = _radii(self.dims)
+        dc, _, _, _ = _capsule_distances(P, X, cr)
+        ds, _, _ = _sphere_distances(P, X, sr)
+        dt, _ = _torso_distance(P, X, self.dims)
+        d = np.min(np.concatenate([dc, ds, dt[:, None]], axis=1), axis=1)
+        keep[r[d < self.config.person_gate_m], c[d < self.config.person_gate_m]] = True
+        return keep
+
+    def _observed(self, data: FitData, fit: LocalFit, X: np.ndarray) -> np.ndarray:
+        """Control points with at least ``support_min_bins`` nearby bins given to their primitives,
+        inside the image."""
+        a = fit.energy.assignment
+        out = np.zeros(N_POINTS, bool)
+        if a is None or len(a.surface_prim) == 0:
+            return out
+        ok = a.surface_prim >= 0
+        P = data.surface[ok]
+        prim = a.surface_prim[ok]
+        D = np.linalg.norm(P[:, None, :] - X[None], axis=-1)           # (B, 13)
+        sup = _SUPPORT_MASK[:, prim].T & (D < self.config.support_radius_m)
+        out = sup.sum(0) >= self.config.support_min_bins
+        uv = self.frame.project(X)
+        w, h = self.camera.size
+        inside = np.all(np.isfinite(uv), axis=1) & (uv[:, 0] >= 0) & (uv[:, 0] <= w - 1) & (uv[:, 1] >= 0) & \
+            (uv[:, 1] <= h - 1)
+        return out & inside
+
+    def _quality(self, data: FitData, fit: LocalFit, X: np.ndarray) -> tuple[bool, float]:
+        """Good fit: explains the user's bins (data to model) and the data support the skeleton (model to data)."""
+        cfg = self.config
+        sup = support_fraction(data, X, cfg.energy)
+        return bool(fit.energy.explained >= cfg.good_explained and sup >= cfg.good_support), sup
+
+    # ------------------------------------------------------------ reporting
+    def _report_data(self, cloud, grid, curv, profile) -> None:
+        obs = self._obs
+        i = self.index
+        fr = self.frame
+        if not self._reported_static:
+            from toolkit.cameras import Rig
+
+            obs.report("rig", rig=Rig([self.camera]), path="world/depth_cams")
+            obs.report("skeleton", skeleton=SKELETON_13)
+            self._reported_static = True
+        step = max(1, cloud.n_points // 20000)
+        obs.report("points3d", points=fr.to_world(cloud.points[::step]), name="depth/cloud", frame=i,
+                   colors=np.full((len(cloud.points[::step]), 3), 170, np.uint8))
+        pos, nrm, idx = grid.points("filled")
+        lab = curv.label[idx[:, 0], idx[:, 1]]
+        palette = np.array([[150, 150, 150], [90, 140, 230], [90, 210, 90], [230, 90, 90]], np.uint8)
+        obs.report("points3d", points=fr.to_world(pos), colors=palette[lab], radii=grid.bin_size / 2,
+                   name="depth/orus", frame=i)
+        okn = np.all(np.isfinite(nrm), axis=1)
+        ends = pos[okn] + 0.05 * nrm[okn]
+        obs.report("rays", origins=fr.to_world(pos[okn]), ends=fr.to_world(ends), name="depth/normals", frame=i)
+        sp = curv.spheres
+        obs.report("points3d", points=fr.to_world(sp.centres), radii=sp.radii, name="depth/spheres", frame=i,
+                   colors=np.tile(np.array([[240, 200, 60]], np.uint8), (len(sp), 1)))
+        obs.report("points3d", points=fr.to_world(sp.centres), radii=0.01, name="depth/curvature_centres",
+                   frame=i)
+        obs.report("lines3d", strips=[fr.to_world(np.vstack([profile.points, profile.points[:1]]))],
+                   name="depth/radial_contour", frame=i)
+        obs.report("depth_radial", frame=i, angles_deg=profile.angles_deg, distances=profile.distances,
+                   peaks=profile.peaks)
+        n_pl = int((curv.label == PLANAR).sum())
+        n_cv = int((curv.label == CONVEX).sum())
+        obs.report("scalar", name="depth/orus/filled_bins", value=float(grid.filled.sum()), frame=i)
+        obs.report("scalar", name="depth/orus/planar_bins", value=float(n_pl), frame=i)
+        obs.report("scalar", name="depth/orus/convex_bins", value=float(n_cv), frame=i)
+
+    def _report_result(self, r: FrameResult, fit: LocalFit | None = None) -> None:
+        if self.observer is None:
+            return
+        obs = self._obs
+        if np.all(np.isfinite(r.joints_view)):
+            obs.report("joints3d", joints=self.frame.to_world(r.joints_view), name="depth/skeleton",
+                       skeleton=SKELETON_13, frame=r.index)
+        obs.report("scalar", name="depth/state", value=float(r.state), frame=r.index)
+        obs.report("text", name="depth/state", text=f"frame {r.index}: {r.state_name} ({r.reason})",
+                   frame=r.index)
+        if fit is not None:
+            for k, v in fit.energy.terms.items():
+                obs.report("scalar", name=f"depth/energy/{k}", value=float(v), frame=r.index)
+            obs.report("scalar", name="depth/explained", value=float(r.explained), frame=r.index)
