@@ -226,8 +226,8 @@ class Camera:
         ok = np.isfinite(flat).all(axis=1)
         if ok.any():
             if self.has_distortion:
-                n = cv2.undistortPointsIter(flat[ok].reshape(-1, 1, 2), self.K, self.dist, None, None,
-                                            (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12))
+                n = cv2.undistortPoints(flat[ok].reshape(-1, 1, 2), self.K, self.dist, None, None, None,
+                                        (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12))
                 out[ok] = n.reshape(-1, 2)
             else:
                 Kinv = np.linalg.inv(self.K)

@@ -1,0 +1,164 @@
+"""Static surroundings of a synthetic scene: a textured ground plane and backdrop.
+
+``"broadcast"`` is a grass pitch with mowing stripes and field lines inside a
+ring of stands (a crowd texture); ``"studio"`` is a wooden floor inside four
+textured walls.  Everything is plain arrays (vertices, triangles, texture
+coordinates and an RGB texture per surface) so that the Open3D renderer and the
+ray caster see exactly the same geometry.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from toolkit.errors import InputError
+
+
+@dataclass(frozen=True)
+class Surface:
+    """A textured triangle mesh.
+
+    Attributes
+    ----------
+    name : str
+    vertices : ndarray of shape (V, 3)
+        World coordinates, metres.
+    triangles : ndarray of shape (F, 3)
+    uvs : ndarray of shape (V, 2)
+        Texture coordinates in [0, 1], v downwards in the texture image.
+    texture : ndarray of shape (H, W, 3) or None
+        uint8 RGB, or None for a vertex-coloured surface.
+    vertex_colors : ndarray of shape (V, 3) or None
+        RGB in [0, 1] when the surface is vertex-coloured.
+    """
+
+    name: str
+    vertices: np.ndarray
+    triangles: np.ndarray
+    uvs: np.ndarray | None
+    texture: np.ndarray | None
+    vertex_colors: np.ndarray | None = None
+
+
+def _noise_texture(rng, size, base, amp, blur=1.5):
+    h, w = size
+    n = rng.normal(0, 1, (h, w, 1)).astype(np.float32)
+    n = cv2.GaussianBlur(n, (0, 0), blur)[..., None]
+    n /= max(float(n.std()), 1e-6)
+    tex = np.asarray(base, np.float32)[None, None, :] * (1 + amp * n)
+    return tex
+
+
+def _quad(name, corners, texture):
+    V = np.asarray(corners, float)
+    T = np.array([[0, 1, 2], [0, 2, 3]])
+    UV = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], float)
+    return Surface(name, V, T, UV, texture)
+
+
+def _pitch(rng, half_x=60.0, half_y=40.0, res=4096):
+    w = res
+    h = int(res * half_y / half_x)
+    tex = _noise_texture(rng, (h, w), [0.20, 0.50, 0.18], 0.18, 1.2)
+    # mowing stripes every 5 m along x
+    x = np.linspace(-half_x, half_x, w)
+    stripes = (np.floor(x / 5.0) % 2 == 0)[None, :, None]
+    tex = np.where(stripes, tex * 1.12, tex * 0.92)
+    img = np.clip(tex * 255, 0, 255).astype(np.uint8)
+    px = w / (2 * half_x)  # texels per metre
+
+    def P(xm, ym):
+        return int(round((xm + half_x) * px)), int(round((half_y - ym) * px))
+
+    white = (235, 235, 235)
+    t = max(1, int(round(0.12 * px)))
+    cv2.line(img, P(0, -half_y + 5), P(0, half_y - 5), white, t)
+    cv2.circle(img, P(0, 0), int(9.15 * px), white, t)
+    cv2.rectangle(img, P(-half_x + 5, half_y - 5), P(half_x - 5, -half_y + 5), white, t)
+    cv2.rectangle(img, P(-half_x + 5, 20), P(-half_x + 21.5, -20), white, t)
+    cv2.rectangle(img, P(half_x - 21.5, 20), P(half_x - 5, -20), white, t)
+    corners = [[-half_x, -half_y, 0], [half_x, -half_y, 0], [half_x, half_y, 0], [-half_x, half_y, 0]]
+    return _quad("ground", corners, img)
+
+
+def _ring_wall(name, rng, radius, z0, z1, n_seg, texture_fn, tex_size):
+    """A vertical cylinder wall, vertex-coloured from a texture sampled on a dense grid.
+
+    (Textured walls made Open3D 0.20's software-Vulkan renderer stall for
+    minutes with some textures, so walls carry their pattern as vertex colours.)
+    """
+    tex = texture_fn(rng, tex_size)
+    rows, cols = tex.shape[:2]
+    th = np.linspace(0, 2 * np.pi, cols + 1)
+    z = np.linspace(z1, z0, rows)
+    TH, Z = np.meshgrid(th, z)
+    V = np.stack([radius * np.cos(TH), radius * np.sin(TH), Z], -1).reshape(-1, 3)
+    C = np.concatenate([tex, tex[:, :1]], axis=1).reshape(-1, 3).astype(np.float64) / 255.0
+    n = cols + 1
+    r = np.arange(rows - 1)[:, None]
+    c = np.arange(cols)[None, :]
+    a = r * n + c
+    T = np.concatenate([np.stack([a, a + n, a + 1], -1).reshape(-1, 3),
+                        np.stack([a + 1, a + n, a + n + 1], -1).reshape(-1, 3)])
+    return Surface(name, V, T, None, None, C)
+
+
+def _crowd(rng, size):
+    h, w = size
+    tex = rng.uniform(0.1, 0.95, (h, w, 3)).astype(np.float32)
+    rows = np.linspace(0.55, 1.0, h)[:, None, None]
+    return np.clip(tex * rows * 255, 0, 255).astype(np.uint8)
+
+
+def _studio_wall(rng, size):
+    h, w = size
+    tex = _noise_texture(rng, (h, w), [0.62, 0.64, 0.68], 0.08, 2.0)
+    img = np.clip(tex * 255, 0, 255).astype(np.uint8)
+    for k in range(12):  # posters and panels as texture for background subtraction realism
+        x0, y0 = int(rng.uniform(0, w - w // 20)), int(rng.uniform(0, h - h // 4))
+        col = tuple(int(c) for c in rng.integers(30, 230, 3))
+        cv2.rectangle(img, (x0, y0), (x0 + int(rng.uniform(w / 100, w / 30)), y0 + int(rng.uniform(h / 10, h / 4))),
+                      col, -1)
+    return img
+
+
+def _floor(rng, half=8.0, res=2048):
+    tex = _noise_texture(rng, (res, res), [0.55, 0.42, 0.30], 0.10, 1.0)
+    # planks 0.2 m wide
+    x = np.linspace(-half, half, res)
+    plank = (np.floor(x / 0.2) % 3)[None, :, None]
+    tex = tex * (0.92 + 0.06 * plank)
+    img = np.clip(tex * 255, 0, 255).astype(np.uint8)
+    corners = [[-half, -half, 0], [half, -half, 0], [half, half, 0], [-half, half, 0]]
+    return _quad("ground", corners, img)
+
+
+def make_environment(layout: str, rng: np.random.Generator | int | None = None) -> list[Surface]:
+    """Surfaces of the surroundings for a camera ``layout``.
+
+    Parameters
+    ----------
+    layout : {"broadcast", "studio"}
+    rng : numpy.random.Generator or int or None
+
+    Returns
+    -------
+    list of Surface
+    """
+    rng = np.random.default_rng(rng)
+    if layout == "broadcast":
+        return [
+            _pitch(rng),
+            _ring_wall("stands", rng, 62.0, 0.0, 22.0, 96, _crowd, (60, 1200)),
+        ]
+    if layout == "studio":
+        walls = _ring_wall("walls", rng, 7.5, 0.0, 5.0, 48, _studio_wall, (120, 900))
+        return [_floor(rng), walls]
+    raise InputError("layout", "'broadcast' or 'studio'", repr(layout))
+
+
+#: Background (sky / ceiling) colour per layout, RGB in [0, 1].
+BACKGROUND_COLOUR = {"broadcast": (0.55, 0.70, 0.90), "studio": (0.30, 0.30, 0.32)}

@@ -1,0 +1,186 @@
+"""Scene specifications: TOML files describing a synthetic scene.
+
+Example (``datasets_synthetic/default.toml``)::
+
+    seed = 7
+    frames = 30
+    fps = 25
+
+    [subject]
+    height_m = 1.78
+    motion = "walk"          # a name of toolkit.motion.MOTIONS, or a path to a .bvh file
+
+    [cameras]
+    count = 3
+    layout = "broadcast"     # or "studio"
+    resolution = [1280, 720]
+    calibration_error_px = 8.0
+
+    [novel]
+    count = 2
+
+Optional tables: ``[render]`` (``engine``: ``"raycast"`` (default) or
+``"open3d"``; ``sample_count``: anti-aliasing samples per pixel for Open3D,
+``supersample``: rays per pixel side for the ray caster, default 2) and
+``[depth_camera]`` (see :mod:`toolkit.synthetic.depth_sensor`).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from toolkit.errors import InputError
+from toolkit.motion import MOTIONS
+
+#: Limits of the spec values (an impossible value is rejected with its field named).
+MAX_FRAMES = 100_000
+MAX_CAMERAS = 32
+HEIGHT_RANGE_M = (1.40, 2.10)
+LAYOUTS = ("broadcast", "studio")
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """A parsed, validated scene specification (all fields as in the TOML)."""
+
+    seed: int
+    frames: int
+    fps: float
+    height_m: float
+    motion: str
+    camera_count: int
+    layout: str
+    resolution: tuple[int, int]
+    calibration_error_px: float
+    novel_count: int = 0
+    sample_count: int = 4
+    engine: str = "raycast"
+    supersample: int = 2
+    depth_camera: dict | None = None
+    source: str = "<spec>"
+    text: str = field(default="", repr=False)
+
+    @property
+    def motion_is_bvh(self) -> bool:
+        return self.motion.lower().endswith(".bvh")
+
+
+def _get(table: dict, key: str, where: str, types, default=...):
+    """``table[key]`` checked against ``types``; ``where`` prefixes the field name in errors."""
+    name = f"{where}{key}"
+    if key not in table:
+        if default is ...:
+            raise InputError(name, "a value", "nothing (field missing)")
+        return default
+    v = table[key]
+    if not isinstance(v, types) or isinstance(v, bool) and bool not in (types if isinstance(types, tuple) else (types,)):
+        names = types.__name__ if isinstance(types, type) else " or ".join(t.__name__ for t in types)
+        raise InputError(name, f"a {names}", f"{v!r} ({type(v).__name__})")
+    return v
+
+
+def _check_keys(table: dict, allowed: set, where: str, source: str):
+    extra = set(table) - allowed
+    if extra:
+        raise InputError(f"{source}: [{where}]" if where else source, f"only the keys {sorted(allowed)}",
+                         f"unknown keys {sorted(extra)}")
+
+
+def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) -> SceneSpec:
+    """Parse and validate a scene spec from TOML text.
+
+    Parameters
+    ----------
+    text : str
+        TOML content.
+    source : str
+        File name used in error messages.
+    base_dir : Path, optional
+        Folder relative BVH paths are resolved against.
+
+    Raises
+    ------
+    InputError
+        Naming ``source`` and the field for every missing, mistyped or impossible value.
+    """
+    try:
+        d = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise InputError(source, "valid TOML", f"a syntax error: {e}") from None
+    _check_keys(d, {"seed", "frames", "fps", "subject", "cameras", "novel", "render", "depth_camera", "name",
+                    "description"}, "", source)
+    S = lambda k: f"{source}: {k}"  # noqa: E731
+    seed = _get(d, "seed", f"{source}: ", int)
+    if seed < 0:
+        raise InputError(S("seed"), "an integer >= 0", str(seed))
+    frames = _get(d, "frames", f"{source}: ", int)
+    if not 1 <= frames <= MAX_FRAMES:
+        raise InputError(S("frames"), f"an integer from 1 to {MAX_FRAMES}", str(frames))
+    fps = float(_get(d, "fps", f"{source}: ", (int, float)))
+    if not 0 < fps <= 1000:
+        raise InputError(S("fps"), "a frame rate in (0, 1000]", str(fps))
+    sub = _get(d, "subject", f"{source}: ", dict)
+    _check_keys(sub, {"height_m", "motion"}, "subject", source)
+    h = float(_get(sub, "height_m", f"{source}: subject.", (int, float)))
+    if not HEIGHT_RANGE_M[0] <= h <= HEIGHT_RANGE_M[1]:
+        raise InputError(S("subject.height_m"), f"a stature between {HEIGHT_RANGE_M[0]} and {HEIGHT_RANGE_M[1]} m",
+                         str(h))
+    motion = _get(sub, "motion", f"{source}: subject.", str)
+    if motion.lower().endswith(".bvh"):
+        p = Path(motion)
+        if not p.is_absolute() and base_dir is not None:
+            p = (base_dir / p).resolve()
+        if not p.is_file():
+            raise InputError(S("subject.motion"), "an existing .bvh file", f"{motion!r} (not found at {p})")
+        motion = str(p)
+    elif motion not in MOTIONS:
+        raise InputError(S("subject.motion"), f"one of {list(MOTIONS)} or a .bvh path", repr(motion))
+    cams = _get(d, "cameras", f"{source}: ", dict)
+    _check_keys(cams, {"count", "layout", "resolution", "calibration_error_px"}, "cameras", source)
+    count = _get(cams, "count", f"{source}: cameras.", int)
+    if not 1 <= count <= MAX_CAMERAS:
+        raise InputError(S("cameras.count"), f"an integer from 1 to {MAX_CAMERAS}", str(count))
+    layout = _get(cams, "layout", f"{source}: cameras.", str)
+    if layout not in LAYOUTS:
+        raise InputError(S("cameras.layout"), f"one of {list(LAYOUTS)}", repr(layout))
+    res = _get(cams, "resolution", f"{source}: cameras.", list)
+    if (len(res) != 2 or not all(isinstance(v, int) and not isinstance(v, bool) for v in res)
+            or not all(16 <= v <= 8192 for v in res) or any(v % 2 for v in res)):
+        raise InputError(S("cameras.resolution"), "[width, height], even integers from 16 to 8192", repr(res))
+    err = float(_get(cams, "calibration_error_px", f"{source}: cameras.", (int, float), 0.0))
+    if not 0 <= err <= 100:
+        raise InputError(S("cameras.calibration_error_px"), "a value from 0 to 100 pixels", str(err))
+    novel = _get(d, "novel", f"{source}: ", dict, {})
+    _check_keys(novel, {"count"}, "novel", source)
+    ncount = _get(novel, "count", f"{source}: novel.", int, 0)
+    if not 0 <= ncount <= MAX_CAMERAS:
+        raise InputError(S("novel.count"), f"an integer from 0 to {MAX_CAMERAS}", str(ncount))
+    render = _get(d, "render", f"{source}: ", dict, {})
+    _check_keys(render, {"sample_count", "engine", "supersample"}, "render", source)
+    sc = _get(render, "sample_count", f"{source}: render.", int, 1)
+    if sc not in (1, 2, 4, 8):
+        raise InputError(S("render.sample_count"), "1, 2, 4 or 8", str(sc))
+    engine = _get(render, "engine", f"{source}: render.", str, "raycast")
+    if engine not in ("raycast", "open3d"):
+        raise InputError(S("render.engine"), "'raycast' or 'open3d'", repr(engine))
+    ss = _get(render, "supersample", f"{source}: render.", int, 2)
+    if not 1 <= ss <= 4:
+        raise InputError(S("render.supersample"), "an integer from 1 to 4", str(ss))
+    depth = _get(d, "depth_camera", f"{source}: ", dict, None)
+    return SceneSpec(seed=seed, frames=frames, fps=fps, height_m=h, motion=motion, camera_count=count,
+                     layout=layout, resolution=(res[0], res[1]), calibration_error_px=err, novel_count=ncount,
+                     sample_count=sc, engine=engine, supersample=ss, depth_camera=depth, source=source, text=text)
+
+
+def load_spec(path: str | Path) -> SceneSpec:
+    """Read and validate a scene spec file (see :func:`parse_spec`)."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(str(p), "a scene spec TOML file", "no such file")
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(str(p), "a readable UTF-8 text file", str(e)) from None
+    return parse_spec(text, str(p), p.parent)
