@@ -42,3 +42,22 @@ def test_bad_values_name_the_field(old, new, field):
 def test_missing_file(tmp_path):
     with pytest.raises(InputError, match="no such file"):
         load_spec(tmp_path / "nope.toml")
+
+
+def test_bvh_motion_scene(tmp_path):
+    """A spec can name a motion-capture file; the scene then follows it."""
+    import os
+    from pathlib import Path
+
+    import numpy as np
+
+    from toolkit.synthetic import build_scene
+    root = Path(os.environ.get("TOOLKIT_REALDATA", Path(__file__).resolve().parents[3] / "shared" / "realdata"))
+    bvh = root / "cmu_mocap" / "01_01.bvh"
+    if not bvh.is_file():
+        pytest.skip(f"real data not found at {bvh}")
+    spec_path = tmp_path / "bvh.toml"
+    spec_path.write_text(TINY_SPEC.replace('"walk"', f'"{bvh}"'))
+    scene = build_scene(load_spec(spec_path))
+    assert scene.joints.shape == (3, 14, 3) and np.isfinite(scene.joints).all()
+    assert scene.joints[..., 2].min() > -0.02
