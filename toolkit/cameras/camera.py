@@ -229,10 +229,12 @@ class Camera:
                 n = cv2.undistortPoints(flat[ok].reshape(-1, 1, 2), self.K, self.dist, None, None, None,
                                         (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12))
                 out[ok] = n.reshape(-1, 2)
-            else:
-                Kinv = np.linalg.inv(self.K)
-                h = np.c_[flat[ok], np.ones(ok.sum())] @ Kinv.T
-                out[ok] = h[:, :2] / h[:, 2:3]
+            else:  # invert the upper-triangular K directly (fast path for large pixel grids)
+                fx, s, cx = self.K[0]
+                fy, cy = self.K[1, 1], self.K[1, 2]
+                y = (flat[ok, 1] - cy) / fy
+                out[ok, 1] = y
+                out[ok, 0] = (flat[ok, 0] - cx - s * y) / fx
         return out.reshape(*shape, 2)
 
     def rays(self, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

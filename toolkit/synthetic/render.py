@@ -201,7 +201,7 @@ class Raycaster:
             w, h = camera.size
             u, v = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
             n = camera.undistort_points(np.stack([u, v], -1))
-            self._dirs = {key: np.concatenate([n, np.ones(n.shape[:-1] + (1,))], -1)}  # keep one
+            self._dirs[key] = np.concatenate([n, np.ones(n.shape[:-1] + (1,))], -1).astype(np.float32)
         return self._dirs[key]
 
     def cast(self, camera: Camera, bodies: list[BodyMesh]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -232,9 +232,10 @@ class Raycaster:
             scene.add_triangles(o3d.core.Tensor(s.vertices.astype(np.float32)),
                                 o3d.core.Tensor(s.triangles.astype(np.uint32)))
         d_cam = self._cam_dirs(camera)
-        d_world = d_cam @ camera.R  # unnormalised: t_hit is then camera z directly
-        o = np.broadcast_to(camera.center, d_world.shape)
-        rays = np.concatenate([o, d_world], -1).astype(np.float32)
+        h, w = d_cam.shape[:2]
+        rays = np.empty((h, w, 6), np.float32)
+        rays[..., :3] = camera.center
+        rays[..., 3:] = d_cam @ camera.R.astype(np.float32)  # unnormalised: t_hit is camera z directly
         ans = scene.cast_rays(o3d.core.Tensor(rays))
         t = ans["t_hit"].numpy()
         gid = ans["geometry_ids"].numpy().astype(np.int64)
@@ -262,7 +263,7 @@ def _bilinear(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
     y1 = np.minimum(y0 + 1, h - 1)
     fx = (x - x0)[:, None].astype(np.float32)
     fy = (y - y0)[:, None].astype(np.float32)
-    t = texture.astype(np.float32)
+    t = texture if texture.dtype == np.float32 else texture.astype(np.float32)
     top = t[y0, x0] * (1 - fx) + t[y0, x1] * fx
     bot = t[y1, x0] * (1 - fx) + t[y1, x1] * fx
     return top * (1 - fy) + bot * fy
@@ -301,20 +302,26 @@ class RaycastRenderer:
         self.ss = int(supersample)
         self._plates: dict = {}
         self._bodies: list[tuple[BodyMesh, np.ndarray]] = []
-        self._env_scene = None
+        self._dir_cache: dict = {}
+        self._tex_cache: dict = {}
 
     def _subpixel_dirs(self, camera: Camera, x0=0, y0=0, x1=None, y1=None) -> np.ndarray:
+        """World ray directions (unnormalised, camera z = 1) of the sub-pixel grid of a pixel window."""
         w, h = self.size
         x1 = w if x1 is None else x1
         y1 = h if y1 is None else y1
         s = self.ss
-        off = (np.arange(s) + 0.5) / s - 0.5
-        xs = (np.arange(x0, x1)[:, None] + off[None, :]).ravel()
-        ys = (np.arange(y0, y1)[:, None] + off[None, :]).ravel()
-        u, v = np.meshgrid(xs, ys)
-        n = camera.undistort_points(np.stack([u, v], -1))
-        d = np.concatenate([n, np.ones(n.shape[:-1] + (1,))], -1) @ camera.R
-        return d  # (h*s, w*s, 3), unnormalised: t_hit = camera z
+        key = (camera.K.tobytes(), camera.dist.tobytes())
+        if key not in self._dir_cache:
+            off = (np.arange(s) + 0.5) / s - 0.5
+            xs = (np.arange(w)[:, None] + off[None, :]).ravel()
+            ys = (np.arange(h)[:, None] + off[None, :]).ravel()
+            u, v = np.meshgrid(xs, ys)
+            n = camera.undistort_points(np.stack([u, v], -1)).astype(np.float32)
+            self._dir_cache[key] = n
+        n = self._dir_cache[key][y0 * s:y1 * s, x0 * s:x1 * s]
+        R = camera.R.astype(np.float32)
+        return n[..., 0:1] * R[0] + n[..., 1:2] * R[1] + R[2]  # (h*s, w*s, 3): R^T (x, y, 1)
 
     @staticmethod
     def _downsample(img: np.ndarray, s: int) -> np.ndarray:
@@ -322,8 +329,9 @@ class RaycastRenderer:
         return img.reshape(H // s, s, W // s, s, *img.shape[2:]).mean(axis=(1, 3))
 
     def _cast(self, scene, camera: Camera, dirs: np.ndarray):
-        o = np.broadcast_to(camera.center, dirs.shape)
-        rays = np.concatenate([o, dirs], -1).astype(np.float32)
+        rays = np.empty(dirs.shape[:-1] + (6,), np.float32)
+        rays[..., :3] = camera.center
+        rays[..., 3:] = dirs
         return scene.cast_rays(o3d.core.Tensor(rays))
 
     def prepare(self, cameras) -> None:
@@ -357,7 +365,9 @@ class RaycastRenderer:
                 else:
                     uv = np.asarray(s.uvs, np.float64)
                     p_uv = b0 * uv[tri[:, 0]] + b1 * uv[tri[:, 1]] + b2 * uv[tri[:, 2]]
-                    col[sel] = _bilinear(s.texture, p_uv)
+                    if s.name not in self._tex_cache:
+                        self._tex_cache[s.name] = s.texture.astype(np.float32)
+                    col[sel] = _bilinear(self._tex_cache[s.name], p_uv)
             self._plates[key] = (self._downsample(col, self.ss), np.where(np.isfinite(t), t, np.inf))
 
     def background_plate(self, camera: Camera) -> np.ndarray:
