@@ -6,7 +6,8 @@ what to do with the report (log it to rerun, keep it for a test, ignore it).
 
 Report kinds and their fields are listed in :data:`REPORT_KINDS`, so that the
 rerun observer and tests agree on them.  Every report may carry ``frame``
-(int) and ``camera`` (str) to place it on the timeline and in the camera tree.
+(int) and ``camera`` (str) to place it on the timeline and in the camera tree,
+and ``static=True`` to log it once for all times.
 """
 
 from __future__ import annotations
@@ -78,17 +79,18 @@ REPORT_KINDS: dict[str, str] = {
     "skeleton": "skeleton: Skeleton; class_id: int (static AnnotationContext with keypoint connections)",
     "image": "camera: str; image: (H, W, 3) uint8 RGB; name: str = 'image'",
     "mask": "camera: str; mask: (H, W) bool or uint8; name: str",
-    "labels": "camera: str; labels: (H, W) uint8 part ids (0 background); name: str",
+    "labels": "camera: str; labels: (H, W) uint8 part ids (0 background); name: str; skeleton optional (default SKELETON_14)",
     "depth": "camera: str; depth: (H, W) float metres (0 = none); name: str",
     "joints2d": "camera: str; joints: (J, 2) pixels, NaN missing; name: str; skeleton: Skeleton",
     "joints3d": "joints: (J, 3) metres; name: str; skeleton: Skeleton",
     "points3d": "points: (N, 3) metres; colors: (N, 3) uint8 optional; radii optional; name: str",
-    "rays": "origins: (N, 3); ends: (N, 3) metres; name: str",
+    "rays": "origins: (N, 3); ends: (N, 3) metres; name: str; colors optional",
     "scalar": "name: str; value: float",
-    "text": "name: str; text: str",
-    "mesh": "name: str; vertices: (V, 3); triangles: (F, 3); vertex_colors: (V, 3) uint8 optional",
-    "boxes2d": "camera: str; mins: (N, 2); sizes: (N, 2) pixels; name: str; labels optional",
-    "quads": "name: str; corners: (N, 4, 3) metres; textures: list of (h, w, 4) uint8 RGBA optional",
+    "text": "name: str; text: str; level optional (e.g. 'WARN')",
+    "mesh": "name: str; vertices: (V, 3); triangles: (F, 3); vertex_colors: (V, 3) uint8 optional; vertex_normals optional",
+    "boxes2d": "camera: str; mins: (N, 2); sizes: (N, 2) pixels; name: str; labels optional; colors optional",
+    "quads": ("name: str; corners: (N, 4, 3) metres, ordered top-left, top-right, bottom-right, bottom-left of the "
+              "texture; textures: list of (h, w, 4) uint8 RGBA optional; colors optional (untextured)"),
     "points2d": "camera: str; points: (N, 2) pixels, NaN missing; colors: (N, 3) uint8 optional; name: str",
     "lines2d": "camera: str; strips: list of (K, 2) pixels; colors: (S, 3) uint8 optional; name: str",
     "lines3d": "strips: list of (K, 3) metres (e.g. trajectories, seams); colors optional; name: str",
