@@ -14,9 +14,9 @@
   than ``min_speed_m_s``) did not move: it keeps its previous position
   (:func:`enforce_velocity`).
 * **Collision**: limb segments never pass through each other: the distance
-  between the axes of the pairs in :data:`COLLISION_PAIRS` stays above the sum of
-  their radii (soft residual, and :func:`enforce_collisions` puts a colliding
-  segment back where it was).
+  between the axes of the pairs in :data:`COLLISION_PAIRS` stays above
+  ``(1 - collision_margin)`` times the sum of their radii (soft residual, and
+  :func:`enforce_collisions` puts a colliding segment back where it was).
 * **Ground**: with a known ground plane no control point goes below it.
 
 Soft constraints are residual blocks (``constraint_residuals``) stacked into the
@@ -65,7 +65,8 @@ class ConstraintConfig:
     min_speed_m_s, max_speed_m_s : float
         Allowed speed range of a control point.
     collision_margin : float
-        Fraction of the radii sum two segments may overlap before the hard check reverts one.
+        Fraction of the radii sum two limb axes may come closer than (soft flesh, and the
+        capsules' mean radii overstate the thin ends); closer is a collision.
     crossing_margin_m : float
         How far a knee or foot may cross over to the other side (along the hip line) before
         the topological no-crossing residual acts.
@@ -196,7 +197,7 @@ def constraint_residuals(X: np.ndarray, dims: BodyDimensions, config: Constraint
     rad = _limb_radii(dims)
     P = X[_CP]                                            # (n_pairs, 4, 3)
     d, s, t = segment_distances(P[:, 0], P[:, 1], P[:, 2], P[:, 3])
-    need = rad[_CI] + rad[_CJ]
+    need = (rad[_CI] + rad[_CJ]) * (1.0 - config.collision_margin)
     act = d < need
     nc = len(_CP)
     Jc = np.zeros((nc, N_POINTS, 3))

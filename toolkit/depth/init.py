@@ -221,6 +221,50 @@ def _body_centre_x(grid: OrusGrid) -> float:
     return float(np.median(xs[band])) if band.any() else float(np.median(xs))
 
 
+def top_contour_peaks(grid: OrusGrid, min_width_m: float = 0.10, max_width_m: float = 0.30,
+                      min_drop_m: float = 0.08) -> list[np.ndarray]:
+    """Head-like bumps of the silhouette's upper contour.
+
+    For every grid column the highest filled bin gives the upper contour; a
+    bump is a run of columns within one bin of the run's top, between
+    ``min_width_m`` and ``max_width_m`` wide, with the contour at least
+    ``min_drop_m`` lower on both sides within 0.25 m (neck and shoulders).
+
+    Returns
+    -------
+    list of ndarray of shape (3,)
+        View-frame positions of the bumps' tops (mean of the run's top bins), highest first.
+    """
+    ny, nx = grid.shape
+    filled = grid.filled
+    has = filled.any(0)
+    top = np.where(has, np.argmax(filled, axis=0), ny).astype(float)   # row index, smaller = higher
+    s = grid.bin_size
+    reach = int(round(0.25 / s))
+    out = []
+    j = 0
+    while j < nx:
+        if not has[j]:
+            j += 1
+            continue
+        k = j
+        while k + 1 < nx and has[k + 1] and abs(top[k + 1] - top[j]) <= 1:
+            k += 1
+        run_top = top[j:k + 1].min()
+        width = (k - j + 1) * s
+        left = top[max(j - reach, 0):j]
+        right = top[k + 1:k + 1 + reach]
+        drop_l = (left.max() - run_top) * s if len(left) else 0.0
+        drop_r = (right.max() - run_top) * s if len(right) else 0.0
+        if min_width_m <= width <= max_width_m and drop_l >= min_drop_m and drop_r >= min_drop_m:
+            cols = np.arange(j, k + 1)
+            rows = top[j:k + 1].astype(int)
+            out.append((run_top, grid.mean[rows, cols].mean(0)))
+        j = k + 1
+    out.sort(key=lambda t: t[0])
+    return [p for _, p in out]
+
+
 def head_candidates(kp: KeyPoints, centroid: np.ndarray, principal: np.ndarray, profile: RadialProfile | None,
                     config: InitConfig = InitConfig(), grid: OrusGrid | None = None) -> list[HeadCandidate]:
     """Head candidates, best first.
@@ -395,8 +439,10 @@ def _assign_limbs(X: np.ndarray, kp: KeyPoints, head_index: int, dims: BodyDimen
     list of (dict, float)
         The ``n_best`` assignments (limb name -> key point or None) and their scores, best first.
     """
-    ext = [j for j in range(len(kp.positions)) if kp.classes[j] == EXTREMITY and j != head_index]
     P = kp.positions
+    head_r = 2.5 * dims.radius("head")     # key points this close to the head belong to it
+    ext = [j for j in range(len(P)) if kp.classes[j] == EXTREMITY and j != head_index
+           and np.linalg.norm((P[j] - X[HEAD])[:2]) > head_r]
     slack = 1.0 + config.reach_slack
     reach = {"hand": (dims.length(L_SHOULDER, L_ELBOW) + dims.length(L_ELBOW, L_HAND)) * slack,
              "foot": (dims.length(L_HIP, L_KNEE) + dims.length(L_KNEE, L_FOOT)) * slack}

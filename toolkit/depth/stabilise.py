@@ -9,7 +9,7 @@ smoothing while a point is nearly still); a difference above the threshold is
 real motion and is taken as measured, restarting the progression.
 
 Here the reference is the previous stabilised position moved by the point's
-current velocity (so steady motion is not lagged) and the gate is per point.
+smoothed velocity (so steady motion is not lagged) and the gate is per point.
 """
 
 from __future__ import annotations
@@ -35,12 +35,15 @@ class StabiliserConfig:
         Filtering factors of the 1st, 2nd, ... consecutive frame below the
         threshold (the fraction of the difference kept); the last repeats.
     use_velocity : bool
-        Move the reference by the last stabilised velocity.
+        Move the reference by the stabilised velocity ...
+    velocity_smoothing : float
+        ... an exponential average of the stabilised steps with this weight on the past.
     """
 
     threshold_m: float = 0.03
-    factors: tuple = (0.7, 0.55, 0.45)
+    factors: tuple = (0.7, 0.5, 0.35)
     use_velocity: bool = True
+    velocity_smoothing: float = 0.7
 
     def __post_init__(self):
         if not self.factors or not all(0.0 < f <= 1.0 for f in self.factors):
@@ -85,6 +88,8 @@ class Stabiliser:
         f = np.array(self.config.factors)[np.minimum(self.count, len(self.config.factors) - 1)]
         out = np.where(below[:, None], ref + f[:, None] * diff, Y)
         self.count = np.where(below, self.count + 1, 0)
-        self.velocity = np.where(np.isfinite(out), out - self.last, 0.0)
+        step = np.where(np.isfinite(out), out - self.last, 0.0)
+        k = self.config.velocity_smoothing
+        self.velocity = k * self.velocity + (1 - k) * step
         self.last = out.copy()
         return out

@@ -20,8 +20,9 @@ Per-frame **states**:
 A skeleton that fits poorly for :attr:`TrackerConfig.reinit_after` frames is
 dropped and searched for again.  When tracking, grid bins farther than
 :attr:`TrackerConfig.person_gate_m` from the predicted body are left out, so a
-second person touching the user is not fitted (the frame's ``reason`` says
-``"touching"``).
+second person touching the user is not fitted; when the user is first found,
+two heads side by side split the grid between two people (the frame's
+``reason`` says ``"touching"`` in both cases).
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ from toolkit.depth.energy import (
     _torso_distance, fit_data, support_fraction,
 )
 from toolkit.depth.fit import FitConfig, GlobalSearch, LocalFit, fit_local
-from toolkit.depth.init import InitConfig, head_candidates, initial_poses, key_points
+from toolkit.depth.init import InitConfig, head_candidates, initial_poses, key_points, top_contour_peaks
 from toolkit.depth.mask import BackgroundModel, MaskConfig, user_mask
 from toolkit.depth.model import N_POINTS, BodyDimensions
 from toolkit.depth.moves import MoveContext, default_moves
@@ -99,9 +100,13 @@ class TrackerConfig:
     person_gate_m : float
         Bins farther than this from the predicted body are not the user ...
     touching_fraction : float
-        ... when they are more than this fraction of the user's bins (a second
-        person touching the user); fewer far bins are the user moving away from
-        the prediction and are kept.
+        ... when they are more than this fraction of the user's bins and show a
+        head of their own (a second person touching the user); otherwise the far
+        bins are the user moving away from the prediction and are kept.
+    second_head_m : float
+        When the user is first found, two head candidates at the same height
+        at least this far apart sideways are two people; the grid is split
+        between them and the better head kept.
     support_radius_m : float
         A control point is observed when grid bins given to its primitives lie this close to it ...
     support_min_bins : int
@@ -130,8 +135,9 @@ class TrackerConfig:
     reinit_after: int = 8
     good_explained: float = 0.9
     good_support: float = 0.8
-    person_gate_m: float = 0.30
-    touching_fraction: float = 0.3
+    person_gate_m: float = 0.12
+    touching_fraction: float = 0.2
+    second_head_m: float = 0.45
     support_radius_m: float = 0.15
     support_min_bins: int = 2
     prev_weight_tracking: float = 0.3
@@ -361,8 +367,14 @@ class DepthTracker:
         if predicted is not None:
             keep = self._near_body(grid, predicted)
             n_far = int((grid.filled & ~keep).sum())
-            if n_far > max(cfg.min_bins, cfg.touching_fraction * grid.filled.sum()):
+            if n_far > max(cfg.min_bins // 2, cfg.touching_fraction * grid.filled.sum()) and \
+                    top_contour_peaks(replace(grid, filled=grid.filled & ~keep)):
                 # much more than one body: a second person touches the user; fit only the user's part
+                reason = "touching"
+                grid = replace(grid, filled=grid.filled & keep, occupied=grid.occupied & keep)
+        if predicted is None:
+            keep = self._one_person(grid, cloud)
+            if keep is not None:
                 reason = "touching"
                 grid = replace(grid, filled=grid.filled & keep, occupied=grid.occupied & keep)
         if grid.filled.sum() < cfg.min_bins:
@@ -473,6 +485,26 @@ class DepthTracker:
         self.stabiliser.reset()
         self.good = self.poor = 0
         return best
+
+    def _one_person(self, grid, cloud) -> np.ndarray | None:
+        """When the user is first found: bins of one person if two heads stand side by side
+        (a second person touching the user), else None.  The person kept is the one whose head is
+        nearer the camera's optical axis (the camera is aimed at the user)."""
+        cfg = self.config
+        peaks = top_contour_peaks(grid)
+        if len(peaks) < 2:
+            return None
+        a = peaks[0]
+        others = [p for p in peaks[1:] if abs(p[0] - a[0]) > cfg.second_head_m and abs(p[1] - a[1]) < 0.3]
+        if not others:
+            return None
+        b = others[0]
+        x = grid.bin_centres()[..., 0]
+        side_a = np.abs(x - a[0]) <= np.abs(x - b[0])
+        # the user is the one the camera is aimed at: the head nearer the optical axis
+        off_a = np.hypot(*(self.frame.to_camera(a)[:2] / max(a[2], 1e-6)))
+        off_b = np.hypot(*(self.frame.to_camera(b)[:2] / max(b[2], 1e-6)))
+        return side_a if off_a <= off_b else ~side_a
 
     def _near_body(self, grid, X: np.ndarray) -> np.ndarray:
         """Grid bins within ``person_gate_m`` of the body primitives placed at ``X``."""
