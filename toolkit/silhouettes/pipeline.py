@@ -20,7 +20,8 @@ the per-frame results into the arrays of the recipe's ``.npz`` files.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import time
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -54,7 +55,7 @@ FRAME_STATES = {
     FRAME_OK: "ok",
     FRAME_TOO_FEW_VIEWS: "fewer than two usable silhouettes",
     FRAME_SELECTION_FAILED: "multi-view selection failed (no joint seen by two views)",
-    FRAME_NOT_PROCESSED: "not processed (run stopped early or --max-frames)",
+    FRAME_NOT_PROCESSED: "not processed (the run stopped early)",
 }
 #: Prefix of the names of this stage's reports.
 REPORT_PREFIX = "silhouettes"
@@ -124,6 +125,10 @@ class FrameEstimate:
     added : tuple of int
         Database rows added from the corrections.
     selection : MultiViewSelection or None
+    timings : dict of str to float
+        Seconds spent per stage: ``"query"`` (checks, descriptors and database
+        queries), ``"multiview"`` (selection and offsets), ``"edits"``;
+        :func:`estimate_dataset` adds ``"foreground"``.
     """
 
     frame: int
@@ -139,6 +144,7 @@ class FrameEstimate:
     edited: np.ndarray
     added: tuple = ()
     selection: MultiViewSelection | None = None
+    timings: dict = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -258,6 +264,7 @@ class SilhouettePoseEstimator:
         """
         if len(masks) != self.n_views:
             raise InputError("masks", f"one mask per camera ({self.n_views})", f"{len(masks)}")
+        t_start = time.perf_counter()
         n_views, k = self.n_views, self.config.query.k
         states = np.zeros(n_views, np.uint8)
         boxes = np.full((n_views, 4), np.nan)
@@ -272,6 +279,7 @@ class SilhouettePoseEstimator:
                 cands[v] = c
                 cand_px[v, :len(c)] = c.joints_px(box)
                 self._report_candidates(v, c, cand_px[v], frame)
+        t_query = time.perf_counter() - t_start
         usable = states == STATE_OK
         poses = np.full((n_views, _J, 2), np.nan)
         offsets = np.full((n_views, 2), np.nan)
@@ -288,11 +296,13 @@ class SilhouettePoseEstimator:
                 poses = np.where(used[:, None, None], sel.poses2d_raw, np.nan)
                 offsets = np.where(used[:, None], sel.offsets, np.nan)
                 joints, cost = sel.joints3d, float(sel.cost)
+        t_multiview = time.perf_counter() - t_start - t_query
         edited = np.zeros(n_views, bool)
         added: list[int] = []
         if edits:
             poses, offsets, joints, cost, edited, added, fstate, sel = self._apply_edits(
                 edits, masks, poses, offsets, joints, cost, fstate, sel, frame)
+        t_edits = time.perf_counter() - t_start - t_query - t_multiview
         # the temporal term of the next frame uses this frame's chosen pose in its own box
         for v in range(n_views):
             ok = np.isfinite(boxes[v]).all() and np.isfinite(poses[v]).all()
@@ -309,7 +319,8 @@ class SilhouettePoseEstimator:
                                   + ", ".join(f"{c.name} {SILHOUETTE_STATES[int(s)]}" for c, s in zip(self.rig, states)),
                              level="INFO" if fstate == FRAME_OK else "WARN")
         return FrameEstimate(frame, fstate, states, boxes, tuple(cands), cand_px, poses, offsets, joints, cost,
-                             edited, tuple(added), sel)
+                             edited, tuple(added), sel,
+                             {"query": t_query, "multiview": t_multiview, "edits": t_edits})
 
     def _apply_edits(self, edits, masks, poses, offsets, joints, cost, fstate, sel, frame):
         n_views = self.n_views
@@ -423,3 +434,89 @@ def stack_estimates(estimates: Sequence[FrameEstimate | None], n_frames: int, ca
         "poses3d": dict(joints=joints, names=np.array(SKELETON_14.joint_names), state=state, cost=cost),
         "offsets": dict(offsets=offsets, cameras=cams, state=state),
     }
+
+
+def estimate_dataset(dataset, database: SilhouetteDatabase, config: Stage1Config | None = None, *,
+                     foreground=None, frames: Sequence[int] | None = None, edits=None, rig: Rig | None = None,
+                     observer=None, log_images: bool = True) -> Iterator[tuple[FrameEstimate, list]]:
+    """Run stage 1 over a dataset's videos, frame by frame.
+
+    Parameters
+    ----------
+    dataset : toolkit.io.Dataset
+    database : SilhouetteDatabase
+    config : Stage1Config, optional
+    foreground : toolkit.foreground.ForegroundConfig, optional
+        How silhouettes are cut from the videos (background subtraction by
+        default; the background is learned per camera from its whole video).
+    frames : sequence of int, optional
+        Frames to process, increasing (default: all).
+    edits : toolkit.silhouettes.Edits, optional
+        User corrections, applied on their frames.
+    rig : Rig, optional
+        Cameras to use instead of ``dataset.rig``: a subset of its cameras
+        (by name) or other calibrations of them (e.g. the true ones).
+    observer : Observer, optional
+        Also receives each camera image (``image``) per frame.
+    log_images : bool
+        Report the camera images (large recordings for long videos).
+
+    Yields
+    ------
+    estimate : FrameEstimate
+        With ``timings["foreground"]`` (seconds for all cameras).
+    masks : list of (ndarray of shape (H, W), bool, or None)
+        The silhouettes given to the estimator (None: no frame).
+
+    Notes
+    -----
+    A camera whose video ends early (fewer decodable frames than declared)
+    gives ``None`` masks from then on (state "no video frame"); the other
+    cameras go on.
+    """
+    from toolkit.foreground import ForegroundExtractor
+    from toolkit.io import VideoReader
+
+    obs = as_observer(observer)
+    rig = dataset.rig if rig is None else rig
+    names = rig.names
+    unknown = [c for c in names if c not in dataset.camera_names]
+    if unknown:
+        raise InputError("rig", f"cameras of the dataset {dataset.camera_names}", f"{unknown}")
+    todo = list(range(dataset.n_frames)) if frames is None else [int(t) for t in frames]
+    if any(b <= a for a, b in zip(todo, todo[1:])) or (todo and not 0 <= todo[0] <= todo[-1] < dataset.n_frames):
+        raise InputError("frames", f"increasing frame indices in [0, {dataset.n_frames})", f"{todo[:5]}...")
+    estimator = SilhouettePoseEstimator(rig, database, config, observer)
+    readers = {c: VideoReader(dataset.video_path(c)) for c in names}
+    try:
+        extractors = {c: ForegroundExtractor(foreground).fit(readers[c]) for c in names}
+        ended: dict[str, bool] = {c: False for c in names}
+        previous: dict[str, tuple | None] = {c: None for c in names}
+        for t in todo:
+            t0 = time.perf_counter()
+            masks: list = []
+            for c in names:
+                frame = None
+                if not ended[c]:
+                    try:
+                        frame = readers[c].read(t)
+                    except (InputError, IndexError) as e:
+                        ended[c] = True
+                        obs.report("text", name=f"{REPORT_PREFIX}/{c}", level="WARN", frame=t,
+                                   text=f"frame {t}: {c} has no more frames ({e}); its view is left out")
+                if frame is None:
+                    masks.append(None)
+                    previous[c] = None
+                    continue
+                if log_images:
+                    obs.report("image", camera=c, image=frame, frame=t)
+                sil = extractors[c].extract(frame, previous[c])
+                previous[c] = (frame, sil.mask) if sil.usable else None
+                masks.append(sil.mask)
+            t_fg = time.perf_counter() - t0
+            est = estimator.step(masks, t, None if edits is None else edits.for_frame(t))
+            est.timings["foreground"] = t_fg
+            yield est, masks
+    finally:
+        for r in readers.values():
+            r.close()
