@@ -1,0 +1,261 @@
+"""View-dependent blending of articulated billboards (source 000 §4, eqs. 7-10).
+
+One frame is rendered fan by fan, back to front:
+
+1. per fan, the camera weights of :mod:`toolkit.rendering.weights` (omega,
+   attenuation f, grazing fade);
+2. each billboard of the fan is warped into the view (a :data:`Warper`: the
+   CPU compositor uses a plane-induced homography, the Open3D renderer
+   rasterises a textured quad), giving ``V_j(p)`` and ``alpha_j(p)`` (the
+   fade is folded into alpha);
+3. per pixel, ``w_j = alpha_j omega_j f_j`` (eq. 9), colour
+   ``V = sum V_j w_j / sum w_j`` (eq. 8) and alpha by eq. 10: the nearest
+   camera's alpha where that camera covers the pixel, else
+   ``sum alpha_j w_j / sum alpha_j omega_j``;
+4. the fan is composited *over* the fans behind it (fans occlude each other,
+   billboards of one fan blend);
+5. the discontinuities met on the way (fan borders against background or
+   another fan, and places where another camera takes over) are recorded and
+   smoothed afterwards with a small Gaussian, only there.  The smoothing
+   strength is the attenuation ``1 - exp(-d^2/2 sigma^2)`` of the view, so a
+   virtual camera on a source camera still reproduces that image exactly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import cv2
+import numpy as np
+
+from toolkit.billboards.model import Billboard, BillboardModel
+from toolkit.cameras import Camera
+from toolkit.errors import InputError
+from toolkit.observe import Observer, as_observer
+from toolkit.rendering.config import BlendConfig
+from toolkit.rendering.weights import CameraWeights, attenuation, camera_weights, grazing_fade
+
+#: A warp of one billboard into a view: ``(billboard, camera, offset) -> (rgb, alpha, roi)`` with
+#: rgb (h, w, 3) float32 0..255, alpha (h, w) float32 and roi (x0, y0, x1, y1) in the view, or None if
+#: the billboard does not reach the image.
+Warper = Callable[[Billboard, Camera, tuple], "tuple[np.ndarray, np.ndarray, tuple] | None"]
+
+#: ``RenderResult.status`` values.
+STATUS_OK = "ok"
+STATUS_EMPTY_MODEL = "empty model: no billboards"
+STATUS_ALL_BEHIND = "every billboard is behind the virtual camera or faces away from it"
+
+
+@dataclass(frozen=True, eq=False)
+class RenderResult:
+    """A rendered subject layer.
+
+    Attributes
+    ----------
+    rgb : ndarray of shape (H, W, 3), float32
+        Colour premultiplied by ``alpha``, 0..255.
+    alpha : ndarray of shape (H, W), float32
+        Coverage in [0, 1].
+    fan : ndarray of shape (H, W), uint8
+        Part id of the fan on top at each pixel (0 = none).
+    dominant : ndarray of shape (H, W), int8
+        Rig index of the camera with the largest weight there (-1 = none).
+    discontinuities : ndarray of shape (H, W), bool
+        Pixels found while rendering where smoothing applies.
+    smoothed : ndarray of shape (H, W), bool
+        Pixels actually changed by the smoothing (dilated discontinuities, strength > 0).
+    weights : CameraWeights
+        Per fan (model order) and camera (rig order).
+    order : tuple of int
+        Part ids in drawing order (back to front).
+    status : str
+        :data:`STATUS_OK` or why the layer is empty.
+    """
+
+    rgb: np.ndarray
+    alpha: np.ndarray
+    fan: np.ndarray
+    dominant: np.ndarray
+    discontinuities: np.ndarray
+    smoothed: np.ndarray
+    weights: CameraWeights | None
+    order: tuple
+    status: str = STATUS_OK
+
+    @property
+    def ok(self) -> bool:
+        return self.status == STATUS_OK
+
+    def over(self, background: np.ndarray) -> np.ndarray:
+        """Composite over a background (H, W, 3) (uint8 or float 0..255): uint8 RGB."""
+        bg = np.asarray(background, np.float32)
+        if bg.shape != self.rgb.shape:
+            raise InputError("RenderResult.over: background", f"shape {self.rgb.shape}", f"shape {bg.shape}")
+        out = self.rgb + (1.0 - self.alpha[..., None]) * bg
+        return np.clip(out + 0.5, 0, 255).astype(np.uint8)
+
+
+def fan_weights(model: BillboardModel, camera: Camera, config: BlendConfig = BlendConfig()) -> CameraWeights:
+    """Camera weights (eqs. 5, 7, fade) of every fan of ``model`` for the view ``camera``.
+
+    Cameras without a billboard in a fan get zero fade (no contribution).
+    """
+    names = model.rig.names
+    n_f, n_c = len(model.fans), len(names)
+    anchors = np.array([f.axis.mean(axis=0) for f in model.fans]).reshape(n_f, 3)
+    normals = np.zeros((n_f, n_c, 3))
+    points = np.repeat(anchors[:, None], n_c, axis=1)
+    present = np.zeros((n_f, n_c), bool)
+    for i, f in enumerate(model.fans):
+        for b in f.billboards:
+            j = names.index(b.camera)
+            normals[i, j] = b.normal
+            points[i, j] = b.center
+            present[i, j] = True
+    normals[~present] = (0.0, 0.0, 1.0)
+    w = camera_weights(anchors, camera.center, model.rig.centers,
+                       angle_sigma=config.angle_sigma, attenuation_sigma_m=config.attenuation_sigma_m)
+    fade = np.where(present, grazing_fade(normals, points, camera.center, model.rig.centers,
+                                          config.fade_low, config.fade_high), 0.0)
+    # the nearest camera among those that have a billboard in the fan
+    nearest = np.argmax(np.where(present, w.omega, -1.0), axis=1)
+    dist = np.linalg.norm(model.rig.centers[nearest] - camera.center, axis=1)
+    att = np.repeat(attenuation(dist, config.attenuation_sigma_m)[:, None], n_c, axis=1)
+    att[np.arange(n_f), nearest] = 1.0
+    return CameraWeights(w.beta, w.omega, att, fade, nearest, dist)
+
+
+def _edges(labels: np.ndarray) -> np.ndarray:
+    """Pixels whose 4-neighbourhood holds a different label."""
+    e = np.zeros(labels.shape, bool)
+    d = labels[1:] != labels[:-1]
+    e[1:] |= d
+    e[:-1] |= d
+    d = labels[:, 1:] != labels[:, :-1]
+    e[:, 1:] |= d
+    e[:, :-1] |= d
+    return e
+
+
+def composite(model: BillboardModel, camera: Camera, warper: Warper, config: BlendConfig = BlendConfig(),
+              offset=(0.0, 0.0), observer: Observer | None = None, frame: int | None = None) -> RenderResult:
+    """Render the billboard model into ``camera`` with view-dependent blending.
+
+    Parameters
+    ----------
+    model : BillboardModel
+    camera : Camera
+        The view (virtual or source).
+    warper : Warper
+        How one billboard is brought into the view.
+    config : BlendConfig
+    offset : tuple of float
+        Pixel offset of the view (non-zero only when the view is a measured source camera).
+    observer : Observer, optional
+        Receives ``mask`` (discontinuities), ``labels`` (top fan per pixel) and a
+        ``scalar`` per camera weight of the view.
+    frame : int, optional
+        Frame index for the reports.
+
+    Returns
+    -------
+    RenderResult
+        Empty (alpha 0, ``status`` saying why) when nothing can be drawn.
+    """
+    w_img, h_img = camera.size
+    rgb = np.zeros((h_img, w_img, 3), np.float32)
+    alpha = np.zeros((h_img, w_img), np.float32)
+    top = np.zeros((h_img, w_img), np.uint8)
+    dominant = np.full((h_img, w_img), -1, np.int8)
+    if not model.fans or not model.billboards:
+        z = np.zeros((h_img, w_img), bool)
+        return RenderResult(rgb, alpha, top, dominant, z, z, None, (), STATUS_EMPTY_MODEL)
+    names = model.rig.names
+    cw = fan_weights(model, camera, config)
+    weight = cw.weight  # (F, C): omega * f (fade folded into alpha below)
+    depth = camera.depth_of(np.array([f.axis.mean(axis=0) for f in model.fans]))
+    order = [i for i in np.argsort(-depth, kind="stable") if depth[i] > 0]
+    drawn = []
+    for i in order:
+        fan = model.fans[i]
+        layers = []
+        for b in fan.billboards:
+            j = names.index(b.camera)
+            if cw.fade[i, j] <= 0 or weight[i, j] <= 0 and j != cw.nearest[i]:
+                continue
+            got = warper(b, camera, tuple(offset))
+            if got is None:
+                continue
+            layers.append((j, got))
+        if not layers:
+            continue
+        x0 = min(g[2][0] for _, g in layers)
+        y0 = min(g[2][1] for _, g in layers)
+        x1 = max(g[2][2] for _, g in layers)
+        y1 = max(g[2][3] for _, g in layers)
+        shape = (y1 - y0, x1 - x0)
+        num = np.zeros(shape + (3,), np.float32)
+        den = np.zeros(shape, np.float32)
+        a_num = np.zeros(shape, np.float32)
+        a_den = np.zeros(shape, np.float32)
+        a_near = np.zeros(shape, np.float32)
+        best = np.zeros(shape, np.float32)
+        dom = np.full(shape, -1, np.int8)
+        for j, (c, a, (lx0, ly0, lx1, ly1)) in layers:
+            sl = (slice(ly0 - y0, ly1 - y0), slice(lx0 - x0, lx1 - x0))
+            if config.binary_alpha:
+                a = (a >= 0.5).astype(np.float32)
+            a = a * np.float32(cw.fade[i, j])
+            wj = a * np.float32(cw.omega[i, j] * cw.attenuation[i, j])  # eq. 9
+            num[sl] += c * wj[..., None]
+            den[sl] += wj
+            a_num[sl] += a * wj
+            a_den[sl] += a * np.float32(cw.omega[i, j])
+            if j == cw.nearest[i]:
+                a_near[sl] = a
+            better = wj > best[sl]
+            best[sl] = np.where(better, wj, best[sl])
+            dom[sl] = np.where(better, j, dom[sl])
+        colour = num / np.maximum(den, 1e-12)[..., None]  # eq. 8
+        a_v = np.where(a_near > 0, a_near, a_num / np.maximum(a_den, 1e-12))  # eq. 10
+        a_v = np.where(den > 1e-12, np.clip(a_v, 0.0, 1.0), 0.0).astype(np.float32)
+        sl = (slice(y0, y1), slice(x0, x1))
+        rgb[sl] = colour * a_v[..., None] + rgb[sl] * (1.0 - a_v[..., None])  # fans occlude: "over"
+        alpha[sl] = a_v + alpha[sl] * (1.0 - a_v)
+        on = a_v >= 0.5
+        top[sl] = np.where(on, np.uint8(fan.part), top[sl])
+        dominant[sl] = np.where(on, dom, dominant[sl])
+        drawn.append(fan.part)
+    if not drawn:
+        z = np.zeros((h_img, w_img), bool)
+        return RenderResult(rgb, alpha, top, dominant, z, z, cw, (), STATUS_ALL_BEHIND)
+    disc = _edges(top) | (_edges(dominant) & (top > 0))
+    smoothed = np.zeros_like(disc)
+    # smoothing strength: 0 on a source camera (exact reproduction), -> 1 far from all of them
+    strength = float(attenuation(np.min(np.linalg.norm(model.rig.centers - camera.center, axis=1)),
+                                 config.attenuation_sigma_m))
+    if config.smoothing and strength > 0 and disc.any():
+        ys, xs = np.nonzero(disc)
+        pad = config.smoothing_band_px + int(np.ceil(3 * config.smoothing_sigma_px)) + 1
+        bx0, by0 = max(xs.min() - pad, 0), max(ys.min() - pad, 0)
+        bx1, by1 = min(xs.max() + pad + 1, w_img), min(ys.max() + pad + 1, h_img)
+        sl = (slice(by0, by1), slice(bx0, bx1))
+        k = 2 * config.smoothing_band_px + 1
+        band = cv2.dilate(disc[sl].astype(np.uint8), np.ones((k, k), np.uint8)) > 0
+        stack = np.dstack([rgb[sl], alpha[sl]])
+        blur = cv2.GaussianBlur(stack, (0, 0), config.smoothing_sigma_px, borderType=cv2.BORDER_REPLICATE)
+        mix = (band * np.float32(strength))[..., None]
+        stack = stack + mix * (blur - stack)
+        rgb[sl] = stack[..., :3]
+        alpha[sl] = stack[..., 3]
+        smoothed[sl] = band
+    result = RenderResult(rgb, alpha, top, dominant, disc, smoothed, cw, tuple(drawn))
+    obs = as_observer(observer)
+    extra = {} if frame is None else {"frame": frame}
+    obs.report("mask", camera=camera.name, mask=disc, name="render/discontinuities", **extra)
+    obs.report("labels", camera=camera.name, labels=top, name="render/fans", **extra)
+    for j, n in enumerate(names):
+        obs.report("scalar", name=f"render/{camera.name}/weight/{n}",
+                   value=float(np.mean(cw.weight[:, j])), **extra)
+    return result

@@ -1,0 +1,59 @@
+"""Configuration of the view-dependent billboard renderer (source 000 §4)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from toolkit.errors import InputError
+from toolkit.rendering.weights import ANGLE_SIGMA, ATTENUATION_SIGMA_M, FADE_RATIO_HIGH, FADE_RATIO_LOW
+
+#: Standard deviation of the adaptive smoothing Gaussian, pixels.
+SMOOTHING_SIGMA_PX = 1.0
+#: Half-width of the band around detected discontinuities that gets smoothed, pixels.
+SMOOTHING_BAND_PX = 2
+
+
+@dataclass(frozen=True)
+class BlendConfig:
+    """Blending and compositing parameters.
+
+    Parameters
+    ----------
+    angle_sigma : float
+        Width of omega(beta), radians (eq. 5: 0.32).
+    attenuation_sigma_m : float
+        Width of the attenuation f, metres (eq. 7: 1 m).
+    fade_low, fade_high : float
+        Foreshortening ratios between which grazing billboards fade in
+        (:func:`toolkit.rendering.weights.grazing_fade`).
+    binary_alpha : bool
+        Threshold each warped billboard alpha at 0.5 (the source's binary
+        segmentation masks): the parts of a source view then tile it exactly,
+        and the jagged borders are left to the adaptive smoothing.
+    smoothing : bool
+        Apply the adaptive Gaussian smoothing at the discontinuities found while rendering.
+    smoothing_sigma_px : float
+        Gaussian standard deviation, pixels.
+    smoothing_band_px : int
+        Half-width of the smoothed band around each discontinuity, pixels.
+    """
+
+    angle_sigma: float = ANGLE_SIGMA
+    attenuation_sigma_m: float = ATTENUATION_SIGMA_M
+    fade_low: float = FADE_RATIO_LOW
+    fade_high: float = FADE_RATIO_HIGH
+    binary_alpha: bool = True
+    smoothing: bool = True
+    smoothing_sigma_px: float = SMOOTHING_SIGMA_PX
+    smoothing_band_px: int = SMOOTHING_BAND_PX
+
+    def __post_init__(self):
+        for name in ("angle_sigma", "attenuation_sigma_m", "smoothing_sigma_px"):
+            v = getattr(self, name)
+            if not v > 0:
+                raise InputError(f"BlendConfig.{name}", "a positive number", repr(v))
+        if not 0 <= self.fade_low < self.fade_high:
+            raise InputError("BlendConfig.fade_low/fade_high", "0 <= fade_low < fade_high",
+                             f"{self.fade_low}, {self.fade_high}")
+        if self.smoothing_band_px < 0:
+            raise InputError("BlendConfig.smoothing_band_px", "a non-negative integer", repr(self.smoothing_band_px))

@@ -1,0 +1,43 @@
+"""Evaluation helpers for synthetic datasets: the true background seen by any camera.
+
+Novel views are compared with the ground truth inside the subject's bounding
+box, so every method is composited over the same background: the scene's
+static surroundings rendered from the dataset's ``scene.toml`` (synthetic
+data only).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from toolkit.cameras import Camera
+from toolkit.errors import InputError
+
+
+class BackgroundPlates:
+    """Background plates of a synthetic scene, (H, W, 3) float32 0..255 per camera.
+
+    Parameters
+    ----------
+    scene_toml : path
+        The dataset's ``scene.toml``.
+    """
+
+    def __init__(self, scene_toml: str | Path):
+        from toolkit.synthetic.environment import make_environment
+        from toolkit.synthetic.generator import build_scene, make_renderer
+        from toolkit.synthetic.spec import parse_spec
+
+        p = Path(scene_toml)
+        if not p.is_file():
+            raise InputError(str(p), "the scene.toml of a synthetic dataset", "no such file")
+        spec = parse_spec(p.read_text())
+        scene = build_scene(spec)
+        env = make_environment(spec.layout, scene.rngs["environment"])
+        self._renderer = make_renderer(spec, env)
+
+    def plate(self, camera: Camera) -> np.ndarray:
+        """The surroundings seen by ``camera`` (its size must be the scene's resolution)."""
+        return self._renderer.background_plate(camera)
