@@ -17,3 +17,11 @@ __all__ = ["VisualHull", "render_points", "sample_billboard", "standard_billboar
            "render_billboards", "bbox_scores", "mask_bbox", "psnr", "ssim", "birds_eye", "interpolate_cameras",
            "orbit_path", "source_path", "ANGLE_SIGMA", "ATTENUATION_SIGMA_M", "CameraWeights", "attenuation",
            "camera_weights", "grazing_fade", "omega", "view_angles"]
+
+
+def __getattr__(name):  # Open3D is loaded only when its renderer is asked for
+    if name == "Open3DRenderer":
+        from toolkit.rendering.open3d_renderer import Open3DRenderer
+
+        return Open3DRenderer
+    raise AttributeError(name)
