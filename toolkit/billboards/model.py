@@ -74,6 +74,9 @@ class Billboard:
     radius : float
         Radius of the cylinder / equatorial radius of the ellipsoid, metres
         (0 for planes).
+    axis : ndarray of shape (2, 3) or None
+        Proximal and distal end of the bone, metres; needed by non-planar
+        surfaces (their axis), optional for planes.
     """
 
     part: int
@@ -84,6 +87,7 @@ class Billboard:
     normal: np.ndarray
     surface: str = "plane"
     radius: float = 0.0
+    axis: np.ndarray | None = None
 
     def __post_init__(self):
         check_shape("Billboard.corners", self.corners, (4, 3))
@@ -101,6 +105,11 @@ class Billboard:
         object.__setattr__(self, "normal", _ro(self.normal))
         object.__setattr__(self, "texture", _ro(tex, np.uint8))
         object.__setattr__(self, "alpha", _ro(al, np.float32))
+        if self.axis is not None:
+            check_shape("Billboard.axis", self.axis, (2, 3))
+            object.__setattr__(self, "axis", _ro(self.axis))
+        elif self.surface != "plane":
+            raise InputError("Billboard.axis", f"the bone ends (2, 3) for a {self.surface} surface", "None")
 
     @property
     def size(self) -> tuple[int, int]:

@@ -1,0 +1,93 @@
+"""The constrained joint grid search (source 000 §3.2) on the planar scene."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "billboards"))
+from conftest import make_planar_scene  # noqa: E402
+
+from toolkit.anthropometry import AnthropometricConstraints  # noqa: E402
+from toolkit.billboards import PositionScorer  # noqa: E402
+from toolkit.errors import InputError  # noqa: E402
+from toolkit.observe import RecordingObserver  # noqa: E402
+from toolkit.optimize import GRID_MIN_STEP_M, OptimizeConfig, optimize_joint, optimize_pose  # noqa: E402
+from toolkit.skeleton import SKELETON_14  # noqa: E402
+
+WRIST = SKELETON_14.index("l_wrist")
+#: Recovery tolerance across the bone: one final grid step (the plank fixes the plane, not the
+#: position along the bone, which the displacement leaves alone).
+RECOVERY_TOL = GRID_MIN_STEP_M
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return make_planar_scene()
+
+
+@pytest.fixture(scope="module")
+def scorer(scene):
+    return PositionScorer(scene.images, scene.labels, scene.rig)
+
+
+def test_grid_search_recovers_displaced_joint(scene, scorer):
+    J = scene.joints.copy()
+    J[WRIST] += [0.03, -0.035, 0.0]
+    obs = RecordingObserver()
+    st = optimize_joint(scorer, J, WRIST, observer=obs, frame=0)
+    assert st.status == "moved" and st.score > st.start_score
+    assert np.linalg.norm((st.position - scene.joints[WRIST])[:2]) <= RECOVERY_TOL
+    assert st.n_evaluations > 27
+    cand = obs.of_kind("points3d")[0]
+    assert cand["name"] == "optimize/candidates/l_wrist" and cand["colors"].shape == (len(cand["points"]), 3)
+
+
+def test_pose_sweeps_converge_and_respect_constraints(scene, scorer):
+    J = scene.joints.copy()
+    J[WRIST] += [-0.01, 0.03, 0.0]
+    cons = AnthropometricConstraints()
+    obs = RecordingObserver()
+    # the elbow is left out: moving it within the plank's plane is barely observable here
+    order = [WRIST, SKELETON_14.index("r_knee")]
+    res = optimize_pose(scorer, J, cons, OptimizeConfig(max_sweeps=3), joint_order=order, observer=obs, frame=0)
+    assert cons.is_valid(res.joints)
+    pose = J.copy()
+    for st in res.steps:  # no accepted position breaks a constraint
+        if st.status == "moved":
+            assert cons.valid_positions(pose, st.joint, st.position[None])[0][0]
+        pose[st.joint] = st.position
+    assert np.array_equal(pose, res.joints)
+    assert np.linalg.norm((res.joints[WRIST] - scene.joints[WRIST])[:2]) <= RECOVERY_TOL
+    assert res.scores.shape == (res.n_sweeps + 1, 14)
+    assert res.scores[-1, WRIST] > res.scores[0, WRIST]
+    assert res.converged and res.n_sweeps <= 3
+    # joints whose bones no camera sees are kept and say why
+    knee = [st for st in res.steps if st.joint == SKELETON_14.index("r_knee")][0]
+    assert knee.status == "unscorable" and "no camera pair" in knee.reason
+    assert np.array_equal(res.joints[SKELETON_14.index("r_knee")], J[SKELETON_14.index("r_knee")])
+    assert any(d["name"] == "optimize/score/l_wrist" for d in obs.of_kind("series"))
+    assert obs.of_kind("joints3d")
+
+
+def test_rejected_candidates_score_zero(scene, scorer):
+    """A joint that no grid node can move into the allowed range keeps its position."""
+    J = scene.joints.copy()
+    J[WRIST] = J[SKELETON_14.index("l_elbow")] + [0.0, 0.0, -0.6]  # forearm far too long
+    obs = RecordingObserver()
+    st = optimize_joint(scorer, J, WRIST, observer=obs)
+    assert st.status == "all_invalid" and np.array_equal(st.position, J[WRIST])
+    assert "every candidate breaks a constraint" in st.reason
+    assert any("bone_length" in d["text"] for d in obs.of_kind("text"))
+
+
+def test_bad_input(scene, scorer):
+    with pytest.raises(InputError, match="joints"):
+        optimize_pose(scorer, np.full((14, 3), np.nan))
+    with pytest.raises(InputError, match="joint"):
+        optimize_joint(scorer, scene.joints, 20)
+    with pytest.raises(InputError):
+        OptimizeConfig(min_step_m=0.1, initial_step_m=0.05)

@@ -1,0 +1,380 @@
+"""The position score of a joint (source 000 §3.1, eqs. 2-6, claims 12-13).
+
+For an evaluated view ``V`` and a pair of source cameras ``(I1, I2)``, each
+bone's billboards of ``I1`` and ``I2`` are projectively textured into ``V``.
+A pixel is *active* for a camera when its warped part alpha is at least
+``ScoreConfig.active_alpha``.  Per pixel (eq. 2)::
+
+    s(p) = 1 - ε(V_I1(p), V_I2(p))   if p is active for both, else 0
+
+with ε the Euclidean RGB distance divided by 255·√3 (so ε ∈ [0, 1]; see
+:class:`~toolkit.billboards.config.ScoreConfig`).  The pair score in ``V`` is
+the sum of ``s(p)`` divided by the number of pixels active for at least one
+camera (eq. 3), so misaligned billboards are penalised.  Pairs are averaged
+with weights ω(β) = exp(-β²/2σ²), σ = 0.32 rad, β the angle between the two
+cameras' viewing directions (to the bone's midpoint) (eqs. 4-5), and views are
+averaged (eq. 6).  The evaluated views are every input camera plus a virtual
+camera midway between each camera pair (§3.2).  The score of a joint is the sum
+of these bone scores over the bones adjacent to it
+(``SKELETON_14.parts_of_joint``), so it lies in ``[0, n_adjacent]``.
+
+Fast path: the part segments of the source images are cut once into small RGBA
+patches (colour + membership alpha, seam pixels included); one evaluation warps
+each patch straight into each view with the plane-induced homography
+``view_from_source`` of its billboard plane (the composition of texturing the
+billboard from the source and drawing it into the view), restricted to the
+billboard's footprint.  Only the bones adjacent to the moving joint are redone.
+Calibration offsets: a source pixel is ``measured projection + offset``; views
+that are input cameras add their own offset, virtual views none.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+import cv2
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from toolkit.billboards.build import check_inputs, memberships, segment_outline
+from toolkit.billboards.config import RGB_DIAGONAL, BillboardConfig, ScoreConfig
+from toolkit.billboards.geometry import billboard_frame
+from toolkit.billboards.seams import SeamMap
+from toolkit.cameras import Camera, Rig
+from toolkit.errors import InputError
+from toolkit.skeleton import SKELETON_14, Skeleton
+
+
+@dataclass(frozen=True, eq=False)
+class View:
+    """An evaluated view: a camera, its calibration offset (pixels) and whether it is virtual."""
+
+    camera: Camera
+    offset: np.ndarray
+    virtual: bool
+
+
+def midway_camera(a: Camera, b: Camera, name: str | None = None) -> Camera:
+    """A virtual pinhole camera midway between two cameras.
+
+    Centre at the midpoint, orientation the rotation halfway between both
+    (spherical interpolation), intrinsics the mean of both, size of ``a``.
+    """
+    rots = Rotation.from_matrix(np.stack([a.R, b.R]))
+    R = Slerp([0.0, 1.0], rots)([0.5]).as_matrix()[0]
+    c = 0.5 * (a.center + b.center)
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = -R @ c
+    K = 0.5 * (a.K + b.K)
+    return Camera(name or f"mid_{a.name}_{b.name}", K, np.zeros(5), a.size, T)
+
+
+def evaluated_views(rig: Rig, offsets: np.ndarray | None = None, virtual: bool = True) -> list[View]:
+    """Every input camera (with its offset) and, if ``virtual``, a camera midway between each pair."""
+    off = np.zeros((len(rig), 2)) if offsets is None else np.asarray(offsets, float)
+    views = [View(c, off[i], False) for i, c in enumerate(rig)]
+    if virtual:
+        for i in range(len(rig)):
+            for k in range(i + 1, len(rig)):
+                views.append(View(midway_camera(rig[i], rig[k]), np.zeros(2), True))
+    return views
+
+
+def pair_weight(beta, sigma: float) -> np.ndarray:
+    """ω(β) = exp(-β² / 2σ²) (source 000 eq. 5)."""
+    b = np.asarray(beta, float)
+    return np.exp(-b ** 2 / (2.0 * sigma ** 2))
+
+
+@dataclass(frozen=True, eq=False)
+class _Source:
+    patch: np.ndarray      # (h, w, 4) uint8: RGB + 255 where the pixel belongs to the part
+    occluder: np.ndarray   # (h, w) uint8: 1 where another part of the subject covers the pixel
+    origin: np.ndarray     # (2,) image pixel of patch[0, 0]
+    occ_origin: np.ndarray  # (2,) image pixel of occluder[0, 0]
+    rays: np.ndarray       # (K, 3) unit world directions of the segment outline (offset removed)
+    n_pixels: int
+
+
+@dataclass(frozen=True)
+class PartScore:
+    """Score of one bone: ``value`` in [0, 1] (NaN when no camera pair sees it in any view),
+    ``per_view`` (n_views,) NaN where undefined, ``n_billboards`` per view."""
+
+    value: float
+    per_view: np.ndarray
+    n_billboards: np.ndarray
+
+
+class PositionScorer:
+    """Evaluate the position score of joints for one frame.
+
+    Parameters
+    ----------
+    images : dict of str to ndarray of shape (H, W, 3), uint8
+        Source images per camera.
+    labels : dict of str to ndarray of shape (H, W), uint8
+        Part ids per camera (1-based, 0 background).
+    rig : Rig
+        Measured source cameras.
+    offsets : ndarray of shape (n_cams, 2), optional
+        Stage-1 calibration offsets, pixels.
+    seams : dict of str to SeamMap, optional
+        Seam pixels: they count for both adjacent parts.
+    config : ScoreConfig
+    billboard_config : BillboardConfig
+        Edge-on threshold and billboard sizing.
+    skeleton : Skeleton
+    """
+
+    def __init__(self, images: Mapping[str, np.ndarray], labels: Mapping[str, np.ndarray], rig: Rig,
+                 offsets=None, seams: Mapping[str, SeamMap] | None = None,
+                 config: ScoreConfig = ScoreConfig(), billboard_config: BillboardConfig = BillboardConfig(),
+                 skeleton: Skeleton = SKELETON_14):
+        self.offsets = check_inputs(images, labels, rig, offsets)
+        self.rig = rig
+        self.config = config
+        self.bconfig = billboard_config
+        self.skeleton = skeleton
+        self.views = evaluated_views(rig, self.offsets, config.virtual_views)
+        self._W = skeleton.part_weights  # (P, 2, J)
+        self._sin_edge = float(np.sin(np.radians(billboard_config.edge_on_deg)))
+        self._sin_graze = float(np.sin(np.radians(config.grazing_deg)))
+        self._thr = int(np.ceil(config.active_alpha * 255))
+        self._border = int(config.occlusion_border_px)
+        members = memberships(labels, seams, rig.names)
+        self.sources: list[dict[int, _Source]] = []
+        for ci, cam in enumerate(rig):
+            per = {}
+            img = np.asarray(images[cam.name])
+            for p in range(skeleton.n_parts):
+                m = (members[cam.name] & np.uint16(1 << (p + 1))) != 0
+                n = int(np.count_nonzero(m))
+                if n < billboard_config.min_pixels:
+                    continue
+                ys, xs = np.nonzero(m)
+                x0, x1, y0, y1 = xs.min(), xs.max() + 1, ys.min(), ys.max() + 1
+                patch = np.zeros((y1 - y0, x1 - x0, 4), np.uint8)
+                patch[..., :3] = img[y0:y1, x0:x1]
+                patch[..., 3] = np.where(m[y0:y1, x0:x1], 255, 0)
+                outline = segment_outline(m[y0:y1, x0:x1]) + [x0, y0]
+                _, d = cam.rays(outline - self.offsets[ci])
+                # occluders may lie outside the part's bounding box: keep a border around it
+                bx0, by0 = max(x0 - self._border, 0), max(y0 - self._border, 0)
+                bx1, by1 = min(x1 + self._border, cam.width), min(y1 + self._border, cam.height)
+                occ = ((members[cam.name][by0:by1, bx0:bx1] != 0) & ~m[by0:by1, bx0:bx1]).astype(np.uint8)
+                per[p] = _Source(patch, occ, np.array([x0, y0], float), np.array([bx0, by0], float), d, n)
+            self.sources.append(per)
+        # constant per (view, source camera): relative pose and intrinsics
+        self._rel = []
+        for v in self.views:
+            row = []
+            for cam in rig:
+                T = v.camera.cam_from_world @ cam.world_from_cam
+                row.append((T[:3, :3].copy(), T[:3, 3].copy()))
+            self._rel.append(row)
+        self._Kinv = [np.linalg.inv(c.K) for c in rig]
+        self._centers = rig.centers
+        self._view_centers = np.array([v.camera.center for v in self.views])
+        self.n_evaluations = 0
+
+    # ------------------------------------------------------------------ geometry
+    def _billboard(self, ci: int, p: int, ends: np.ndarray):
+        """Frame and clamped quad (4, 3) of part p for camera ci, or None."""
+        src = self.sources[ci].get(p)
+        if src is None:
+            return None
+        fr = billboard_frame(ends[0], ends[1], self._centers[ci], self.bconfig.edge_on_deg)
+        if fr is None:
+            return None
+        c = self._centers[ci]
+        den = src.rays @ fr.normal
+        num = (fr.origin - c) @ fr.normal
+        ok = den < -1e-9  # rays going towards the plane (the camera is on the normal side)
+        if not ok.any():
+            return None
+        t = num / den[ok]
+        pts = c + t[:, None] * src.rays[ok] - fr.origin
+        a = pts @ fr.e_u
+        s = pts @ fr.e_v
+        mx = self.bconfig.max_extent_m
+        a0, a1 = max(a.min(), -mx), min(a.max(), mx)
+        s0, s1 = max(s.min(), -mx), min(s.max(), fr.length + mx)
+        if a1 <= a0 or s1 <= s0:
+            return None
+        quad = fr.origin + np.array([[a0, s0], [a1, s0], [a1, s1], [a0, s1]]) @ np.stack([fr.e_u, fr.e_v])
+        return fr, quad
+
+    def _view_from_source(self, vi: int, ci: int, normal: np.ndarray, point: np.ndarray) -> np.ndarray:
+        cam = self.rig.cameras[ci]
+        n_s = cam.R @ normal
+        d_s = float(n_s @ (cam.R @ point + cam.t))
+        R, t = self._rel[vi][ci]
+        H = self.views[vi].camera.K @ (R + np.outer(t, n_s) / d_s) @ self._Kinv[ci]
+        return H
+
+    # ------------------------------------------------------------------- scores
+    def visibility(self, joints: np.ndarray, part: int) -> np.ndarray:
+        """Which billboards of a bone take part in which evaluated view, (n_views, n_cams) bool.
+
+        A billboard is left out of a view that sees it within ``grazing_deg`` of
+        edge-on, or that has part of it behind the camera.  The joint search
+        fixes this set from the current pose, so that the scores of all
+        candidates average the same views and pairs.
+        """
+        J = np.asarray(joints, float)
+        ends = self._W[part] @ J
+        mid = ends.mean(axis=0)
+        vis = np.zeros((len(self.views), len(self.rig)), bool)
+        for ci in range(len(self.rig)):
+            r = self._billboard(ci, part, ends)
+            if r is None:
+                continue
+            fr, quad = r
+            for vi, view in enumerate(self.views):
+                to_v = self._view_centers[vi] - mid
+                to_v /= np.linalg.norm(to_v)
+                qz = quad @ view.camera.R[2] + view.camera.t[2]
+                vis[vi, ci] = abs(float(fr.normal @ to_v)) >= self._sin_graze and bool(np.all(qz > 1e-6))
+        return vis
+
+    def part_score(self, joints: np.ndarray, part: int, visibility: np.ndarray | None = None) -> PartScore:
+        """Score of one bone (0-based part index) for a pose (14, 3).
+
+        ``visibility`` (n_views, n_cams) bool fixes which billboards are used in
+        which view (default: :meth:`visibility` of this pose).  A billboard in
+        that set that this pose turns edge-on (to its source camera or to the
+        view) or pushes behind the view contributes nothing: its pairs score 0
+        in that view, so degenerate fans are penalised, not skipped.
+        """
+        cfg = self.config
+        J = np.asarray(joints, float)
+        vis = self.visibility(J, part) if visibility is None else np.asarray(visibility, bool)
+        ends = self._W[part] @ J
+        mid = ends.mean(axis=0)
+        nv, nc = len(self.views), len(self.rig)
+        per_view = np.full(nv, np.nan)
+        counts = np.zeros(nv, int)
+        self.n_evaluations += 1
+        used = [ci for ci in range(nc) if vis[:, ci].any()]
+        if len(used) < 2:
+            return PartScore(float("nan"), per_view, counts)
+        bbs = {ci: self._billboard(ci, part, ends) for ci in used}
+        dirs = mid - self._centers
+        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+        for vi, view in enumerate(self.views):
+            cams = [ci for ci in used if vis[vi, ci]]
+            if len(cams) < 2:
+                continue
+            vc = view.camera
+            to_v = self._view_centers[vi] - mid
+            to_v /= np.linalg.norm(to_v)
+            alive = {}
+            for ci in cams:
+                r = bbs[ci]
+                if r is None:
+                    continue
+                fr, quad = r
+                if abs(float(fr.normal @ to_v)) < self._sin_graze:
+                    continue
+                qc = quad @ vc.R.T + vc.t
+                if np.any(qc[:, 2] <= 1e-6):
+                    continue
+                alive[ci] = (fr, qc[:, :2] / qc[:, 2:3] @ vc.K[:2, :2].T + vc.K[:2, 2] + view.offset)
+            act, occl, rgb = {}, {}, {}
+            if alive:
+                allp = np.concatenate([q for _, q in alive.values()])
+                w, h = vc.size
+                x0 = int(max(np.floor(allp[:, 0].min()), 0))
+                y0 = int(max(np.floor(allp[:, 1].min()), 0))
+                x1 = int(min(np.ceil(allp[:, 0].max()) + 1, w))
+                y1 = int(min(np.ceil(allp[:, 1].max()) + 1, h))
+                if x1 > x0 and y1 > y0:
+                    dsize = (x1 - x0, y1 - y0)
+                    B = np.array([[1.0, 0, view.offset[0] - x0], [0, 1.0, view.offset[1] - y0], [0, 0, 1]])
+                    for ci, (fr, _) in alive.items():
+                        src = self.sources[ci][part]
+                        BH = B @ self._view_from_source(vi, ci, fr.normal, fr.origin)
+                        so = self.offsets[ci]
+                        A = np.array([[1.0, 0, src.origin[0] - so[0]], [0, 1.0, src.origin[1] - so[1]], [0, 0, 1]])
+                        wp = cv2.warpPerspective(src.patch, BH @ A, dsize, flags=cv2.INTER_LINEAR,
+                                                 borderMode=cv2.BORDER_CONSTANT)
+                        act[ci] = wp[..., 3] >= self._thr
+                        rgb[ci] = wp[..., :3].astype(np.float32)
+                        if cfg.occlusion:
+                            A[:2, 2] = src.occ_origin - so
+                            hid = cv2.warpPerspective(src.occluder, BH @ A, dsize, flags=cv2.INTER_NEAREST,
+                                                      borderMode=cv2.BORDER_CONSTANT)
+                            occl[ci] = hid.astype(bool) & ~act[ci]
+            counts[vi] = len(act)
+            num = 0.0
+            den = 0.0
+            for i in range(len(cams)):
+                for k in range(i + 1, len(cams)):
+                    c1, c2 = cams[i], cams[k]
+                    om = float(pair_weight(np.arccos(np.clip(dirs[c1] @ dirs[c2], -1.0, 1.0)), cfg.sigma))
+                    den += om
+                    if c1 not in act or c2 not in act:
+                        continue  # a degenerate billboard: the pair scores 0
+                    either = act[c1] | act[c2]
+                    if cfg.occlusion:  # seen by one camera, hidden behind another part in the other
+                        either &= ~(occl[c1] | occl[c2])
+                    n_either = int(np.count_nonzero(either))
+                    if n_either == 0:
+                        continue
+                    both = act[c1] & act[c2]
+                    d = rgb[c1][both] - rgb[c2][both]
+                    eps = np.sqrt(np.einsum("ij,ij->i", d, d)) * (cfg.eps_gain / RGB_DIAGONAL)
+                    num += om * float(np.sum(1.0 - np.minimum(eps, 1.0))) / n_either
+            if den > 0:
+                per_view[vi] = num / den
+        ok = np.isfinite(per_view)
+        value = float(per_view[ok].mean()) if ok.any() else float("nan")
+        return PartScore(value, per_view, counts)
+
+    def adjacent_parts(self, joint: int) -> list[int]:
+        """0-based indices of the parts whose fans move with ``joint``."""
+        return self.skeleton.parts_of_joint(joint)
+
+    def joint_score(self, joints: np.ndarray, joint: int, visibility: dict | None = None) -> float:
+        """Position score of ``joint``: the sum of its adjacent bones' scores (NaN bones count 0).
+
+        ``visibility`` maps part index to a (n_views, n_cams) bool array
+        (:meth:`visibility`); default: that of ``joints``.  Returns NaN when no
+        adjacent bone can be scored (no camera pair sees any of them).
+        """
+        J = np.asarray(joints, float)
+        if J.shape != (self.skeleton.n_joints, 3):
+            raise InputError("joints", f"an array of shape ({self.skeleton.n_joints}, 3)", f"shape {J.shape}")
+        if not 0 <= joint < self.skeleton.n_joints:
+            raise InputError("joint", f"a joint index in [0, {self.skeleton.n_joints})", f"{joint}")
+        vis = visibility or {}
+        vals = [self.part_score(J, p, vis.get(p)).value for p in self.adjacent_parts(joint)]
+        vals = [v for v in vals if np.isfinite(v)]
+        return float(sum(vals)) if vals else float("nan")
+
+    def candidate_scores(self, joints: np.ndarray, joint: int, positions: np.ndarray,
+                         visibility: dict | None = None) -> np.ndarray:
+        """Scores (N,) of ``joint`` moved to each of ``positions`` (N, 3), the rest of the pose fixed.
+
+        The views and billboards evaluated are those of ``joints`` (or ``visibility``)
+        for every candidate, so that candidates are compared on the same terms.
+        """
+        J = np.array(joints, float)
+        pos = np.asarray(positions, float).reshape(-1, 3)
+        if visibility is None:
+            visibility = {p: self.visibility(J, p) for p in self.adjacent_parts(joint)}
+        out = np.empty(len(pos))
+        for i, x in enumerate(pos):
+            J[joint] = x
+            out[i] = self.joint_score(J, joint, visibility)
+        return out
+
+    def pose_score(self, joints: np.ndarray) -> float:
+        """Mean bone score over the bones that can be scored (NaN if none)."""
+        J = np.asarray(joints, float)
+        vals = [self.part_score(J, p).value for p in range(self.skeleton.n_parts)]
+        vals = [v for v in vals if np.isfinite(v)]
+        return float(np.mean(vals)) if vals else float("nan")

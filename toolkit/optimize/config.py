@@ -1,0 +1,52 @@
+"""Configuration of the constrained 3D joint optimisation (source 000 §3.2, claim 10)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from toolkit.errors import InputError
+
+#: Finest step of the adaptive grid, metres ("ajustada en forma empírica a 1,2 cm", source 000 §3.2).
+GRID_MIN_STEP_M = 0.012
+#: Sweeps over all joints after which the source's optimisation has usually converged (§3.2: "4 iteraciones").
+SOURCE_SWEEPS = 4
+
+
+@dataclass(frozen=True)
+class OptimizeConfig:
+    """Adaptive grid search per joint, joints swept in turn.
+
+    Attributes
+    ----------
+    initial_step_m : float
+        First grid step, metres; halved each level down to ``min_step_m``
+        (default 4.8 cm = 4 x 1.2 cm: levels 4.8, 2.4, 1.2 cm).
+    min_step_m : float
+        Finest step (:data:`GRID_MIN_STEP_M`).
+    grid_radius : int
+        The grid around a centre has ``(2 r + 1)^3`` nodes.
+    keep_best : int
+        Number of best candidates the grid is refined around at each level.
+    max_sweeps : int
+        Most sweeps over all joints (:data:`SOURCE_SWEEPS`).
+    min_improvement : float
+        Stop when a sweep raises the summed joint score by less than this.
+    min_gain : float
+        A joint moves only when its score rises by more than this.
+    """
+
+    initial_step_m: float = 0.048
+    min_step_m: float = GRID_MIN_STEP_M
+    grid_radius: int = 1
+    keep_best: int = 2
+    max_sweeps: int = SOURCE_SWEEPS
+    min_improvement: float = 1e-3
+    min_gain: float = 1e-4
+
+    def __post_init__(self):
+        if not 0 < self.min_step_m <= self.initial_step_m:
+            raise InputError("OptimizeConfig.initial_step_m/min_step_m", "0 < min_step_m <= initial_step_m",
+                             f"{self.initial_step_m}, {self.min_step_m}")
+        if self.grid_radius < 1 or self.keep_best < 1 or self.max_sweeps < 1:
+            raise InputError("OptimizeConfig", "grid_radius, keep_best and max_sweeps >= 1",
+                             f"{self.grid_radius}, {self.keep_best}, {self.max_sweeps}")
