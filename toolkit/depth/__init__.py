@@ -47,6 +47,8 @@ from toolkit.depth.readers import (
     list_depth_frames,
     read_depth,
     read_depth_intrinsics,
+    DepthInput,
+    open_depth_input,
 )
 from toolkit.depth.stabilise import Stabiliser, StabiliserConfig
 from toolkit.depth.complete import CompletionConfig, PointKalman, complete
@@ -58,6 +60,8 @@ from toolkit.depth.tracker import (
     DepthTracker,
     FrameResult,
     TrackerConfig,
+    TrackResult,
+    track_sequence,
 )
 
 __all__ = [
@@ -72,4 +76,5 @@ __all__ = [
     "list_depth_frames", "read_depth", "read_depth_intrinsics",
     "Stabiliser", "StabiliserConfig", "CompletionConfig", "PointKalman", "complete",
     "LOST", "RECOVERING", "STATE_NAMES", "TRACKING", "DepthTracker", "FrameResult", "TrackerConfig",
+    "TrackResult", "track_sequence", "DepthInput", "open_depth_input",
 ]

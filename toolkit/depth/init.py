@@ -222,13 +222,16 @@ def _body_centre_x(grid: OrusGrid) -> float:
 
 
 def top_contour_peaks(grid: OrusGrid, min_width_m: float = 0.10, max_width_m: float = 0.30,
-                      min_drop_m: float = 0.08) -> list[np.ndarray]:
+                      min_drop_m: float = 0.08, min_body_m: float = 0.0) -> list[np.ndarray]:
     """Head-like bumps of the silhouette's upper contour.
 
     For every grid column the highest filled bin gives the upper contour; a
     bump is a run of columns within one bin of the run's top, between
     ``min_width_m`` and ``max_width_m`` wide, with the contour at least
-    ``min_drop_m`` lower on both sides within 0.25 m (neck and shoulders).
+    ``min_drop_m`` lower on both sides within 0.25 m (neck and shoulders) and,
+    if ``min_body_m`` is set, a body under it: the grid column below the bump's
+    top filled over at least that length (or down to the grid's lower edge),
+    which a raised fist beside the head does not have.
 
     Returns
     -------
@@ -259,10 +262,19 @@ def top_contour_peaks(grid: OrusGrid, min_width_m: float = 0.10, max_width_m: fl
         if min_width_m <= width <= max_width_m and drop_l >= min_drop_m and drop_r >= min_drop_m:
             cols = np.arange(j, k + 1)
             rows = top[j:k + 1].astype(int)
-            out.append((run_top, grid.mean[rows, cols].mean(0)))
+            p = grid.mean[rows, cols].mean(0)
+            if min_body_m <= 0 or _column_filled(grid, (j + k) // 2, int(run_top), min_body_m) >= 0.8:
+                out.append((run_top, p))
         j = k + 1
     out.sort(key=lambda t: t[0])
     return [p for _, p in out]
+
+
+def _column_filled(grid: OrusGrid, col: int, row: int, length_m: float) -> float:
+    """Fraction of filled bins in column ``col`` from ``row`` down over ``length_m`` (or to the grid's edge)."""
+    n = max(int(round(length_m / grid.bin_size)), 1)
+    seg = grid.filled[row:row + n, col]
+    return float(seg.mean()) if len(seg) else 0.0
 
 
 def head_candidates(kp: KeyPoints, centroid: np.ndarray, principal: np.ndarray, profile: RadialProfile | None,
@@ -404,12 +416,9 @@ def initial_poses(grid: OrusGrid, kp: KeyPoints, heads: list, centroid: np.ndarr
         pa = -pa
     for hc in heads:
         # up: the principal direction when the user is elongated, else vertical
-        # up: the principal direction within the image plane (a standing user facing the
-        # camera), blended with gravity; depth tilts of the principal axis are noise
-        u = np.array([pa[0], pa[1], 0.0])
-        u = u / max(np.linalg.norm(u), 1e-9) if abs(pa[2]) < 0.7 else up
-        u = 0.5 * u + 0.5 * up
-        u = u / np.linalg.norm(u)
+        # the user is assumed standing (source 001): the torso's up is gravity's, the
+        # local fit then finds any lean
+        u = up
         lateral = np.cross([0.0, 0.0, 1.0], u)       # view +x-ish: the person's left when facing the camera
         lateral /= np.linalg.norm(lateral)
         H = estimate_stature(grid, hc.position, ground_y, cut_bottom, config)

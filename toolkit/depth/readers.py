@@ -53,6 +53,8 @@ __all__ = [
     "list_depth_frames",
     "depth_intrinsics_text",
     "read_depth_intrinsics",
+    "DepthInput",
+    "open_depth_input",
 ]
 
 #: Image size of a Kinect v1 depth frame (width, height).
@@ -332,3 +334,108 @@ def read_depth_intrinsics(path: str | os.PathLike) -> DepthCameraInfo:
     except InputError as e:
         raise InputError(f"{path}: {e.where}", e.expected, e.found) from None
     return DepthCameraInfo(cam, T is not None, float(units))
+
+
+# ------------------------------------------------------------------ inputs
+@dataclass(frozen=True)
+class DepthInput:
+    """A sequence of depth frames with its camera, as the depth recipe reads it.
+
+    Attributes
+    ----------
+    camera : Camera
+    pose_known : bool
+    frames : list of Path
+        Frame files in order.
+    background : ndarray of shape (H, W) or None
+        Depth of the empty scene (float32 metres), if the input has one.
+    truth : dict or None
+        ``joints`` (T, 13, 3) world metres, ``names`` and ``visible`` (T, 13) from
+        ``groundtruth/skeleton13.npz`` when present.
+    reader : str
+        Reader of :func:`read_depth` used for the frames.
+    size : tuple of int
+        Image size of raw frames.
+    units_per_metre : float
+    kind : str
+        ``"dataset"`` (a folder with ``depth_camera/``) or ``"frames"`` (a folder of depth files).
+    """
+
+    camera: Camera
+    pose_known: bool
+    frames: list
+    background: np.ndarray | None
+    truth: dict | None
+    reader: str = "auto"
+    size: tuple = KINECT_V1_SIZE
+    units_per_metre: float = DEPTH_UNITS_PER_METRE
+    kind: str = "frames"
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    def read(self, i: int) -> np.ndarray:
+        """Frame ``i`` as float32 metres (NaN = no reading)."""
+        d = read_depth(self.frames[i], reader=self.reader, size=self.size, units_per_metre=self.units_per_metre)
+        w, h = self.camera.size
+        if d.shape != (h, w):
+            raise InputError(str(self.frames[i]), f"a {w} x {h} depth frame (the camera's size)",
+                             f"{d.shape[1]} x {d.shape[0]}")
+        return d
+
+
+def open_depth_input(path: str | os.PathLike, *, size=None, focal_px: float | None = None,
+                     intrinsics: str | os.PathLike | None = None, reader: str = "auto",
+                     background: str | os.PathLike | None = None) -> DepthInput:
+    """Open a dataset folder with ``depth_camera/`` or a folder of depth frames.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        A dataset folder (``depth_camera/intrinsics.toml``, ``depth_camera/depth/NNNNNN.png``,
+        optionally ``depth_camera/background.png`` and ``groundtruth/skeleton13.npz``) or a
+        folder of depth frames (16-bit PNG, raw uint16, Open3D images, ``.npy``).
+    size : tuple of int, optional
+        ``(width, height)`` of raw frames and of the default camera (default 640 x 480).
+    focal_px : float, optional
+        Focal length of the default camera (default :data:`KINECT_V1_FOCAL_PX` scaled to the width).
+    intrinsics : str or PathLike, optional
+        An ``intrinsics.toml`` for a folder of frames (overrides ``size`` and ``focal_px``).
+    reader : str
+        See :func:`read_depth`.
+    background : str or PathLike, optional
+        A depth file of the empty scene (datasets use ``depth_camera/background.png``).
+
+    Raises
+    ------
+    InputError
+        Missing folder, no frames, unreadable intrinsics.
+    """
+    root = Path(path)
+    if not root.is_dir():
+        raise InputError(str(root), "a dataset folder with depth_camera/ or a folder of depth frames",
+                         "no such folder")
+    dc = root / "depth_camera"
+    if dc.is_dir():
+        info = read_depth_intrinsics(intrinsics if intrinsics is not None else dc / "intrinsics.toml")
+        frames = sorted((dc / "depth").glob("*.png")) if (dc / "depth").is_dir() else []
+        if not frames:
+            raise InputError(str(dc / "depth"), "NNNNNN.png depth frames", "none")
+        bg_path = Path(background) if background is not None else dc / "background.png"
+        bg = read_depth(bg_path, units_per_metre=info.depth_units_per_metre) if bg_path.is_file() else None
+        truth = None
+        gt = root / "groundtruth" / "skeleton13.npz"
+        if gt.is_file():
+            with np.load(gt, allow_pickle=False) as z:
+                truth = {k: z[k] for k in z.files}
+        return DepthInput(info.camera, info.pose_known, frames, bg, truth, "png", info.camera.size,
+                          info.depth_units_per_metre, "dataset")
+    frames = list_depth_frames(root)
+    if intrinsics is not None:
+        info = read_depth_intrinsics(intrinsics)
+        cam, pose_known, units = info.camera, info.pose_known, info.depth_units_per_metre
+    else:
+        cam = default_depth_camera(size if size is not None else KINECT_V1_SIZE, focal_px)
+        pose_known, units = False, DEPTH_UNITS_PER_METRE
+    bg = read_depth(background, reader=reader, size=cam.size, units_per_metre=units) if background else None
+    return DepthInput(cam, pose_known, frames, bg, None, reader, cam.size, units, "frames")

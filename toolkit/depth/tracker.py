@@ -56,7 +56,8 @@ from toolkit.errors import InputError
 from toolkit.observe import as_observer
 from toolkit.skeleton import SKELETON_13
 
-__all__ = ["LOST", "RECOVERING", "TRACKING", "STATE_NAMES", "TrackerConfig", "FrameResult", "DepthTracker"]
+__all__ = ["LOST", "RECOVERING", "TRACKING", "STATE_NAMES", "TrackerConfig", "FrameResult", "DepthTracker",
+           "TrackResult", "track_sequence"]
 
 LOST, RECOVERING, TRACKING = 0, 1, 2
 STATE_NAMES = ("lost", "recovering", "tracking")
@@ -107,6 +108,9 @@ class TrackerConfig:
         When the user is first found, two head candidates at the same height
         at least this far apart sideways are two people; the grid is split
         between them and the better head kept.
+    min_body_m : float
+        A second person's head has a body under it: the silhouette continues at
+        least this far straight down (a raised fist does not).
     support_radius_m : float
         A control point is observed when grid bins given to its primitives lie this close to it ...
     support_min_bins : int
@@ -116,6 +120,8 @@ class TrackerConfig:
     single_thread_blas : bool
         Limit BLAS to one thread while processing a frame: the fit multiplies
         small matrices, which multi-threaded BLAS slows down by 10-30x on a busy machine.
+    report_max_points : int
+        At most about this many cloud points are reported to the observer per frame.
     """
 
     mask: MaskConfig = MaskConfig()
@@ -138,12 +144,14 @@ class TrackerConfig:
     person_gate_m: float = 0.12
     touching_fraction: float = 0.2
     second_head_m: float = 0.45
+    min_body_m: float = 0.8
     support_radius_m: float = 0.15
     support_min_bins: int = 2
     prev_weight_tracking: float = 0.3
     prev_weight_recovering: float = 0.1
     prev_weight_unseen: float = 1.0
     single_thread_blas: bool = True
+    report_max_points: int = 5000
 
     def __post_init__(self):
         if self.output not in ("world", "camera"):
@@ -368,7 +376,7 @@ class DepthTracker:
             keep = self._near_body(grid, predicted)
             n_far = int((grid.filled & ~keep).sum())
             if n_far > max(cfg.min_bins // 2, cfg.touching_fraction * grid.filled.sum()) and \
-                    top_contour_peaks(replace(grid, filled=grid.filled & ~keep)):
+                    top_contour_peaks(replace(grid, filled=grid.filled & ~keep), min_body_m=cfg.min_body_m):
                 # much more than one body: a second person touches the user; fit only the user's part
                 reason = "touching"
                 grid = replace(grid, filled=grid.filled & keep, occupied=grid.occupied & keep)
@@ -491,7 +499,7 @@ class DepthTracker:
         (a second person touching the user), else None.  The person kept is the one whose head is
         nearer the camera's optical axis (the camera is aimed at the user)."""
         cfg = self.config
-        peaks = top_contour_peaks(grid)
+        peaks = top_contour_peaks(grid, min_body_m=cfg.min_body_m)
         if len(peaks) < 2:
             return None
         a = peaks[0]
@@ -557,7 +565,7 @@ class DepthTracker:
             obs.report("rig", rig=Rig([self.camera]), path="world/depth_cams")
             obs.report("skeleton", skeleton=SKELETON_13)
             self._reported_static = True
-        step = max(1, cloud.n_points // 20000)
+        step = max(1, cloud.n_points // self.config.report_max_points)
         obs.report("points3d", points=fr.to_world(cloud.points[::step]), name="depth/cloud", frame=i,
                    colors=np.full((len(cloud.points[::step]), 3), 170, np.uint8))
         pos, nrm, idx = grid.points("filled")
@@ -597,3 +605,78 @@ class DepthTracker:
             for k, v in fit.energy.terms.items():
                 obs.report("scalar", name=f"depth/energy/{k}", value=float(v), frame=r.index)
             obs.report("scalar", name="depth/explained", value=float(r.explained), frame=r.index)
+
+
+@dataclass(frozen=True)
+class TrackResult:
+    """The frames of a tracked sequence.
+
+    Attributes
+    ----------
+    frames : list of FrameResult
+    coordinates : str
+        ``"world"`` or ``"camera"`` (the output coordinates of ``joints``).
+    """
+
+    frames: list
+    coordinates: str
+
+    @property
+    def joints(self) -> np.ndarray:
+        """(T, 13, 3) metres, NaN where lost."""
+        return np.array([f.joints for f in self.frames]).reshape(-1, N_POINTS, 3)
+
+    @property
+    def states(self) -> np.ndarray:
+        """(T,) int8 states."""
+        return np.array([f.state for f in self.frames], np.int8)
+
+    @property
+    def observed(self) -> np.ndarray:
+        return np.array([f.observed for f in self.frames], bool).reshape(-1, N_POINTS)
+
+    @property
+    def explained(self) -> np.ndarray:
+        return np.array([f.explained for f in self.frames])
+
+    @property
+    def supported(self) -> np.ndarray:
+        return np.array([f.supported for f in self.frames])
+
+    @property
+    def reasons(self) -> np.ndarray:
+        return np.array([f.reason for f in self.frames])
+
+    def timings(self, stage: str = "total") -> np.ndarray:
+        """CPU seconds of one stage per frame (NaN where the stage did not run)."""
+        return np.array([f.timings.get(stage, np.nan) for f in self.frames])
+
+
+def track_sequence(tracker: DepthTracker, frames, independent: bool = False, progress=None) -> TrackResult:
+    """Run ``tracker`` over depth frames.
+
+    Parameters
+    ----------
+    tracker : DepthTracker
+    frames : iterable of ndarray (H, W)
+        Depth frames in order (metres).
+    independent : bool
+        Track every frame on its own (the tracker is reset before each one),
+        for unrelated frames such as a set of still pictures.
+    progress : callable, optional
+        Called with each :class:`FrameResult` (e.g. to advance a progress bar).
+
+    Returns
+    -------
+    TrackResult
+    """
+    out = []
+    for d in frames:
+        if independent:
+            tracker.reset()
+        r = tracker.process(d)
+        out.append(r)
+        if progress is not None:
+            progress(r)
+    coords = tracker.config.output if tracker.frame.pose_known else "camera"
+    return TrackResult(out, coords)
