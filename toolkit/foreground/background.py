@@ -1,0 +1,162 @@
+"""Background models learned over a video.
+
+* ``"median"``: the per-pixel median of an even subsample of frames; a pixel is
+  foreground when its colour distance (max over RGB channels) to the median
+  exceeds both a fixed floor and a multiple of the pixel's own robust spread
+  over the samples.  A subject that stands still on a pixel for more than half
+  of the samples becomes background there (use chroma keying or more samples).
+* ``"mog2"``, ``"knn"``: OpenCV's adaptive mixture and k-nearest-neighbour
+  subtractors, trained on the same samples and then applied without learning,
+  so the subject never fades into the background; their shadow label counts as
+  background.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import cv2
+import numpy as np
+
+from toolkit.errors import InputError
+from toolkit.foreground.config import BackgroundConfig
+
+#: Scale from the median absolute deviation to a standard deviation (normal noise).
+MAD_TO_SIGMA = 1.4826
+#: Frames fed to the OpenCV subtractors while training (the samples, cycled); also their history.
+SUBTRACTOR_TRAINING_FRAMES = 200
+#: Share of the OpenCV subtractors' weight (MOG2) or stored samples (KNN) a colour needs to
+#: be background: a majority, like the median model.
+SUBTRACTOR_MAJORITY = 0.5
+
+
+def frame_count(frames) -> int:
+    """Number of frames of a sequence (array, list, :class:`~toolkit.io.VideoReader`)."""
+    try:
+        return len(frames)
+    except TypeError:
+        raise InputError("frames", "a sequence of frames with a length (array, list, VideoReader)",
+                         type(frames).__name__) from None
+
+
+def frame_at(frames, i: int) -> np.ndarray:
+    """Frame ``i`` of an array, list or object with ``read(i)``."""
+    if hasattr(frames, "read") and not isinstance(frames, (np.ndarray, list, tuple)):
+        return np.asarray(frames.read(i))
+    return np.asarray(frames[i])
+
+
+def check_rgb(image, where: str, size: tuple[int, int] | None = None) -> np.ndarray:
+    """Validate an RGB uint8 image, optionally of a given (H, W)."""
+    img = np.asarray(image)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise InputError(where, "an RGB uint8 image (H, W, 3)", f"shape {img.shape}, dtype {img.dtype}")
+    if size is not None and img.shape[:2] != tuple(size):
+        raise InputError(where, f"an image of size (H, W) = {tuple(size)} like the background",
+                         f"{img.shape[:2]}")
+    return img
+
+
+def sample_indices(n_frames: int, n_samples: int) -> np.ndarray:
+    """``n_samples`` frame indices spread evenly over ``n_frames`` (all when fewer)."""
+    if n_frames < 1:
+        raise InputError("frames", "at least one frame", "none")
+    return np.unique(np.round(np.linspace(0, n_frames - 1, min(n_samples, n_frames))).astype(int))
+
+
+class BackgroundModel:
+    """A background learned from frames of one static camera.
+
+    Use :meth:`fit`; then :meth:`foreground` per frame.
+
+    Attributes
+    ----------
+    config : BackgroundConfig
+    background : ndarray of shape (H, W, 3), uint8
+        The median image (median method) or OpenCV's background image.
+    threshold : ndarray of shape (H, W) or None
+        Median method: per-pixel colour-distance threshold (0-255 units).
+    """
+
+    def __init__(self, config: BackgroundConfig, background: np.ndarray, threshold: np.ndarray | None,
+                 subtractor=None):
+        self.config = config
+        self.background = background
+        self.threshold = threshold
+        self._subtractor = subtractor
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """Image (H, W)."""
+        return self.background.shape[:2]
+
+    @classmethod
+    def fit(cls, frames: Sequence[np.ndarray] | np.ndarray, config: BackgroundConfig | None = None
+            ) -> "BackgroundModel":
+        """Learn the background from an even subsample of ``frames``.
+
+        Parameters
+        ----------
+        frames : sequence of ndarray of shape (H, W, 3), uint8 RGB
+            An array ``(T, H, W, 3)``, a list, or a :class:`~toolkit.io.VideoReader`.
+        config : BackgroundConfig, optional
+
+        Returns
+        -------
+        BackgroundModel
+        """
+        cfg = config or BackgroundConfig()
+        idx = sample_indices(frame_count(frames), cfg.n_samples)
+        first = check_rgb(frame_at(frames, int(idx[0])), f"frames[{idx[0]}]")
+        samples = [first] + [check_rgb(frame_at(frames, int(i)), f"frames[{i}]", first.shape[:2]) for i in idx[1:]]
+        if cfg.method == "median":
+            stack = np.stack(samples).astype(np.int16)
+            med = np.median(stack, axis=0)
+            spread = np.median(np.abs(stack - med[None]), axis=0).max(axis=-1) * MAD_TO_SIGMA
+            thr = np.maximum(cfg.min_threshold, cfg.sigma_factor * spread)
+            return cls(cfg, np.round(med).astype(np.uint8), thr.astype(np.float32))
+        if cfg.method == "mog2":
+            sub = cv2.createBackgroundSubtractorMOG2(history=SUBTRACTOR_TRAINING_FRAMES, varThreshold=cfg.mog2_var_threshold,
+                                                     detectShadows=True)
+            # a mode is background only when it holds most of the weight: a subject passing
+            # a pixel in up to half of the samples stays foreground (as with the median)
+            sub.setBackgroundRatio(SUBTRACTOR_MAJORITY)
+        else:
+            sub = cv2.createBackgroundSubtractorKNN(history=SUBTRACTOR_TRAINING_FRAMES, dist2Threshold=cfg.knn_dist2_threshold,
+                                                    detectShadows=True)
+            sub.setkNNSamples(int(np.ceil(SUBTRACTOR_MAJORITY * sub.getNSamples())))
+        # OpenCV's subtractors weigh early frames heavily; cycling over the samples makes each
+        # mode's weight converge to how often the pixel showed it
+        bgr = [cv2.cvtColor(s, cv2.COLOR_RGB2BGR) for s in samples]
+        for _ in range(max(1, -(-SUBTRACTOR_TRAINING_FRAMES // len(bgr)))):
+            for s in bgr:
+                sub.apply(s, learningRate=-1)
+        bg = cv2.cvtColor(sub.getBackgroundImage(), cv2.COLOR_BGR2RGB)
+        return cls(cfg, bg, None, sub)
+
+    def distance(self, frame: np.ndarray) -> np.ndarray:
+        """Colour distance to the background, max over RGB channels, (H, W) float32 (0-255)."""
+        img = check_rgb(frame, "frame", self.size)
+        return np.abs(img.astype(np.int16) - self.background.astype(np.int16)).max(axis=-1).astype(np.float32)
+
+    def foreground(self, frame: np.ndarray, prior: np.ndarray | None = None,
+                   prior_threshold_scale: float = 1.0) -> np.ndarray:
+        """Raw foreground mask of one frame, (H, W) bool.
+
+        Parameters
+        ----------
+        frame : ndarray of shape (H, W, 3), uint8 RGB
+        prior : ndarray of shape (H, W) of bool, optional
+            Median method: where the subject is expected (e.g. the warped previous mask),
+            the threshold is multiplied by ``prior_threshold_scale``.  Ignored by the
+            OpenCV subtractors (see :class:`~toolkit.foreground.ForegroundExtractor`).
+        prior_threshold_scale : float
+        """
+        img = check_rgb(frame, "frame", self.size)
+        if self._subtractor is None:
+            thr = self.threshold
+            if prior is not None:
+                thr = np.where(np.asarray(prior, bool), thr * prior_threshold_scale, thr)
+            return self.distance(img) > thr
+        out = self._subtractor.apply(cv2.cvtColor(img, cv2.COLOR_RGB2BGR), learningRate=0)
+        return out == 255  # 127 = shadow
