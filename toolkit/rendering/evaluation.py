@@ -41,3 +41,33 @@ class BackgroundPlates:
     def plate(self, camera: Camera) -> np.ndarray:
         """The surroundings seen by ``camera`` (its size must be the scene's resolution)."""
         return self._renderer.background_plate(camera)
+
+
+def pose_errors(joints: np.ndarray, truth: np.ndarray) -> dict:
+    """Mean per-joint position error (metres) of estimated joints (T, J, 3) against ground truth.
+
+    Returns ``{"mpjpe_m": mean over finite joints, "frames": frames with an estimate}`` (NaN when none).
+    """
+    a = np.asarray(joints, float)
+    b = np.asarray(truth, float)
+    if a.shape != b.shape:
+        raise InputError("pose_errors: joints", f"shape {b.shape} (the ground truth's)", f"shape {a.shape}")
+    d = np.linalg.norm(a - b, axis=-1)
+    ok = np.isfinite(d)
+    return {"mpjpe_m": float(d[ok].mean()) if ok.any() else float("nan"),
+            "frames": int(np.isfinite(a).all(axis=(-1, -2)).sum())}
+
+
+def summarise(per_frame: list[dict]) -> dict:
+    """Average per-frame ``{method: {camera: {"psnr", "ssim"}}}`` scores into ``{method: {"psnr", "ssim", "n"}}``."""
+    acc: dict = {}
+    for f in per_frame:
+        for method, cams in f.items():
+            for s in cams.values():
+                a = acc.setdefault(method, {"psnr": [], "ssim": []})
+                if np.isfinite(s["psnr"]):
+                    a["psnr"].append(min(s["psnr"], 100.0))
+                    a["ssim"].append(s["ssim"])
+    return {m: {"psnr": float(np.mean(v["psnr"])) if v["psnr"] else float("nan"),
+                "ssim": float(np.mean(v["ssim"])) if v["ssim"] else float("nan"), "n": len(v["psnr"])}
+            for m, v in acc.items()}

@@ -17,7 +17,7 @@ from dataclasses import replace
 import cv2
 import numpy as np
 
-from toolkit.billboards import BillboardConfig, build_billboards
+from toolkit.billboards import BillboardConfig, SeamMap, build_billboards
 from toolkit.billboards.model import BillboardModel
 from toolkit.cameras import Rig
 from toolkit.errors import InputError
@@ -30,7 +30,7 @@ CROP_MARGIN_PX = 8
 
 
 def render_billboards(images: dict, labels: dict, joints3d: np.ndarray, rig: Rig, offsets=None,
-                      config: BillboardConfig = BillboardConfig(), *, supersample: int = RENDER_SUPERSAMPLE,
+                      seams: dict | None = None, config: BillboardConfig = BillboardConfig(), *, supersample: int = RENDER_SUPERSAMPLE,
                       frame: int = 0, observer: Observer | None = None) -> BillboardModel:
     """:func:`toolkit.billboards.build_billboards` with ``supersample`` x finer textures.
 
@@ -43,6 +43,8 @@ def render_billboards(images: dict, labels: dict, joints3d: np.ndarray, rig: Rig
     rig : Rig
     offsets : ndarray of shape (n_cams, 2), optional
         Calibration offsets at the source resolution, pixels.
+    seams : dict of str -> SeamMap, optional
+        Seam pixels of stage 3 (enlarged with the labels).
     supersample : int
         Enlargement factor (1 = stage 3's textures).
 
@@ -56,9 +58,10 @@ def render_billboards(images: dict, labels: dict, joints3d: np.ndarray, rig: Rig
     s = int(supersample)
     off = np.zeros((len(rig), 2)) if offsets is None else np.asarray(offsets, float)
     if s == 1:
-        return build_billboards(images, labels, joints3d, rig, off, config=config, frame=frame, observer=observer)
+        return build_billboards(images, labels, joints3d, rig, off, seams, config=config, frame=frame,
+                                observer=observer)
     # enlarge only the subject's bounding box (plus a margin) of each view
-    crops, big_img, big_lab = [], {}, {}
+    crops, big_img, big_lab, big_seams = [], {}, {}, {}
     for cam in rig:
         lab = np.asarray(labels[cam.name])
         ys, xs = np.nonzero(lab)
@@ -76,7 +79,13 @@ def render_billboards(images: dict, labels: dict, joints3d: np.ndarray, rig: Rig
                                        interpolation=cv2.INTER_LINEAR)
         big_lab[cam.name] = cv2.resize(np.ascontiguousarray(lab[y0:y1, x0:x1]), None, fx=s, fy=s,
                                        interpolation=cv2.INTER_NEAREST)
+        if seams is not None and seams.get(cam.name) is not None:
+            sm = seams[cam.name]
+            big_seams[cam.name] = SeamMap(
+                np.kron(np.asarray(sm.mask[y0:y1, x0:x1]), np.ones((s, s), bool)),
+                np.kron(np.asarray(sm.membership[y0:y1, x0:x1]), np.ones((s, s), np.uint16)))
     big_rig = Rig(tuple(crops))
     cfg = replace(config, margin_px=config.margin_px * s, min_pixels=config.min_pixels * s * s)
-    m = build_billboards(big_img, big_lab, joints3d, big_rig, off * s, config=cfg, frame=frame, observer=observer)
+    m = build_billboards(big_img, big_lab, joints3d, big_rig, off * s, big_seams or None, config=cfg, frame=frame,
+                         observer=observer)
     return BillboardModel(m.fans, rig, off, m.frame, m.joints)

@@ -1,0 +1,193 @@
+#!/usr/bin/env python3
+"""Free-viewpoint video from a few cameras with articulated billboards: every stage, end to end.
+
+Usage::
+
+    python recipes/make_scene.py datasets_synthetic/default.toml --out out/default
+    python recipes/free_viewpoint.py out/default --out out/default_fvv
+
+Per frame: foreground silhouettes, 2D poses and the multi-view selection with
+calibration offsets (stage 1) -> template fit and body-part segmentation ->
+seams and the 3D joint optimisation by the position score -> articulated
+billboards -> view-dependent rendering (source 000 §4) of every novel camera
+of the dataset and of three camera paths.  Writes into OUT:
+
+  poses3d.npz            joints (T, 14, 3) metres, names, joints_stage1, status (str per frame)
+  parts/<camera>/NNNNNN.png      part labels per source camera
+  novel/<camera>/NNNNNN.png      articulated-billboard rendering of each novel camera
+  baselines/<method>/<camera>/NNNNNN.png   standard billboards and visual hull, same views
+  paths/<path>/NNNNNN.png, paths/<path>.mp4   orbit, sweep through the sources, bird's-eye
+  metrics.json           PSNR / SSIM per method in the subject's box, pose error, timings (with ground truth)
+  recording.rrd          every intermediate of this run, with a blueprint
+  frames/NNNNNN.json     per-frame results; a frame with one is finished and skipped when the run resumes
+
+Stop it at any time (Ctrl-C) and run the same command again: finished frames
+are kept.  See docs/stage4_rendering.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
+
+from toolkit.errors import InputError  # noqa: E402
+
+PATHS = ("orbit", "sweep", "birds_eye")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
+    ap.add_argument("dataset", type=Path, help="dataset folder (docs/dataset_layout.md)")
+    ap.add_argument("--out", type=Path, required=True, help="output folder")
+    ap.add_argument("--db", type=Path, default=None, help="silhouette database .npz (default: the cached one)")
+    ap.add_argument("--foreground", choices=("median", "mog2", "knn", "chroma"), default="median",
+                    help="background model, or chroma keying (green screen)")
+    ap.add_argument("--max-frames", type=int, default=None, help="process only the first N frames")
+    ap.add_argument("--no-optimize", action="store_true", help="keep stage 1's joints (skip the position-score search)")
+    ap.add_argument("--no-baselines", action="store_true", help="do not render standard billboards / visual hull")
+    ap.add_argument("--no-recording", action="store_true", help="do not write recording.rrd")
+    ap.add_argument("--quiet", action="store_true", help="no progress bar")
+    args = ap.parse_args(argv)
+
+    from dataclasses import replace
+
+    import numpy as np
+    from tqdm import tqdm
+
+    from toolkit.foreground import BackgroundConfig, ForegroundConfig
+    from toolkit.cameras import closest_point_to_rays
+    from toolkit.io import Dataset, atomic_save_npz, atomic_write_png, atomic_write_text, write_video
+    from toolkit.io.frames import frame_filename, read_png
+    from toolkit.rendering import CpuCompositor, bbox_scores, birds_eye, orbit_path, source_path
+    from toolkit.rendering.evaluation import BackgroundPlates, pose_errors, summarise
+    from toolkit.rendering.freeviewpoint import METHODS, FrameProcessor, FreeViewpointConfig, render_methods
+    from toolkit.silhouettes import default_database
+    from toolkit.silhouettes.pipeline import estimate_dataset
+    from toolkit.skeleton import SKELETON_14
+
+    try:
+        ds = Dataset.open(args.dataset)
+        rig, names = ds.rig, ds.camera_names
+        n = ds.n_frames if args.max_frames is None else min(args.max_frames, ds.n_frames)
+        if n < 1:
+            raise InputError("--max-frames", "a positive number of frames", str(args.max_frames))
+        out = args.out
+        out.mkdir(parents=True, exist_ok=True)
+        novel = list(ds.novel_rig) if ds.has_groundtruth and (ds.root / "groundtruth/novel/calibration.toml").exists() \
+            else []
+        if not novel:
+            print("note: the dataset has no novel cameras; rendering the camera paths only (no image metrics)")
+        plates = BackgroundPlates(ds.scene_toml) if ds.scene_toml is not None else None
+        target = closest_point_to_rays(rig.centers, np.array([c.forward for c in rig]))[0]
+        paths = {"orbit": orbit_path(target, n, radius_m=float(np.median(np.linalg.norm(rig.centers - target, axis=1))),
+                                     height_m=float(np.median(rig.centers[:, 2])), size=rig[0].size,
+                                     focal_px=float(rig[0].K[0, 0])),
+                 "sweep": source_path(rig, max(n, 2), closed=True)[:n],
+                 "birds_eye": [birds_eye(rig, target)] * n}
+        done = {t for t in range(n) if (out / "frames" / frame_filename(t, ".json")).exists()}
+        todo = [t for t in range(n) if t not in done]
+        if done:
+            print(f"resuming: {len(done)} of {n} frames already finished")
+        observer = None
+        if not args.no_recording:
+            from toolkit.viz import RerunObserver
+            observer = RerunObserver(application_id="free_viewpoint", path=out / "recording.rrd",
+                                     camera_names=names + [c.name for c in novel])
+            observer.report("rig", rig=rig)
+            if novel:
+                observer.report("rig", rig=ds.novel_rig)
+            observer.report("skeleton", skeleton=SKELETON_14)
+        config = FreeViewpointConfig(optimize=not args.no_optimize, baselines=not args.no_baselines)
+        processor = FrameProcessor(rig, config, observer)
+        compositor = CpuCompositor()
+        db = None
+        if todo:
+            db = default_database(args.db)[0] if args.db is None or not args.db.exists() else None
+            if db is None:
+                from toolkit.silhouettes import SilhouetteDatabase
+                db = SilhouetteDatabase.load(args.db)
+        stopped = ""
+        t_start = time.perf_counter()
+        try:
+            fg = ForegroundConfig(method="chroma") if args.foreground == "chroma" else \
+                ForegroundConfig(background=replace(BackgroundConfig(), method=args.foreground))
+            run = estimate_dataset(ds, db, foreground=fg, frames=todo, observer=observer) if todo else iter(())
+            for est, masks in tqdm(run, total=len(todo), desc="free viewpoint", unit="frame", disable=args.quiet):
+                t0 = time.perf_counter()
+                t = est.frame
+                images = {c: ds.frame(c, t) for c in names}
+                res = processor.process(t, images, masks, est)
+                for c in names:
+                    atomic_write_png(out / "parts" / c / frame_filename(t), res.labels[c])
+                scores = {}
+                for cam in novel:
+                    bg = plates.plate(cam) if plates is not None else np.zeros(cam.size[::-1] + (3,), np.float32)
+                    views = render_methods(res, cam, bg, compositor, observer=observer)
+                    gt, gt_mask = ds.novel_image(cam.name, t), ds.novel_mask(cam.name, t)
+                    for m, img in views.items():
+                        folder = out / "novel" if m == "articulated" else out / "baselines" / m
+                        atomic_write_png(folder / cam.name / frame_filename(t), img)
+                        scores.setdefault(m, {})[cam.name] = bbox_scores(img, gt, gt_mask)
+                        if observer is not None:
+                            observer.report("image", camera=cam.name, image=img, name=f"render/{m}", frame=t)
+                for p, cams in paths.items():
+                    bg = plates.plate(cams[t]) if plates is not None else np.zeros(cams[t].size[::-1] + (3,))
+                    img = render_methods(res, cams[t], bg, compositor, methods=("articulated",))["articulated"]
+                    atomic_write_png(out / "paths" / p / frame_filename(t), img)
+                record = {"frame": t, "status": res.status, "joints": res.joints.tolist(),
+                          "joints_stage1": res.joints_stage1.tolist(), "offsets": res.offsets.tolist(),
+                          "scores": scores, "timings": {**res.timings, "total": time.perf_counter() - t0}}
+                atomic_write_text(out / "frames" / frame_filename(t, ".json"), json.dumps(record, allow_nan=True))
+        except KeyboardInterrupt:
+            stopped = "interrupted"
+        finally:
+            if observer is not None:
+                observer.close()
+        records = [json.loads((out / "frames" / frame_filename(t, ".json")).read_text()) for t in range(n)
+                   if (out / "frames" / frame_filename(t, ".json")).exists()]
+        joints = np.full((n, 14, 3), np.nan)
+        stage1 = np.full((n, 14, 3), np.nan)
+        status = np.array(["not processed"] * n)
+        for r in records:
+            joints[r["frame"]], stage1[r["frame"]], status[r["frame"]] = r["joints"], r["joints_stage1"], r["status"]
+        atomic_save_npz(out / "poses3d.npz", joints=joints, names=np.array(SKELETON_14.joint_names),
+                        joints_stage1=stage1, status=status)
+        finished = len(records) == n
+        if finished:
+            for p in PATHS:
+                frames = (read_png(out / "paths" / p / frame_filename(t)) for t in range(n))
+                write_video(out / "paths" / f"{p}.mp4", frames, ds.fps)
+        if ds.has_groundtruth:
+            gt = ds.gt_joints3d()[:n]
+            metrics = {"frames": n, "finished": len(records), "methods": summarise([r["scores"] for r in records]),
+                       "pose": pose_errors(joints, gt), "pose_stage1": pose_errors(stage1, gt),
+                       "seconds_per_frame": {k: float(np.mean([r["timings"].get(k, np.nan) for r in records]))
+                                             for k in ("total", "segmentation", "optimize", "billboards",
+                                                       "standard_billboards", "visual_hull")} if records else {},
+                       "novel_cameras": [c.name for c in novel]}
+            atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=2, allow_nan=True))
+        ds.close()
+    except InputError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    dt = time.perf_counter() - t_start
+    print(f"{'stopped early (' + stopped + '): ' if stopped else ''}{len(records)} of {n} frames finished "
+          f"({len(todo)} this run, {dt:.1f} s)")
+    if ds.has_groundtruth and records:
+        for m in METHODS:
+            s = metrics["methods"].get(m)
+            if s:
+                print(f"  {m:12s} PSNR {s['psnr']:.2f} dB  SSIM {s['ssim']:.3f}  ({s['n']} views)")
+        print(f"  pose error {metrics['pose']['mpjpe_m'] * 100:.1f} cm (stage 1: {metrics['pose_stage1']['mpjpe_m'] * 100:.1f} cm)")
+    print(f"outputs in {out}; recording: rerun {out / 'recording.rrd'}")
+    return 1 if stopped else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
