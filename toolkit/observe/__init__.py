@@ -94,4 +94,5 @@ REPORT_KINDS: dict[str, str] = {
     "points2d": "camera: str; points: (N, 2) pixels, NaN missing; colors: (N, 3) uint8 optional; name: str",
     "lines2d": "camera: str; strips: list of (K, 2) pixels; colors: (S, 3) uint8 optional; name: str",
     "lines3d": "strips: list of (K, 3) metres (e.g. trajectories, seams); colors optional; name: str",
+    "series": "name: str; values: (N,) float; steps: (N,) int optional (a curve over iterations, e.g. score per sweep)",
 }

@@ -3,8 +3,8 @@
 Each joint in turn is moved on an adaptive discrete 3D grid around its
 position: the ``(2r+1)^3`` grid is scored, then refined (step halved) around
 the best ``keep_best`` candidates, down to 1.2 cm.  A candidate that breaks an
-anthropometric constraint (:class:`~toolkit.anthropometry.AnthropometricConstraints`)
-scores zero.  Joints are swept until a sweep improves the summed score by
+anthropometric constraint (:class:`~toolkit.anthropometry.AnthropometricConstraints`;
+only the rules the joint takes part in, see :mod:`toolkit.optimize.rules`) scores zero.  Joints are swept until a sweep improves the summed score by
 less than a threshold or after a maximum number of sweeps (the source
 converges in about four).
 
@@ -27,6 +27,7 @@ from toolkit.billboards.score import PositionScorer
 from toolkit.errors import InputError
 from toolkit.observe import Observer, as_observer
 from toolkit.optimize.config import OptimizeConfig
+from toolkit.optimize.rules import joint_rule_reasons
 
 #: Status values of :class:`JointStep`.
 STATUSES = ("moved", "kept", "all_invalid", "unscorable")
@@ -145,7 +146,7 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
     name = sk.joint_names[joint]
     x0 = J[joint].copy()
     n0 = scorer.n_evaluations
-    start_valid, _ = cons.valid_positions(J, joint, x0[None])
+    start_valid, _ = joint_rule_reasons(cons, J, joint, x0[None])
     vis = {p: scorer.visibility(J, p) for p in scorer.adjacent_parts(joint)}
     start = scorer.joint_score(J, joint, vis)
     if not np.isfinite(start):
@@ -168,7 +169,7 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
         new = [c for c in cands if key(c) not in seen]
         if new:
             new = np.array(new)
-            valid, codes = cons.valid_positions(J, joint, new)
+            valid, codes = joint_rule_reasons(cons, J, joint, new)
             for p, ok, code in zip(new, valid, codes):
                 k = key(p)
                 pos_of[k] = p
