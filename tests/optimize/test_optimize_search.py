@@ -2,21 +2,16 @@
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "billboards"))
-from conftest import make_planar_scene  # noqa: E402
-
-from toolkit.anthropometry import AnthropometricConstraints  # noqa: E402
-from toolkit.billboards import PositionScorer  # noqa: E402
-from toolkit.errors import InputError  # noqa: E402
-from toolkit.observe import RecordingObserver  # noqa: E402
-from toolkit.optimize import GRID_MIN_STEP_M, OptimizeConfig, optimize_joint, optimize_pose  # noqa: E402
-from toolkit.skeleton import SKELETON_14  # noqa: E402
+from tests.billboards.planar_scene import make_planar_scene
+from toolkit.anthropometry import AnthropometricConstraints
+from toolkit.billboards import PositionScorer
+from toolkit.errors import InputError
+from toolkit.observe import RecordingObserver
+from toolkit.optimize import GRID_MIN_STEP_M, OptimizeConfig, optimize_joint, optimize_pose
+from toolkit.skeleton import SKELETON_14
 
 WRIST = SKELETON_14.index("l_wrist")
 #: Recovery tolerance across the bone: one final grid step (the plank fixes the plane, not the

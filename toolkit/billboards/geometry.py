@@ -97,7 +97,7 @@ def billboard_frame(proximal, distal, center, edge_on_deg: float = 8.0) -> Billb
     if sin < np.sin(np.radians(edge_on_deg)):
         return None
     n = d_perp / np.linalg.norm(d_perp)
-    e_u = np.cross(n, b)
+    e_u = np.array([n[1] * b[2] - n[2] * b[1], n[2] * b[0] - n[0] * b[2], n[0] * b[1] - n[1] * b[0]])
     return BillboardFrame(origin=x, e_u=e_u, e_v=b, normal=n, length=L)
 
 

@@ -12,7 +12,8 @@ with ε the Euclidean RGB distance divided by 255·√3 (so ε ∈ [0, 1]; see
 the sum of ``s(p)`` divided by the number of pixels active for at least one
 camera (eq. 3), so misaligned billboards are penalised.  Pairs are averaged
 with weights ω(β) = exp(-β²/2σ²), σ = 0.32 rad, β the angle between the two
-cameras' viewing directions (to the bone's midpoint) (eqs. 4-5), and views are
+cameras' viewing directions (their optical axes, which broadcast cameras aim at
+the subject) (eqs. 4-5), and views are
 averaged (eq. 6).  The evaluated views are every input camera plus a virtual
 camera midway between each camera pair (§3.2).  The score of a joint is the sum
 of these bone scores over the bones adjacent to it
@@ -178,6 +179,11 @@ class PositionScorer:
         self._Kinv = [np.linalg.inv(c.K) for c in rig]
         self._centers = rig.centers
         self._view_centers = np.array([v.camera.center for v in self.views])
+        self._adjacent = [skeleton.parts_of_joint(j) for j in range(skeleton.n_joints)]
+        # ω(β) per camera pair; β between the optical axes (broadcast cameras aim at the subject,
+        # so this is the angle between their viewing directions of the subject)
+        fw = np.array([c.forward for c in rig])
+        self._pair_w = pair_weight(np.arccos(np.clip(fw @ fw.T, -1.0, 1.0)), config.sigma)
         self.n_evaluations = 0
 
     # ------------------------------------------------------------------ geometry
@@ -262,8 +268,6 @@ class PositionScorer:
         if len(used) < 2:
             return PartScore(float("nan"), per_view, counts)
         bbs = {ci: self._billboard(ci, part, ends) for ci in used}
-        dirs = mid - self._centers
-        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
         for vi, view in enumerate(self.views):
             cams = [ci for ci in used if vis[vi, ci]]
             if len(cams) < 2:
@@ -302,7 +306,7 @@ class PositionScorer:
                         wp = cv2.warpPerspective(src.patch, BH @ A, dsize, flags=cv2.INTER_LINEAR,
                                                  borderMode=cv2.BORDER_CONSTANT)
                         act[ci] = wp[..., 3] >= self._thr
-                        rgb[ci] = wp[..., :3].astype(np.float32)
+                        rgb[ci] = wp[..., :3]
                         if cfg.occlusion:
                             A[:2, 2] = src.occ_origin - so
                             hid = cv2.warpPerspective(src.occluder, BH @ A, dsize, flags=cv2.INTER_NEAREST,
@@ -314,20 +318,22 @@ class PositionScorer:
             for i in range(len(cams)):
                 for k in range(i + 1, len(cams)):
                     c1, c2 = cams[i], cams[k]
-                    om = float(pair_weight(np.arccos(np.clip(dirs[c1] @ dirs[c2], -1.0, 1.0)), cfg.sigma))
+                    om = self._pair_w[c1, c2]
                     den += om
                     if c1 not in act or c2 not in act:
                         continue  # a degenerate billboard: the pair scores 0
-                    either = act[c1] | act[c2]
+                    a1, a2 = act[c1], act[c2]
                     if cfg.occlusion:  # seen by one camera, hidden behind another part in the other
-                        either &= ~(occl[c1] | occl[c2])
-                    n_either = int(np.count_nonzero(either))
-                    if n_either == 0:
+                        keep = ~(occl[c1] | occl[c2])
+                        a1, a2 = a1 & keep, a2 & keep
+                    both = a1 & a2
+                    n_both = int(np.count_nonzero(both))
+                    n_either = int(np.count_nonzero(a1)) + int(np.count_nonzero(a2)) - n_both
+                    if n_either == 0 or n_both == 0:
                         continue
-                    both = act[c1] & act[c2]
-                    d = rgb[c1][both] - rgb[c2][both]
-                    eps = np.sqrt(np.einsum("ij,ij->i", d, d)) * (cfg.eps_gain / RGB_DIAGONAL)
-                    num += om * float(np.sum(1.0 - np.minimum(eps, 1.0))) / n_either
+                    d = rgb[c1][both].astype(np.int32) - rgb[c2][both]
+                    eps = np.sqrt(np.einsum("ij,ij->i", d, d).astype(np.float32)) * (cfg.eps_gain / RGB_DIAGONAL)
+                    num += om * float(n_both - np.minimum(eps, 1.0).sum()) / n_either
             if den > 0:
                 per_view[vi] = num / den
         ok = np.isfinite(per_view)
@@ -336,7 +342,7 @@ class PositionScorer:
 
     def adjacent_parts(self, joint: int) -> list[int]:
         """0-based indices of the parts whose fans move with ``joint``."""
-        return self.skeleton.parts_of_joint(joint)
+        return self._adjacent[joint]
 
     def joint_score(self, joints: np.ndarray, joint: int, visibility: dict | None = None) -> float:
         """Position score of ``joint``: the sum of its adjacent bones' scores (NaN bones count 0).

@@ -32,7 +32,11 @@ class OptimizeConfig:
     min_improvement : float
         Stop when a sweep raises the summed joint score by less than this.
     min_gain : float
-        A joint moves only when its score rises by more than this.
+        A joint moves only when its score rises by more than this (the score's
+        noise floor: resampling and compression noise move it by ~0.005).
+    tie_tol : float
+        Candidates scoring within this of the best count as equally good; the
+        one nearest the current position wins (the score is flat along a bone).
     """
 
     initial_step_m: float = 0.048
@@ -41,7 +45,8 @@ class OptimizeConfig:
     keep_best: int = 2
     max_sweeps: int = SOURCE_SWEEPS
     min_improvement: float = 1e-3
-    min_gain: float = 1e-4
+    min_gain: float = 0.01
+    tie_tol: float = 0.005
 
     def __post_init__(self):
         if not 0 < self.min_step_m <= self.initial_step_m:

@@ -208,7 +208,10 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
         obs.report("text", name="optimize/kept", text=why, frame=frame)
         return JointStep(joint, x0, 0.0, 0.0, n_eval, n_rej, "all_invalid", why)
     S_valid = np.where(valid_mask, S, -np.inf)
-    b = int(np.argmax(S_valid))
+    # the score is flat along a bone: among candidates within tie_tol of the best, take the
+    # one nearest the start, so that unobservable directions keep the previous estimate
+    near = np.flatnonzero(S_valid >= S_valid.max() - config.tie_tol)
+    b = int(near[np.argmin(np.linalg.norm(P[near] - x0, axis=1))])
     if S_valid[b] > start_score + config.min_gain or not start_valid[0]:
         return JointStep(joint, P[b].copy(), float(S[b]), start_score, n_eval, n_rej, "moved")
     return JointStep(joint, x0, start_score, start_score, n_eval, n_rej, "kept",
