@@ -177,6 +177,7 @@ def composite(model: BillboardModel, camera: Camera, warper: Warper, config: Ble
     depth = camera.depth_of(np.array([f.axis.mean(axis=0) for f in model.fans]))
     order = [i for i in np.argsort(-depth, kind="stable") if depth[i] > 0]
     drawn = []
+    bx0, by0, bx1, by1 = w_img, h_img, 0, 0  # box of everything drawn
     for i in order:
         fan = model.fans[i]
         layers = []
@@ -194,6 +195,7 @@ def composite(model: BillboardModel, camera: Camera, warper: Warper, config: Ble
         y0 = min(g[2][1] for _, g in layers)
         x1 = max(g[2][2] for _, g in layers)
         y1 = max(g[2][3] for _, g in layers)
+        bx0, by0, bx1, by1 = min(bx0, x0), min(by0, y0), max(bx1, x1), max(by1, y1)
         shape = (y1 - y0, x1 - x0)
         num = np.zeros(shape + (3,), np.float32)
         den = np.zeros(shape, np.float32)
@@ -230,17 +232,18 @@ def composite(model: BillboardModel, camera: Camera, warper: Warper, config: Ble
     if not drawn:
         z = np.zeros((h_img, w_img), bool)
         return RenderResult(rgb, alpha, top, dominant, z, z, cw, (), STATUS_ALL_BEHIND)
-    disc = _edges(top) | (_edges(dominant) & (top > 0))
+    # discontinuities, inside the box of what was drawn (one pixel more for the background border)
+    bx0, by0, bx1, by1 = max(bx0 - 1, 0), max(by0 - 1, 0), min(bx1 + 1, w_img), min(by1 + 1, h_img)
+    box = (slice(by0, by1), slice(bx0, bx1))
+    disc = np.zeros((h_img, w_img), bool)
     smoothed = np.zeros_like(disc)
+    disc[box] = _edges(top[box]) | (_edges(dominant[box]) & (top[box] > 0))
     # smoothing strength: 0 on a source camera (exact reproduction), -> 1 far from all of them
     strength = float(attenuation(np.min(np.linalg.norm(model.rig.centers - camera.center, axis=1)),
                                  config.attenuation_sigma_m))
-    if config.smoothing and strength > 0 and disc.any():
-        ys, xs = np.nonzero(disc)
+    if config.smoothing and strength > 0 and disc[box].any():
         pad = config.smoothing_band_px + int(np.ceil(3 * config.smoothing_sigma_px)) + 1
-        bx0, by0 = max(xs.min() - pad, 0), max(ys.min() - pad, 0)
-        bx1, by1 = min(xs.max() + pad + 1, w_img), min(ys.max() + pad + 1, h_img)
-        sl = (slice(by0, by1), slice(bx0, bx1))
+        sl = (slice(max(by0 - pad, 0), min(by1 + pad, h_img)), slice(max(bx0 - pad, 0), min(bx1 + pad, w_img)))
         k = 2 * config.smoothing_band_px + 1
         band = cv2.dilate(disc[sl].astype(np.uint8), np.ones((k, k), np.uint8)) > 0
         stack = np.dstack([rgb[sl], alpha[sl]])

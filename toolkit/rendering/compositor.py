@@ -10,15 +10,17 @@ distortion of the view is ignored (synthetic and virtual cameras have none).
 
 from __future__ import annotations
 
+import numpy as np
+
 from toolkit.billboards.model import Billboard, BillboardModel
-from toolkit.billboards.warp import warp_billboard
+from toolkit.billboards.warp import _warp_plane, warp_billboard
 from toolkit.cameras import Camera
 from toolkit.observe import Observer
 from toolkit.rendering.blend import RenderResult, composite
 from toolkit.rendering.config import BlendConfig
 
 def warp_to_view(billboard: Billboard, camera: Camera, offset=(0.0, 0.0)):
-    """The :data:`~toolkit.rendering.blend.Warper` of the CPU compositor.
+    """The :data:`~toolkit.rendering.blend.Warper` of the CPU compositor, without caching.
 
     Calls :func:`toolkit.billboards.warp_billboard` (one homography per planar
     billboard, ``cv2.warpPerspective`` over its footprint only).
@@ -38,6 +40,12 @@ def warp_to_view(billboard: Billboard, camera: Camera, offset=(0.0, 0.0)):
 class CpuCompositor:
     """Renders billboard models with the blend of source 000 §4 on the CPU.
 
+    Planar billboards go through stage 3's homography warp with their 8-bit
+    RGBA texture packed once per model (cached while the same model is
+    rendered into several views) and without the per-pixel depth the
+    compositor does not need; other surfaces through
+    :func:`toolkit.billboards.warp_billboard`.
+
     Parameters
     ----------
     config : BlendConfig
@@ -45,8 +53,25 @@ class CpuCompositor:
 
     def __init__(self, config: BlendConfig = BlendConfig()):
         self.config = config
+        self._model = None
+        self._rgba: dict[int, np.ndarray] = {}
+
+    def _warp(self, billboard: Billboard, camera: Camera, offset):
+        if billboard.surface != "plane":
+            return warp_to_view(billboard, camera, offset)
+        rgba = self._rgba.get(id(billboard))
+        if rgba is None:
+            rgba = billboard.rgba()  # uint8: 8-bit alpha is plenty for the binary blend
+            self._rgba[id(billboard)] = rgba
+        w = _warp_plane(rgba, billboard.view_from_texture(camera, offset), camera, None, camera.size)
+        if w is None:
+            return None
+        return w.rgb.astype(np.float32), w.alpha.astype(np.float32) * np.float32(1 / 255), \
+            tuple(int(v) for v in w.roi)
 
     def render(self, model: BillboardModel, camera: Camera, offset=(0.0, 0.0),
                observer: Observer | None = None, frame: int | None = None) -> RenderResult:
         """Render ``model`` into ``camera``; see :func:`toolkit.rendering.blend.composite`."""
-        return composite(model, camera, warp_to_view, self.config, offset, observer, frame)
+        if self._model is not model:
+            self._model, self._rgba = model, {}
+        return composite(model, camera, self._warp, self.config, offset, observer, frame)
