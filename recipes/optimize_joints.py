@@ -71,7 +71,10 @@ def main(argv=None) -> int:
             raise InputError("--max-frames", "a positive number of frames", str(args.max_frames))
         gt = ds.gt_joints3d() if ds.has_groundtruth else None
         if args.poses is not None:
-            p3 = np.load(args.poses / "poses3d.npz")
+            p3_file = args.poses / "poses3d.npz"
+            if not p3_file.is_file():
+                raise InputError(str(p3_file), "the stage-1 3D joints (pose_from_silhouettes.py --out)", "no such file")
+            p3 = np.load(p3_file)
             if "joints" not in p3:
                 raise InputError(str(args.poses / "poses3d.npz"), "an array 'joints' (T, 14, 3)", f"{list(p3)}")
             init = np.asarray(p3["joints"], float)
