@@ -34,8 +34,8 @@ from toolkit.skeleton import SKELETON_14
 from toolkit.synthetic.body import BodyModel, BodyShape
 
 #: Thinning / thickening radius as a fraction of the subject's image height
-#: (measured, see docs/stage2_segmentation.md): 0.02 = 4 px on a 200 px subject.
-THIN_THICK_FRACTION = 0.02
+#: (measured, see docs/stage2_segmentation.md): 0.01 = 2 px on a 200 px subject.
+THIN_THICK_FRACTION = 0.01
 #: Per part, the thinning radius is at most this fraction of the part's largest
 #: inscribed radius in the image, so narrow parts (forearms of a 100 px broadcast
 #: subject) keep their centre line (measured, see docs/stage2_segmentation.md).

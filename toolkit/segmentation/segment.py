@@ -1,0 +1,349 @@
+"""Body-part segmentation of one frame in one camera (source 000 §2.3, claim 14).
+
+1. Fit the template to the joints (:func:`toolkit.template.fit_template_pose`)
+   and project it thinned and thickened (:meth:`toolkit.template.Template.project`).
+2. Silhouette pixels with the same non-zero label in both projections are
+   *confident*; the rest of the silhouette is *uncertain*.
+3. One Gaussian mixture per part from the confident pixels' colours
+   (:func:`toolkit.segmentation.colour.fit_part_models`).
+4. Uncertain pixels are labelled by colour alone (``rule="colour"``: the part
+   whose model gives the highest likelihood) or by colour then nearest part
+   (``rule="colour_then_nearest"``: of the parts whose likelihood is within
+   ``colour_margin`` nats of the best, the nearest to the pixel; parts of the
+   same colour, such as the two forearms, are told apart by position).
+5. A morphological closing per part, painted back to front in the template's
+   depth order (so a closed front part covers the part behind it), removes
+   outliers.
+
+Every silhouette pixel gets a label.  Parts with no model are listed in the
+result; when no part has a model the uncertain pixels take the nearest
+template part, and when even the template is not visible they take the torso.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from toolkit.cameras import Camera
+from toolkit.errors import InputError
+from toolkit.observe import as_observer
+from toolkit.segmentation.colour import COLOUR_SPACES, PartColourModels, colour_features, fit_part_models
+from toolkit.skeleton import SKELETON_14
+from toolkit.template import (
+    THIN_THICK_FRACTION,
+    PoseDatabase,
+    Template,
+    TemplatePose,
+    TemplateProjection,
+    camera_with_offset,
+    disc,
+    fit_template_pose,
+)
+
+#: Labelling rules for the uncertain pixels.
+RULES = ("colour", "colour_then_nearest")
+#: Default colour space and mixture size (measured, docs/stage2_segmentation.md).
+DEFAULT_COLOUR_SPACE = "rgb"
+DEFAULT_COMPONENTS = 3
+#: Label given when neither a colour model nor the template says anything (torso).
+FALLBACK_PART = 1 + SKELETON_14.part_names.index("torso")
+
+
+@dataclass(frozen=True)
+class SegmentationConfig:
+    """Settings of :func:`segment_frame`.
+
+    Attributes
+    ----------
+    colour_space : str
+        One of :data:`toolkit.segmentation.colour.COLOUR_SPACES`.
+    n_components : int
+        Gaussian-mixture components per part.
+    min_pixels : int
+        Confident pixels a part needs for a model.
+    max_pixels : int
+        Confident pixels per part used to fit (random subset).
+    rule : str
+        ``"colour"`` or ``"colour_then_nearest"`` (see the module docstring).
+    colour_margin : float
+        Log-likelihood margin (nats) of the ``colour_then_nearest`` rule.
+    thin_thick_fraction : float
+        Thinning / thickening radius as a fraction of the subject's image height.
+    closing_fraction : float
+        Closing radius as a fraction of the subject's image height (0 = no closing).
+    seed : int
+        Seeds the pixel subsampling and the mixtures' initialisation.
+    """
+
+    colour_space: str = DEFAULT_COLOUR_SPACE
+    n_components: int = DEFAULT_COMPONENTS
+    min_pixels: int = 30
+    max_pixels: int = 1500
+    rule: str = "colour_then_nearest"
+    colour_margin: float = 20.0
+    thin_thick_fraction: float = THIN_THICK_FRACTION
+    closing_fraction: float = 0.008
+    seed: int = 0
+
+    def __post_init__(self):
+        if self.colour_space not in COLOUR_SPACES:
+            raise InputError("SegmentationConfig.colour_space", f"one of {list(COLOUR_SPACES)}",
+                             repr(self.colour_space))
+        if self.rule not in RULES:
+            raise InputError("SegmentationConfig.rule", f"one of {list(RULES)}", repr(self.rule))
+        if self.n_components < 1:
+            raise InputError("SegmentationConfig.n_components", "at least 1", repr(self.n_components))
+        if self.thin_thick_fraction < 0 or self.closing_fraction < 0 or self.colour_margin < 0:
+            raise InputError("SegmentationConfig", "non-negative fractions and margin",
+                             f"{self.thin_thick_fraction}, {self.closing_fraction}, {self.colour_margin}")
+
+
+@dataclass(frozen=True)
+class SegmentationResult:
+    """Part labels of one frame in one camera.
+
+    Attributes
+    ----------
+    labels : ndarray of shape (H, W), uint8
+        Final part ids (1..10, ids of ``groundtruth/parts``), 0 outside the silhouette.
+    confident : ndarray of shape (H, W), bool
+        Silhouette pixels with the same label in the thinned and thickened template.
+    template_depth : ndarray of shape (H, W), float32
+        Camera-frame depth of the posed template, metres (NaN where it is not seen).
+    parts_without_model : tuple of int
+        Part ids without a colour model (no or too few confident pixels).
+    template_labels : ndarray of shape (H, W), uint8
+        The projected template (neither thinned nor thickened).
+    colour_labels : ndarray of shape (H, W), uint8
+        Labels before the closing.
+    pose : TemplatePose
+        The fitted pose the template was posed with.
+    models : PartColourModels
+    """
+
+    labels: np.ndarray
+    confident: np.ndarray
+    template_depth: np.ndarray
+    parts_without_model: tuple
+    template_labels: np.ndarray = field(repr=False, default=None)
+    colour_labels: np.ndarray = field(repr=False, default=None)
+    pose: TemplatePose = field(repr=False, default=None)
+    models: PartColourModels = field(repr=False, default=None)
+
+    @property
+    def confident_labels(self) -> np.ndarray:
+        """Labels of the confident pixels only (0 elsewhere), (H, W) uint8."""
+        return np.where(self.confident, self.colour_labels, 0).astype(np.uint8)
+
+
+def _nearest_label(seeds: np.ndarray) -> np.ndarray:
+    """Per pixel, the label of the nearest non-zero pixel of ``seeds`` (H, W) uint8."""
+    from scipy.ndimage import distance_transform_edt
+
+    if not (seeds > 0).any():
+        return np.zeros_like(seeds)
+    _, (iy, ix) = distance_transform_edt(seeds == 0, return_indices=True)
+    return seeds[iy, ix]
+
+
+def _box(mask: np.ndarray, pad: int) -> tuple[slice, slice]:
+    ys, xs = np.nonzero(mask)
+    h, w = mask.shape
+    if len(ys) == 0:
+        return slice(0, 0), slice(0, 0)
+    return (slice(max(0, ys.min() - pad), min(h, ys.max() + pad + 1)),
+            slice(max(0, xs.min() - pad), min(w, xs.max() + pad + 1)))
+
+
+def label_uncertain(ll: np.ndarray, rule: str, margin: float, distances: np.ndarray | None = None) -> np.ndarray:
+    """Part index (0-based) per uncertain pixel.
+
+    Parameters
+    ----------
+    ll : ndarray of shape (N, P)
+        Log-likelihood per part (``-inf`` = the part is not a candidate).
+    rule : str
+        One of :data:`RULES`.
+    margin : float
+        ``colour_then_nearest``: nats below the best likelihood a part may be and
+        still be a candidate.
+    distances : ndarray of shape (N, P), optional
+        Pixel distance to each part (needed by ``colour_then_nearest``).
+
+    Returns
+    -------
+    ndarray of shape (N,), int
+    """
+    if rule == "colour":
+        return ll.argmax(1)
+    if distances is None or distances.shape != ll.shape:
+        raise InputError("label_uncertain: distances", f"an array of shape {ll.shape}",
+                         "None" if distances is None else f"shape {distances.shape}")
+    if rule == "colour_then_nearest":
+        top = ll.max(1, keepdims=True)
+        d = np.where(ll >= top - margin, distances, np.inf)
+        return d.argmin(1)
+    raise InputError("label_uncertain: rule", f"one of {list(RULES)}", repr(rule))
+
+
+def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarray | None, camera: Camera,
+                  template: Template, config: SegmentationConfig = SegmentationConfig(), observer=None, *,
+                  offset=None, joints2d: np.ndarray | None = None, database: PoseDatabase | None = None,
+                  frame: int | None = None) -> SegmentationResult:
+    """Segment the subject's silhouette into body parts.
+
+    Parameters
+    ----------
+    image : ndarray of shape (H, W, 3), uint8 RGB
+    silhouette : ndarray of shape (H, W), bool
+        The subject's pixels.
+    joints3d : ndarray of shape (14, 3) or None
+        World, metres, NaN = missing; the approximate pose of the exact fit.
+    camera : Camera
+        Measured camera; with ``offset`` None it must already include the stage-1 offset.
+    template : Template
+    config : SegmentationConfig
+    observer : Observer, optional
+        Receives ``labels`` (template, thin, thick, final), ``mask`` (confident,
+        uncertain), ``text`` (per-part model summaries, parts without a model).
+    offset : array_like of shape (2,), optional
+        Stage-1 pixel offset added to ``camera``'s projections.
+    joints2d : ndarray of shape (14, 2), optional
+        2D pose in this view (pixels, image coordinates, i.e. offsets
+        included); default: ``joints3d`` projected.  The template is fitted
+        exactly onto it.
+    database : PoseDatabase, optional
+        For joints missing in ``joints3d`` (default: the motion-library database).
+    frame : int, optional
+        Frame index put on the observer's reports.
+
+    Returns
+    -------
+    SegmentationResult
+
+    Raises
+    ------
+    InputError
+        Shapes or dtypes wrong, or no joints at all and an empty silhouette.
+    """
+    img = np.asarray(image)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise InputError("segment_frame: image", "an (H, W, 3) uint8 RGB image", f"shape {img.shape} {img.dtype}")
+    sil = np.asarray(silhouette)
+    if sil.shape != img.shape[:2]:
+        raise InputError("segment_frame: silhouette", f"shape {img.shape[:2]}", f"shape {sil.shape}")
+    sil = sil.astype(bool)
+    if (camera.height, camera.width) != img.shape[:2]:
+        raise InputError("segment_frame: camera", f"image size {img.shape[1::-1]}", f"size {camera.size}")
+    cam = camera if offset is None else camera_with_offset(camera, offset)
+    X = None
+    if joints3d is not None:
+        X = np.asarray(joints3d, float)
+        if X.shape != (14, 3):
+            raise InputError("segment_frame: joints3d", "an array of shape (14, 3)", f"shape {X.shape}")
+        if not np.isfinite(X).any():
+            X = None
+    obs = as_observer(observer)
+    extra = {"camera": cam.name} | ({} if frame is None else {"frame": frame})
+    n_parts = len(SKELETON_14.parts)
+    h, w = sil.shape
+
+    # 1. template
+    pose = fit_template_pose(cam, joints2d, X, database, subject_height=template.height, silhouette=sil,
+                             observer=observer, frame=frame)
+    proj: TemplateProjection = template.project(pose.joints3d, cam, fraction=config.thin_thick_fraction)
+    hpx = proj.height_px if proj.height_px > 0 else float(np.ptp(np.nonzero(sil)[0])) if sil.any() else 0.0
+
+    # 2. confident / uncertain
+    confident = sil & (proj.thin > 0) & (proj.thin == proj.thick)
+    uncertain = sil & ~confident
+    labels = np.where(confident, proj.thin, 0).astype(np.uint8)
+
+    # 3. colour models (features only inside the silhouette's box)
+    by, bx = _box(sil | (proj.labels > 0), 2)
+    feats = colour_features(img[by, bx], config.colour_space)
+    conf_b = confident[by, bx]
+    models = fit_part_models(feats[conf_b], proj.thin[by, bx][conf_b], n_parts, n_components=config.n_components,
+                             min_pixels=config.min_pixels, max_pixels=config.max_pixels,
+                             space=config.colour_space, rng=config.seed)
+
+    # 4. uncertain pixels
+    unc_b = uncertain[by, bx]
+    lab_b = labels[by, bx]
+    if unc_b.any():
+        if models.models:
+            ll = models.log_likelihood(feats[unc_b])
+            # parts without a model stay candidates where the template puts them: their colour
+            # score is the best modelled part's minus the margin
+            ll = np.where(np.isfinite(ll), ll, ll.max(1, keepdims=True) - config.colour_margin)
+            dist = None
+            if config.rule != "colour":
+                dist = np.full(ll.shape, np.inf)
+                tmpl_b = proj.labels[by, bx]
+                for p in range(1, n_parts + 1):
+                    # distance to the part's confident pixels (template pixels for parts without a model)
+                    seed = (lab_b == p) if (p in models.models and config.rule == "colour_then_nearest") \
+                        else (tmpl_b == p) | (lab_b == p)
+                    if seed.any():
+                        dt = cv2.distanceTransform((~seed).astype(np.uint8), cv2.DIST_L2, 3)
+                        dist[:, p - 1] = dt[unc_b]
+            if config.rule == "colour":
+                ll = np.where(np.isin(np.arange(1, n_parts + 1), list(models.models))[None], ll, -np.inf)
+            lab_b[unc_b] = (label_uncertain(ll, config.rule, config.colour_margin, dist) + 1).astype(np.uint8)
+        else:
+            near = _nearest_label(proj.labels[by, bx])
+            lab_b[unc_b] = near[unc_b] if near.any() else FALLBACK_PART
+        labels[by, bx] = lab_b
+    colour_labels = labels.copy()
+
+    # 5. closing, back to front
+    r_close = int(round(config.closing_fraction * hpx))
+    if r_close > 0 and sil.any():
+        k = disc(r_close)
+        depth_rank = np.where(np.isfinite(proj.part_depth), proj.part_depth, np.inf)
+        order = np.argsort(-depth_rank, kind="stable")  # far first; unseen parts (inf) first of all
+        sb = sil[by, bx]
+        out_b = labels[by, bx].copy()
+        cur_b = labels[by, bx]
+        for i in order:
+            p = i + 1
+            m = (cur_b == p).astype(np.uint8)
+            if not m.any():
+                continue
+            closed = cv2.morphologyEx(m, cv2.MORPH_CLOSE, k) > 0
+            out_b[closed & sb] = p
+        labels[by, bx] = out_b
+    labels[~sil] = 0
+
+    missing = models.parts_without_model
+    names = SKELETON_14.part_names
+    obs.report("labels", labels=proj.labels, name="segmentation/template", **extra)
+    obs.report("labels", labels=proj.thin, name="segmentation/template_thin", **extra)
+    obs.report("labels", labels=proj.thick, name="segmentation/template_thick", **extra)
+    obs.report("mask", mask=confident, name="segmentation/confident", **extra)
+    obs.report("mask", mask=uncertain, name="segmentation/uncertain", **extra)
+    obs.report("labels", labels=colour_labels, name="segmentation/colour", **extra)
+    obs.report("labels", labels=labels, name="segmentation/parts", **extra)
+    obs.report("text", name="segmentation/models", text=models.summary(names), **extra)
+    obs.report("text", name="segmentation/parts_without_model",
+               text=", ".join(names[p - 1] for p in missing) if missing else "(none)", **extra)
+    return SegmentationResult(labels, confident, proj.depth.astype(np.float32), missing, proj.labels,
+                              colour_labels, pose, models)
+
+
+def part_iou(predicted: np.ndarray, truth: np.ndarray, n_parts: int = len(SKELETON_14.parts)) -> np.ndarray:
+    """Intersection over union per part id 1..n_parts, (n_parts,); NaN where the part is in neither."""
+    a = np.asarray(predicted)
+    b = np.asarray(truth)
+    if a.shape != b.shape:
+        raise InputError("part_iou: predicted", f"shape {b.shape}", f"shape {a.shape}")
+    out = np.full(n_parts, np.nan)
+    for p in range(1, n_parts + 1):
+        pa, pb = a == p, b == p
+        u = np.count_nonzero(pa | pb)
+        if u:
+            out[p - 1] = np.count_nonzero(pa & pb) / u
+    return out
