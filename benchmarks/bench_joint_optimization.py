@@ -3,12 +3,13 @@
 
 Usage::
 
-    python benchmarks/bench_joint_optimization.py [--frames 2] [--out out/bench_joint_optimization]
-                                                  [--no-stage1] [--seed 0]
+    python benchmarks/bench_joint_optimization.py [--frames 2] [--scene-frames 8]
+                                                  [--out out/bench_joint_optimization] [--no-stage1] [--seed 0]
 
 Seeded broadcast scenes at 1280x720 (2 and 3 cameras, calibration error 0 and
-8 px) are generated once into OUT (reused on later runs).  Per scene and frame
-the joints are optimised (source 000 §3.2) from two starts:
+8 px) of ``--scene-frames`` frames (stage 1's background model needs a few) are
+generated once into OUT (reused on later runs).  On ``--frames`` evenly spaced
+frames the joints are optimised (source 000 §3.2) from two starts:
 
 * stage-1 joints and offsets (``recipes/pose_from_silhouettes.py``), when stage 1
   produced a 3D estimate for the frame;
@@ -71,7 +72,7 @@ count = 0
 
 
 def scene(out: Path, cams: int, err: float, frames: int, seed: int) -> Path:
-    root = out / f"broadcast_{cams}cams_{int(err)}px_seed{seed}"
+    root = out / f"broadcast_{cams}cams_{int(err)}px_{frames}f_seed{seed}"
     if not (root / "calibration.toml").exists():
         spec = parse_spec(SPEC.format(seed=seed + 17 * cams + int(err), frames=frames, cams=cams, err=err),
                           f"{root.name}.toml")
@@ -96,7 +97,8 @@ def mpjpe(a, b) -> float:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--frames", type=int, default=2, help="frames per scene")
+    ap.add_argument("--frames", type=int, default=2, help="frames optimised per scene")
+    ap.add_argument("--scene-frames", type=int, default=8, help="frames per generated scene")
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "bench_joint_optimization")
     ap.add_argument("--no-stage1", action="store_true", help="only the ground-truth + noise start")
     ap.add_argument("--seed", type=int, default=0)
@@ -110,7 +112,7 @@ def main(argv=None) -> int:
     rows, eval_ms = [], []
     for cams in (2, 3):
         for err in (0.0, 8.0):
-            root = scene(args.out, cams, err, args.frames, args.seed)
+            root = scene(args.out, cams, err, args.scene_frames, args.seed)
             ds = Dataset.open(root)
             gt = ds.gt_joints3d()
             s1 = None if args.no_stage1 else stage1(root, args.out)
@@ -118,7 +120,8 @@ def main(argv=None) -> int:
             if s1 is not None:
                 s1_joints = np.load(s1 / "poses3d.npz")["joints"]
                 s1_offsets = np.load(s1 / "offsets.npz")["offsets"]
-            for t in range(min(args.frames, ds.n_frames)):
+            picks = np.unique(np.linspace(0, ds.n_frames - 1, min(args.frames, ds.n_frames) + 2)[1:-1].round())
+            for t in picks.astype(int):
                 images = {c: ds.frame(c, t) for c in ds.camera_names}
                 labels = {c: ds.gt_parts(c, t) for c in ds.camera_names}
                 seams = {c: detect_seams(labels[c], ds.gt_depth(c, t)) for c in ds.camera_names}
@@ -137,11 +140,11 @@ def main(argv=None) -> int:
                     rows.append((root.name, t, name, mpjpe(J0, gt[t]), mpjpe(res.joints, gt[t]),
                                  res.n_evaluations, res.seconds, res.n_sweeps))
                     r = rows[-1]
-                    print(f"{r[0]:<34} frame {t} {name:<7} MPJPE {r[3] * 100:5.1f} -> {r[4] * 100:5.1f} cm  "
+                    print(f"{r[0]:<38} frame {t} {name:<7} MPJPE {r[3] * 100:5.1f} -> {r[4] * 100:5.1f} cm  "
                           f"{r[5]:5d} evaluations  {r[6]:5.1f} s  {r[7]} sweeps", flush=True)
             ds.close()
     print()
-    print(f"{'start':<8} {'scene':<34} {'frames':>6} {'before cm':>9} {'after cm':>9} {'change':>7} "
+    print(f"{'start':<8} {'scene':<38} {'frames':>6} {'before cm':>9} {'after cm':>9} {'change':>7} "
           f"{'evals/frame':>11} {'s/frame':>8}")
     summary = {}
     for name in ("stage1", "gt+5cm"):
@@ -151,7 +154,7 @@ def main(argv=None) -> int:
                 continue
             b, a = np.mean([r[3] for r in rr]), np.mean([r[4] for r in rr])
             summary.setdefault(name, []).append((b, a))
-            print(f"{name:<8} {sc:<34} {len(rr):>6} {b * 100:9.1f} {a * 100:9.1f} {(a / b - 1) * 100:6.0f}% "
+            print(f"{name:<8} {sc:<38} {len(rr):>6} {b * 100:9.1f} {a * 100:9.1f} {(a / b - 1) * 100:6.0f}% "
                   f"{np.mean([r[5] for r in rr]):11.0f} {np.mean([r[6] for r in rr]):8.1f}")
     for name, v in summary.items():
         b, a = np.mean([x[0] for x in v]), np.mean([x[1] for x in v])
