@@ -163,8 +163,8 @@ def test_bad_input_raises(frame, template):
         segment_frame(frame.image, sil, frame.joints3d[:13], frame.camera, template)
     with pytest.raises(InputError, match="camera"):
         segment_frame(frame.image, sil, frame.joints3d, frame.camera.scaled(0.5), template)
-    with pytest.raises(InputError, match="silhouette"):  # no joints and nothing to fit to
-        segment_frame(frame.image, np.zeros_like(sil), None, frame.camera, template)
+    empty = segment_frame(frame.image, np.zeros_like(sil), None, frame.camera, template)  # nothing to label
+    assert not empty.labels.any() and empty.parts_without_model == tuple(range(1, 11))
     with pytest.raises(InputError, match="rule"):
         SegmentationConfig(rule="nearest")
     with pytest.raises(InputError, match="colour_space"):

@@ -227,7 +227,8 @@ def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarra
     Raises
     ------
     InputError
-        Shapes or dtypes wrong, or no joints at all and an empty silhouette.
+        Shapes or dtypes wrong.  (No joints and an empty silhouette give an
+        all-background result with every part listed as without a model.)
     """
     img = np.asarray(image)
     if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
@@ -250,6 +251,13 @@ def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarra
     extra = {"camera": cam.name} | ({} if frame is None else {"frame": frame})
     n_parts = len(SKELETON_14.parts)
     h, w = sil.shape
+
+    no_joints = X is None and (joints2d is None or np.isfinite(np.asarray(joints2d, float)).all(-1).sum() < 3)
+    if no_joints and not sil.any():  # nothing to fit to and nothing to label
+        obs.report("text", name="segmentation/parts_without_model", text="(no joints, empty silhouette)", **extra)
+        return SegmentationResult(np.zeros((h, w), np.uint8), np.zeros((h, w), bool),
+                                  np.full((h, w), np.nan, np.float32), tuple(range(1, n_parts + 1)),
+                                  np.zeros((h, w), np.uint8), np.zeros((h, w), np.uint8), None, None)
 
     # 1. template
     pose = fit_template_pose(cam, joints2d, X, database, subject_height=template.height, silhouette=sil,
