@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import broadcast_rig, walking_poses
+from multiview_scenes import broadcast_rig, walking_poses
 
 from toolkit.errors import InputError
 from toolkit.multiview import (
