@@ -112,6 +112,7 @@ def log_scene(obs, rig: Rig, rng: np.random.Generator) -> dict:
         obs.report("quads", corners=corners, textures=textures, name="billboards")
         obs.report("quads", corners=corners, colors=[[255, 0, 0], [0, 255, 0]], name="plain_quads")
         obs.report("scalar", name="fit/residual", value=0.5 * f + 0.25)
+        obs.report("series", name="fit/score_per_sweep", values=np.linspace(0.2, 0.5 + f, 4))
         truth["scalar"][f] = 0.5 * f + 0.25
         obs.report("text", name="fit", text=f"frame {f} done", level="INFO")
     return truth

@@ -285,7 +285,7 @@ class RerunObserver:
             "labels": self._labels, "depth": self._depth, "joints2d": self._joints2d,
             "joints3d": self._joints3d, "points2d": self._points2d, "points3d": self._points3d,
             "rays": self._rays, "lines2d": self._lines2d, "lines3d": self._lines3d,
-            "scalar": self._scalar, "text": self._text, "mesh": self._mesh, "boxes2d": self._boxes2d,
+            "scalar": self._scalar, "series": self._series, "text": self._text, "mesh": self._mesh, "boxes2d": self._boxes2d,
             "quads": self._quads,
         }
         self._log(WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
@@ -676,6 +676,14 @@ class RerunObserver:
         except (TypeError, ValueError):
             raise InputError(f"report {kind!r}: value", "a number", f"{raw!r}") from None
         self._log(entity_path(METRICS, name), rr.Scalars(value), static=static)
+
+    def _series(self, kind, data, static):
+        """A curve over iterations (e.g. a joint's score per sweep) as a bar chart at the current frame."""
+        name = _field(kind, data, "name")
+        values = np.asarray(_field(kind, data, "values"), dtype=np.float64).ravel()
+        if values.size == 0:
+            raise InputError(f"report {kind!r}: values", "a non-empty 1-D array of numbers", "an empty array")
+        self._log(entity_path(METRICS, name), rr.BarChart(values), static=static)
 
     def _text(self, kind, data, static):
         text = _field(kind, data, "text")
