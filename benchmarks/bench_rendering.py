@@ -59,7 +59,7 @@ def scene(seed: int, frames: int, cache: Path) -> Path:
     return out
 
 
-def oracle(ds, plates, frames) -> tuple[dict, list]:
+def oracle(ds, plates, frames, pictures: Path | None = None, tag: str = "") -> tuple[dict, list]:
     from toolkit.rendering import (CpuCompositor, bbox_scores, render_billboards, render_points,
                                    standard_billboards, visual_hull)
 
@@ -78,12 +78,31 @@ def oracle(ds, plates, frames) -> tuple[dict, list]:
         for cam in ds.novel_rig:
             bg = plates.plate(cam)
             gt, gm = ds.novel_image(cam.name, t), ds.novel_mask(cam.name, t)
-            scores["articulated"].append(bbox_scores(comp.render(art, cam).over(bg), gt, gm))
-            scores["standard"].append(bbox_scores(comp.render(std, cam).over(bg), gt, gm))
+            views = {"articulated": comp.render(art, cam).over(bg), "standard": comp.render(std, cam).over(bg)}
+            scores["articulated"].append(bbox_scores(views["articulated"], gt, gm))
+            scores["standard"].append(bbox_scores(views["standard"], gt, gm))
             rgb, a = render_points(hull, cam)
-            img = np.clip(rgb + (1 - a[..., None]) * bg + 0.5, 0, 255).astype(np.uint8)
-            scores["visual_hull"].append(bbox_scores(img, gt, gm))
+            views["visual hull"] = np.clip(rgb + (1 - a[..., None]) * bg + 0.5, 0, 255).astype(np.uint8)
+            scores["visual_hull"].append(bbox_scores(views["visual hull"], gt, gm))
+            if pictures is not None and t == frames[0]:
+                comparison_picture(gt, gm, views, pictures / f"novel_oracle_{tag}_{cam.name}.png")
     return {m: {k: float(np.mean([s[k] for s in v])) for k in ("psnr", "ssim")} for m, v in scores.items()}, models
+
+
+def comparison_picture(gt, gt_mask, images: dict, path: Path, margin: int = 24, scale: int = 2) -> None:
+    """Save ground truth and each method side by side, cropped to the subject's box, with captions."""
+    from toolkit.io import atomic_write_png
+    from toolkit.rendering import mask_bbox
+
+    x0, y0, x1, y1 = mask_bbox(gt_mask, margin)
+    tiles = []
+    for name, img in [("ground truth", gt)] + list(images.items()):
+        tile = cv2.resize(np.ascontiguousarray(img[y0:y1, x0:x1]), None, fx=scale, fy=scale,
+                          interpolation=cv2.INTER_NEAREST)
+        tile = cv2.copyMakeBorder(tile, 28, 0, 0, 4, cv2.BORDER_CONSTANT, value=(255, 255, 255))
+        cv2.putText(tile, name, (4, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1, cv2.LINE_AA)
+        tiles.append(tile)
+    atomic_write_png(path, np.hstack(tiles))
 
 
 def compositor_fps(models, cameras, repeats: int) -> float:
@@ -123,6 +142,8 @@ def main(argv=None) -> int:
     ap.add_argument("--no-open3d", action="store_true")
     ap.add_argument("--cache", type=Path, default=REPO / "outputs" / "bench_rendering")
     ap.add_argument("--json", type=Path, default=None, help="write the results here")
+    ap.add_argument("--pictures", type=Path, default=None,
+                    help="save ground truth | articulated | standard | visual hull pictures here")
     args = ap.parse_args(argv)
 
     from toolkit.io import Dataset
@@ -135,7 +156,7 @@ def main(argv=None) -> int:
         root = scene(seed, n_frames, args.cache)
         ds = Dataset.open(root)
         plates = BackgroundPlates(ds.scene_toml)
-        q, models = oracle(ds, plates, range(args.frames))
+        q, models = oracle(ds, plates, list(range(args.frames)), args.pictures, f"s{seed}")
         all_models += models
         all_cams = list(ds.novel_rig)
         r = {"oracle": q}
@@ -146,6 +167,15 @@ def main(argv=None) -> int:
             out = args.cache / f"fvv_s{seed}"
             fv.main([str(root), "--out", str(out), "--max-frames", str(args.end_to_end), "--quiet", "--no-recording"])
             r["end_to_end"] = json.loads((out / "metrics.json").read_text())
+            if args.pictures is not None:
+                from toolkit.io.frames import read_png
+                cam = ds.novel_rig[0].name
+                f = f"{args.end_to_end // 2:06d}.png"
+                views = {"articulated": read_png(out / "novel" / cam / f),
+                         "standard": read_png(out / "baselines" / "standard" / cam / f),
+                         "visual hull": read_png(out / "baselines" / "visual_hull" / cam / f)}
+                comparison_picture(ds.novel_image(cam, args.end_to_end // 2), ds.novel_mask(cam, args.end_to_end // 2),
+                                   views, args.pictures / f"novel_end_to_end_s{seed}_{cam}.png")
         results["scenes"][seed] = r
         ds.close()
         print(f"seed {seed}: " + "  ".join(f"{m} {v['psnr']:.2f} dB / SSIM {v['ssim']:.3f}" for m, v in q.items()),

@@ -183,7 +183,7 @@ def composite(model: BillboardModel, camera: Camera, warper: Warper, config: Ble
         layers = []
         for b in fan.billboards:
             j = names.index(b.camera)
-            if cw.fade[i, j] <= 0 or weight[i, j] <= 0 and j != cw.nearest[i]:
+            if cw.fade[i, j] <= 0 or (weight[i, j] <= 0 and j != cw.nearest[i]):
                 continue
             got = warper(b, camera, tuple(offset))
             if got is None:

@@ -86,6 +86,9 @@ def render_billboards(images: dict, labels: dict, joints3d: np.ndarray, rig: Rig
                 np.kron(np.asarray(sm.membership[y0:y1, x0:x1]), np.ones((s, s), np.uint16)))
     big_rig = Rig(tuple(crops))
     cfg = replace(config, margin_px=config.margin_px * s, min_pixels=config.min_pixels * s * s)
-    m = build_billboards(big_img, big_lab, joints3d, big_rig, off * s, big_seams or None, config=cfg, frame=frame,
-                         observer=observer)
+    m = build_billboards(big_img, big_lab, joints3d, big_rig, off * s, big_seams or None, config=cfg, frame=frame)
+    if observer is not None and m.billboards:  # recorded at about the source resolution
+        observer.report("quads", name="billboards", frame=frame, corners=np.stack([b.corners for b in m.billboards]),
+                        textures=[cv2.resize(b.rgba(), (max(b.size[0] // s, 1), max(b.size[1] // s, 1)),
+                                             interpolation=cv2.INTER_AREA) for b in m.billboards])
     return BillboardModel(m.fans, rig, off, m.frame, m.joints)
