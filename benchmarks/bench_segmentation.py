@@ -1,0 +1,174 @@
+#!/usr/bin/env python3
+"""Benchmark of stage 2 (template fit and GMM body-part segmentation) on seeded synthetic scenes.
+
+Usage::
+
+    python benchmarks/bench_segmentation.py                   # all scenes, every 4th frame
+    python benchmarks/bench_segmentation.py --quick           # one broadcast, one studio scene
+    python benchmarks/bench_segmentation.py --sweep           # colour spaces, components, radii
+
+Scenes (1280x720, 24 frames) are generated once into ``--cache`` and stage 1
+(``recipes/pose_from_silhouettes.py``) is run once on each.  Silhouettes are
+the ground-truth masks, so the numbers measure this stage alone.  Pose
+sources:
+
+``gt``      ground-truth joints, true calibration;
+``stage1``  stage 1's 3D joints, 2D poses and offsets with the measured calibration;
+``noisy``   ground-truth joints seen through the measured cameras plus exact offsets,
+            2D joints perturbed by Gaussian noise of ``--noise`` x the subject's
+            image height (a stand-in for a good stage 1).
+
+Per source it prints the per-part and mean IoU against ``groundtruth/parts``
+of: the template projection alone, the confident pixels only, the full GMM
+labelling, and the labels after the closing; plus the median time per view.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from toolkit.io import Dataset  # noqa: E402
+from toolkit.io.layout import load_npz  # noqa: E402
+from toolkit.segmentation import SegmentationConfig, part_iou, segment_frame  # noqa: E402
+from toolkit.skeleton import SKELETON_14  # noqa: E402
+from toolkit.synthetic import generate_scene, parse_spec  # noqa: E402
+from toolkit.template import Template, camera_with_offset, subject_height_px  # noqa: E402
+
+#: Seeded scenes: (name, seed, layout, motion, cameras, calibration error px, stature m).
+SCENES = [("broadcast_11", 11, "broadcast", "walk", 3, 4.0, 1.75), ("broadcast_12", 12, "broadcast", "run", 3, 4.0, 1.75),
+          ("broadcast_13", 13, "broadcast", "kick", 3, 4.0, 1.75), ("studio_21", 21, "studio", "wave", 4, 0.0, 1.70),
+          ("studio_22", 22, "studio", "turn", 4, 0.0, 1.70)]
+FRAMES = 24
+STAGES = ("template", "confident", "gmm", "closed")
+
+
+def _spec(name, seed, layout, motion, n_cams, err, height):
+    return (f'name = "{name}"\nseed = {seed}\nframes = {FRAMES}\nfps = 25\n[subject]\nheight_m = {height}\n'
+            f'motion = "{motion}"\n[cameras]\ncount = {n_cams}\nlayout = "{layout}"\nresolution = [1280, 720]\n'
+            f'calibration_error_px = {err}\n[novel]\ncount = 0\n')
+
+
+def prepare(cache: Path, scene) -> tuple[Path, Path]:
+    """Generate the scene and run stage 1 once; returns (dataset, stage-1 output)."""
+    ds, s1 = cache / "scenes" / scene[0], cache / "stage1" / scene[0]
+    if not (ds / "groundtruth").is_dir():
+        print(f"generating {scene[0]} ...", flush=True)
+        generate_scene(parse_spec(_spec(*scene)), ds, progress=False)
+    if not (s1 / "poses3d.npz").is_file():
+        print(f"stage 1 on {scene[0]} ...", flush=True)
+        subprocess.run([sys.executable, str(ROOT / "recipes" / "pose_from_silhouettes.py"), str(ds), "--out",
+                        str(s1), "--quiet", "--no-recording"], check=True, stdout=subprocess.DEVNULL)
+    return ds, s1
+
+
+def views(ds: Dataset, s1: Path, source: str, every: int, noise: float, rng):
+    """Yield (t, camera name, Camera, joints3d, joints2d) per evaluated view."""
+    J = ds.gt_joints3d()
+    if source == "stage1":
+        p3 = load_npz(s1 / "poses3d.npz")["joints"]
+        p2 = load_npz(s1 / "poses2d.npz")
+        off = load_npz(s1 / "offsets.npz")["offsets"]
+    for t in range(0, ds.n_frames, every):
+        for i, c in enumerate(ds.camera_names):
+            if source == "gt":
+                yield t, c, ds.gt_rig[c], J[t], None
+            elif source == "noisy":
+                g, m = ds.gt_rig[c], ds.rig[c]
+                cam = camera_with_offset(m, np.mean(g.project(J[t]) - m.project(J[t]), 0))
+                x = g.project(J[t]) + rng.normal(0, noise * subject_height_px(J[t], g), (14, 2))
+                yield t, c, cam, J[t], x
+            else:
+                o = off[t, i]
+                cam = camera_with_offset(ds.rig[c], o if np.isfinite(o).all() else np.zeros(2))
+                x = p2[c][t] if c in p2 and np.isfinite(p2[c][t]).any() else None
+                yield t, c, cam, p3[t], x
+
+
+def evaluate(scenes, cache: Path, source: str, config: SegmentationConfig, every: int, noise: float,
+             template: Template, seed: int = 0):
+    """Per-part IoU lists per stage and kind of scene, and the view times."""
+    rng = np.random.default_rng(seed)
+    res = {}
+    times = []
+    coverage = []
+    for scene in scenes:
+        dsp, s1 = prepare(cache, scene)
+        ds = Dataset.open(dsp)
+        kind = scene[2]
+        for t, c, cam, J, x in views(ds, s1, source, every, noise, rng):
+            img, gt = ds.frame(c, t), ds.gt_parts(c, t)
+            sil = gt > 0
+            t0 = time.perf_counter()
+            r = segment_frame(img, sil, J, cam, template, config, joints2d=x)
+            times.append(time.perf_counter() - t0)
+            coverage.append(r.pose.source if r.pose is not None else "none")
+            for stage, lab in zip(STAGES, (np.where(sil, r.template_labels, 0), r.confident_labels,
+                                           r.colour_labels, r.labels)):
+                res.setdefault((kind, stage), []).append(part_iou(lab, gt))
+    return res, times, coverage
+
+
+def report(title: str, res, times, coverage) -> None:
+    names = [n.replace("upper_arm", "uarm").replace("forearm", "farm") for n in SKELETON_14.part_names]
+    print(f"\n== {title}")
+    srcs = {s: coverage.count(s) for s in sorted(set(coverage))}
+    print(f"views: {len(times)} (template pose from: {srcs}); time per view: median {np.median(times):.2f} s, "
+          f"mean {np.mean(times):.2f} s")
+    print(f"{'scenes':10s} {'stage':10s} {'mean':>5s} " + " ".join(f"{n:>7s}" for n in names))
+    for kind in ("broadcast", "studio"):
+        for stage in STAGES:
+            if (kind, stage) not in res:
+                continue
+            per = np.nanmean(np.array(res[(kind, stage)]), 0)
+            print(f"{kind:10s} {stage:10s} {np.nanmean(per):5.3f} " + " ".join(f"{v:7.2f}" for v in per))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--cache", type=Path, default=ROOT / "out" / "bench_segmentation")
+    ap.add_argument("--every", type=int, default=4, help="evaluate every N-th frame")
+    ap.add_argument("--noise", type=float, default=0.01, help="2D noise of the 'noisy' source, x image height")
+    ap.add_argument("--sources", default="gt,stage1,noisy")
+    ap.add_argument("--quick", action="store_true", help="one broadcast and one studio scene")
+    ap.add_argument("--scenes", default=None, help="comma-separated scene names (default: all)")
+    ap.add_argument("--sweep", action="store_true", help="colour space, components, radii, rules (noisy source)")
+    args = ap.parse_args(argv)
+    scenes = [SCENES[0], SCENES[3]] if args.quick else SCENES
+    if args.scenes:
+        scenes = [s for s in SCENES if s[0] in args.scenes.split(",")]
+    template = Template(1.75)
+    base = SegmentationConfig()
+    print(f"config: {base}")
+    if args.sweep:
+        variants = [("default", base)]
+        variants += [(f"colour_space={s}", replace(base, colour_space=s)) for s in ("lab", "hsv", "chroma")]
+        variants += [(f"n_components={k}", replace(base, n_components=k)) for k in (1, 2, 5)]
+        variants += [(f"thin_thick_fraction={f}", replace(base, thin_thick_fraction=f)) for f in (0.005, 0.02, 0.04)]
+        variants += [(f"colour_margin={m}", replace(base, colour_margin=m)) for m in (5.0, 100.0, 1e9)]
+        variants += [("rule=colour", replace(base, rule="colour")), ("closing_fraction=0.02",
+                                                                     replace(base, closing_fraction=0.02))]
+        for name, cfg in variants:
+            res, times, cov = evaluate(scenes, args.cache, "noisy", cfg, args.every, args.noise, template)
+            line = "  ".join(f"{k}/{s} {np.nanmean(np.nanmean(np.array(res[(k, s)]), 0)):.3f}"
+                             for k in ("broadcast", "studio") for s in ("gmm", "closed") if (k, s) in res)
+            print(f"{name:28s} {line}  {np.median(times):.2f} s/view", flush=True)
+        return 0
+    for source in args.sources.split(","):
+        res, times, cov = evaluate(scenes, args.cache, source, base, args.every, args.noise, template)
+        title = source if source != "noisy" else f"noisy (2D noise {args.noise} x image height)"
+        report(title, res, times, cov)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
