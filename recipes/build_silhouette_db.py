@@ -41,8 +41,10 @@ def main(argv=None) -> int:
                     help=f"seeded people per motion (default {d.sequences_per_motion})")
     ap.add_argument("--frames", type=int, default=d.frames_per_sequence,
                     help=f"frames per sequence at {d.fps:g} fps (default {d.frames_per_sequence})")
-    ap.add_argument("--stride", type=int, default=d.frame_stride, help=f"one pose every N frames (default {d.frame_stride})")
-    ap.add_argument("--views", type=int, default=d.views_per_pose, help=f"viewpoints per pose (default {d.views_per_pose})")
+    ap.add_argument("--stride", type=int, default=d.frame_stride,
+                    help=f"one pose every N frames (default {d.frame_stride})")
+    ap.add_argument("--views", type=int, default=d.views_per_pose,
+                    help=f"viewpoints per pose (default {d.views_per_pose})")
     ap.add_argument("--bvh", type=Path, nargs="*", default=(), help="BVH files to add (CMU or write_bvh layout)")
     ap.add_argument("--no-mirror", action="store_true", help="do not add mirror images")
     ap.add_argument("--flow", action="store_true", help="also store optical-flow descriptors")

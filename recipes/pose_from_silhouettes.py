@@ -60,6 +60,9 @@ def main(argv=None) -> int:
     ap.add_argument("--max-frames", type=int, default=None, help="process only the first N frames")
     ap.add_argument("--foreground", choices=("median", "mog2", "knn", "chroma"), default="median",
                     help="background model, or chroma keying (green screen)")
+    ap.add_argument("--plates", type=Path, default=None,
+                    help="folder of clean plates <camera>.png (the empty scene) to learn the backgrounds from "
+                         "(default: each camera's video)")
     ap.add_argument("--no-check-sizes", action="store_true",
                     help="accept videos whose size differs from the calibration (docs/dataset_layout.md)")
     ap.add_argument("--no-images", action="store_true", help="do not log the camera images (smaller recording)")
@@ -72,12 +75,15 @@ def main(argv=None) -> int:
     from tqdm import tqdm
 
     from toolkit.foreground import BackgroundConfig, ForegroundConfig
-    from toolkit.io import Dataset, atomic_write_text
+    import numpy as np
+
+    from toolkit.io import Dataset, atomic_write_text, read_png
     from toolkit.silhouettes import (
         QueryConfig,
         SilhouetteDatabase,
         Stage1Config,
         default_database,
+        default_database_path,
         edits_template,
         read_edits,
         stack_estimates,
@@ -93,18 +99,22 @@ def main(argv=None) -> int:
         query = QueryConfig(metric=args.metric) if args.k is None else QueryConfig(k=args.k, metric=args.metric)
         config = Stage1Config(query=query)
         edits = read_edits(args.edits, names, ds.n_frames) if args.edits is not None else None
-        if args.db is not None and args.db.exists():
-            db, db_path = SilhouetteDatabase.load(args.db), args.db
+        db_path = args.db if args.db is not None else default_database_path()
+        if db_path.exists():
+            db = SilhouetteDatabase.load(db_path)
             print(f"silhouette database: {db_path} ({len(db)} entries)")
         else:
-            print("building the silhouette database (once; cached for later runs) ...", flush=True)
+            print(f"building the silhouette database into {db_path} (once, about a minute) ...", flush=True)
             t0 = time.perf_counter()
-            db, db_path = default_database(args.db)
+            db, db_path = default_database(db_path)
             print(f"silhouette database: {db_path} ({len(db)} entries, built in {time.perf_counter() - t0:.0f} s)")
         if len(db) == 0:
             raise InputError(str(db_path), "a silhouette database with at least one entry", "an empty database")
         fg = ForegroundConfig(method="chroma") if args.foreground == "chroma" else \
             ForegroundConfig(background=replace(BackgroundConfig(), method=args.foreground))
+        plates = None
+        if args.plates is not None:
+            plates = {c: [read_png(args.plates / f"{c}.png", channels=3, dtype=np.uint8)] for c in names}
         n = ds.n_frames if args.max_frames is None else min(args.max_frames, ds.n_frames)
         args.out.mkdir(parents=True, exist_ok=True)
         observer = None
@@ -119,8 +129,8 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         stopped = ""
         try:
-            run = estimate_dataset(ds, db, config, foreground=fg, frames=range(n), edits=edits, observer=observer,
-                                   log_images=not args.no_images)
+            run = estimate_dataset(ds, db, config, foreground=fg, frames=range(n), edits=edits, backgrounds=plates,
+                                   observer=observer, log_images=not args.no_images)
             for est, _ in tqdm(run, total=n, desc="stage 1", unit="frame", disable=args.quiet):
                 estimates.append(est)
                 if len(estimates) % CHECKPOINT_FRAMES == 0:

@@ -18,6 +18,7 @@ from toolkit.silhouettes.building import (
     build_database,
     cache_dir,
     default_database,
+    default_database_path,
     render_silhouettes,
     view_around,
 )
@@ -63,6 +64,7 @@ from toolkit.silhouettes.query import (
 
 __all__ = [
     "DEFAULT_BUILD", "DEFAULT_SEED", "BuildConfig", "ViewSpec", "build_database", "cache_dir", "default_database",
+    "default_database_path",
     "render_silhouettes", "view_around",
     "FORMAT_NAME", "FORMAT_VERSION", "USER_MOTION", "DatabaseEntry", "SilhouetteDatabase",
     "DESCRIPTOR_SIZE", "SILHOUETTE_GRID", "SILHOUETTE_STATES", "SilhouetteCheck", "bounding_box",

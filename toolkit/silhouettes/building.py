@@ -486,6 +486,11 @@ DEFAULT_BUILD = BuildConfig()
 DEFAULT_SEED = 20100430
 
 
+def default_database_path(config: BuildConfig = DEFAULT_BUILD, seed: int = DEFAULT_SEED) -> Path:
+    """Where :func:`default_database` keeps a database: ``<cache_dir()>/silhouettes-<key>-<seed>.npz``."""
+    return cache_dir() / f"silhouettes-{config.key()}-{seed}.npz"
+
+
 def default_database(path: str | os.PathLike | None = None, config: BuildConfig = DEFAULT_BUILD,
                      seed: int = DEFAULT_SEED, *, observer=None, progress=None) -> tuple[SilhouetteDatabase, Path]:
     """Load the default database, building and saving it the first time.
@@ -504,7 +509,7 @@ def default_database(path: str | os.PathLike | None = None, config: BuildConfig 
     path : Path
         Where it was loaded from or saved to.
     """
-    p = Path(path) if path is not None else cache_dir() / f"silhouettes-{config.key()}-{seed}.npz"
+    p = Path(path) if path is not None else default_database_path(config, seed)
     if p.exists():
         return SilhouetteDatabase.load(p), p
     db = build_database(config, seed, observer=observer, progress=progress)

@@ -39,7 +39,6 @@ from toolkit.silhouettes.descriptor import (
     STATE_OK,
     check_silhouette,
     normalise_joints,
-    silhouette_descriptor,
     silhouette_grid,
 )
 from toolkit.silhouettes.edits import JointEdit
@@ -438,7 +437,8 @@ def stack_estimates(estimates: Sequence[FrameEstimate | None], n_frames: int, ca
 
 def estimate_dataset(dataset, database: SilhouetteDatabase, config: Stage1Config | None = None, *,
                      foreground=None, frames: Sequence[int] | None = None, edits=None, rig: Rig | None = None,
-                     observer=None, log_images: bool = True) -> Iterator[tuple[FrameEstimate, list]]:
+                     backgrounds=None, observer=None, log_images: bool = True
+                     ) -> Iterator[tuple[FrameEstimate, list]]:
     """Run stage 1 over a dataset's videos, frame by frame.
 
     Parameters
@@ -456,6 +456,9 @@ def estimate_dataset(dataset, database: SilhouetteDatabase, config: Stage1Config
     rig : Rig, optional
         Cameras to use instead of ``dataset.rig``: a subset of its cameras
         (by name) or other calibrations of them (e.g. the true ones).
+    backgrounds : mapping of str to sequence of ndarray of shape (H, W, 3), optional
+        Per camera, frames to learn its background from instead of its video
+        (e.g. one clean plate of the empty scene).
     observer : Observer, optional
         Also receives each camera image (``image``) per frame.
     log_images : bool
@@ -489,7 +492,9 @@ def estimate_dataset(dataset, database: SilhouetteDatabase, config: Stage1Config
     estimator = SilhouettePoseEstimator(rig, database, config, observer)
     readers = {c: VideoReader(dataset.video_path(c)) for c in names}
     try:
-        extractors = {c: ForegroundExtractor(foreground).fit(readers[c]) for c in names}
+        backgrounds = {} if backgrounds is None else backgrounds
+        extractors = {c: ForegroundExtractor(foreground).fit(backgrounds[c] if c in backgrounds else readers[c])
+                      for c in names}
         ended: dict[str, bool] = {c: False for c in names}
         previous: dict[str, tuple | None] = {c: None for c in names}
         for t in todo:

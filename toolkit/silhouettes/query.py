@@ -195,8 +195,15 @@ def joint_distances(database: SilhouetteDatabase, previous: np.ndarray) -> tuple
     ok = np.isfinite(p).all(axis=1)
     if not ok.any():
         return np.full(len(database), np.nan), 0
-    q = database.joints[:, ok, :].astype(np.float64)
-    return np.linalg.norm(q - p[ok], axis=-1).mean(axis=1), int(ok.sum())
+    cache = database.cache
+    if "joints64" not in cache:
+        cache["joints64"] = database.joints.astype(np.float64)
+    Q, pk = cache["joints64"], p[ok]
+    out = np.empty(len(database))
+    for s in range(0, len(database), DISTANCE_BLOCK_ROWS):
+        d = (Q[s:s + DISTANCE_BLOCK_ROWS] if ok.all() else Q[s:s + DISTANCE_BLOCK_ROWS, ok]) - pk
+        out[s:s + len(d)] = np.sqrt(np.einsum("njk,njk->nj", d, d)).mean(axis=1)
+    return out, int(ok.sum())
 
 
 def _flow_term(database: SilhouetteDatabase, flow) -> np.ndarray | None:
