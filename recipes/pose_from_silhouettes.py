@@ -56,6 +56,8 @@ def main(argv=None) -> int:
     ap.add_argument("--k", type=int, default=None, help="candidates per view (default 3, source 000 §2.1)")
     ap.add_argument("--metric", choices=("l1", "hausdorff"), default="l1",
                     help="silhouette matching error: cell differences (eq. 1) or contour Hausdorff distance")
+    ap.add_argument("--flow-weight", type=float, default=0.0,
+                    help="weight of the optical-flow term (needs a database built with --flow; default 0: off)")
     ap.add_argument("--edits", type=Path, default=None, help="joint corrections (.toml or .json, see docs)")
     ap.add_argument("--max-frames", type=int, default=None, help="process only the first N frames")
     ap.add_argument("--foreground", choices=("median", "mog2", "knn", "chroma"), default="median",
@@ -96,7 +98,9 @@ def main(argv=None) -> int:
             raise InputError("--max-frames", "a positive number of frames", str(args.max_frames))
         ds = Dataset.open(args.dataset, check_sizes=not args.no_check_sizes)
         names = ds.camera_names
-        query = QueryConfig(metric=args.metric) if args.k is None else QueryConfig(k=args.k, metric=args.metric)
+        query = QueryConfig(metric=args.metric, flow_weight=args.flow_weight)
+        if args.k is not None:
+            query = replace(query, k=args.k)
         config = Stage1Config(query=query)
         edits = read_edits(args.edits, names, ds.n_frames) if args.edits is not None else None
         db_path = args.db if args.db is not None else default_database_path()

@@ -193,3 +193,17 @@ def test_help_runs():
         with pytest.raises(SystemExit) as info:
             load_recipe(name).main(["--help"])
         assert info.value.code == 0
+
+
+def test_recipe_with_the_flow_term(tiny_dataset, tmp_path):
+    """--flow-weight: dense optical flow per camera, matched against a database built with flows."""
+    db = build_database(BuildConfig(motions=("walk",), sequences_per_motion=1, frames_per_sequence=20, frame_stride=2,
+                                    views_per_pose=8, with_flow=True), 5)
+    path = db.save(tmp_path / "flow.npz")
+    out = tmp_path / "out"
+    rc = load_recipe("pose_from_silhouettes").main(
+        [str(tiny_dataset.root), "--out", str(out), "--db", str(path), "--foreground", "chroma", "--flow-weight", "1",
+         "--max-frames", "3", "--no-recording", "--quiet"])
+    assert rc == 0
+    with np.load(out / "poses3d.npz") as z:
+        assert np.all(z["state"] == FRAME_OK) and np.isfinite(z["joints"]).all()

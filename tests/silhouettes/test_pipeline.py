@@ -165,3 +165,27 @@ def test_stack_estimates(walk_scene, walk_db):
     assert arrays["offsets"]["offsets"].shape == (4, 2, 2)
     with pytest.raises(InputError, match="camera names"):
         stack_estimates(estimates, 4, ["bbox", "cam1"], 3)
+
+
+def test_flow_term_reaches_the_query(walk_scene):
+    from toolkit.silhouettes import (BuildConfig, QueryConfig, Stage1Config, build_database, flow_descriptor,
+                                     silhouette_descriptor, silhouette_distances)
+
+    db = build_database(BuildConfig(motions=("walk",), sequences_per_motion=1, frames_per_sequence=10,
+                                    frame_stride=2, views_per_pose=4, with_flow=True), 2)
+    mu = 1.0
+    est = SilhouettePoseEstimator(walk_scene.rig, db, Stage1Config(query=QueryConfig(k=5, flow_weight=mu)))
+    masks = walk_scene.masks[0]
+    flows = [np.zeros(m.shape + (2,)) for m in masks]
+    flows[0][..., 0] = 2.0  # view 0 moves right by 2 px per frame
+    e = est.step(masks, 0, flows=flows)
+    # E_S at lambda = 0: (L1 + mu * mean|f - g|) / (1 + mu) for entries with a flow, L1 for the others
+    l1 = silhouette_distances(db, silhouette_descriptor(masks[0]))
+    fd = flow_descriptor(flows[0], e.bboxes[0])
+    g = db.flows.astype(np.float32)
+    flow_term = np.abs(g - fd).mean(axis=1)
+    expected = np.where(np.isnan(g[:, 0]), l1, (l1 + mu * flow_term) / (1 + mu))
+    np.testing.assert_allclose(e.candidates[0].errors, np.sort(expected)[:5], rtol=1e-5)
+    assert not np.allclose(np.sort(expected)[:5], np.sort(l1)[:5])  # the flow term changed the errors
+    with pytest.raises(InputError, match="flows"):
+        est.step(masks, 1, flows=flows[:1])

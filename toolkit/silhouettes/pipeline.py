@@ -38,6 +38,7 @@ from toolkit.silhouettes.descriptor import (
     STATE_NO_FRAME,
     STATE_OK,
     check_silhouette,
+    flow_descriptor,
     normalise_joints,
     silhouette_grid,
 )
@@ -201,7 +202,7 @@ class SilhouettePoseEstimator:
         self.tracker = MultiViewTracker(self.rig, self.config.multiview, self.observer)
 
     # ------------------------------------------------------------ per view
-    def _view(self, v: int, mask, frame: int):
+    def _view(self, v: int, mask, frame: int, flow=None):
         cam = self.rig[v]
         obs = self.observer
         P = REPORT_PREFIX
@@ -224,7 +225,10 @@ class SilhouettePoseEstimator:
         grid = silhouette_grid(m, check.bbox)
         big = np.kron(grid, np.ones((GRID_DISPLAY_SCALE, GRID_DISPLAY_SCALE), np.float32))
         obs.report("image", camera=cam.name, image=big, name=f"{P}/grid", frame=frame)
-        cands = query_database(self.database, grid.reshape(-1), self._previous[v], self.config.query)
+        fd = None
+        if flow is not None and self.config.query.flow_weight > 0:
+            fd = flow_descriptor(flow, check.bbox)
+        cands = query_database(self.database, grid.reshape(-1), self._previous[v], self.config.query, flow=fd)
         return STATE_OK, check.bbox, cands
 
     def _report_candidates(self, v: int, cands: Candidates, cand_px: np.ndarray, frame: int) -> None:
@@ -245,7 +249,8 @@ class SilhouettePoseEstimator:
 
     # ----------------------------------------------------------- per frame
     def step(self, masks: Sequence[np.ndarray | None], frame: int,
-             edits: dict[str, JointEdit] | None = None) -> FrameEstimate:
+             edits: dict[str, JointEdit] | None = None, flows: Sequence[np.ndarray | None] | None = None
+             ) -> FrameEstimate:
         """Estimate one frame.
 
         Parameters
@@ -256,6 +261,9 @@ class SilhouettePoseEstimator:
         frame : int
         edits : dict of str to JointEdit, optional
             This frame's corrections by camera name (:meth:`Edits.for_frame`).
+        flows : sequence of (ndarray of shape (H, W, 2) or None), optional
+            Per camera, the motion of each pixel since the previous frame
+            (pixels); used by the flow term when ``config.query.flow_weight > 0``.
 
         Returns
         -------
@@ -263,6 +271,8 @@ class SilhouettePoseEstimator:
         """
         if len(masks) != self.n_views:
             raise InputError("masks", f"one mask per camera ({self.n_views})", f"{len(masks)}")
+        if flows is not None and len(flows) != self.n_views:
+            raise InputError("flows", f"one flow field (or None) per camera ({self.n_views})", f"{len(flows)}")
         t_start = time.perf_counter()
         n_views, k = self.n_views, self.config.query.k
         states = np.zeros(n_views, np.uint8)
@@ -270,7 +280,7 @@ class SilhouettePoseEstimator:
         cands: list[Candidates | None] = [None] * n_views
         cand_px = np.full((n_views, k, _J, 2), np.nan)
         for v in range(n_views):
-            state, box, c = self._view(v, masks[v], frame)
+            state, box, c = self._view(v, masks[v], frame, None if flows is None else flows[v])
             states[v] = state
             if box is not None:
                 boxes[v] = box
@@ -473,11 +483,17 @@ def estimate_dataset(dataset, database: SilhouetteDatabase, config: Stage1Config
 
     Notes
     -----
+    With ``config.query.flow_weight > 0`` the motion of every pixel since the
+    previous frame is estimated by dense optical flow
+    (:func:`toolkit.foreground.dense_flow`, from this frame back to the
+    previous one, negated) and matched against the database's flow
+    descriptors (build the database with ``BuildConfig(with_flow=True)``).
+
     A camera whose video ends early (fewer decodable frames than declared)
     gives ``None`` masks from then on (state "no video frame"); the other
     cameras go on.
     """
-    from toolkit.foreground import ForegroundExtractor
+    from toolkit.foreground import ForegroundExtractor, dense_flow
     from toolkit.io import VideoReader
 
     obs = as_observer(observer)
@@ -497,9 +513,12 @@ def estimate_dataset(dataset, database: SilhouetteDatabase, config: Stage1Config
                       for c in names}
         ended: dict[str, bool] = {c: False for c in names}
         previous: dict[str, tuple | None] = {c: None for c in names}
+        last: dict[str, tuple[int, np.ndarray] | None] = {c: None for c in names}
+        use_flow = estimator.config.query.flow_weight > 0
         for t in todo:
             t0 = time.perf_counter()
             masks: list = []
+            flows: list = []
             for c in names:
                 frame = None
                 if not ended[c]:
@@ -511,15 +530,22 @@ def estimate_dataset(dataset, database: SilhouetteDatabase, config: Stage1Config
                                    text=f"frame {t}: {c} has no more frames ({e}); its view is left out")
                 if frame is None:
                     masks.append(None)
+                    flows.append(None)
                     previous[c] = None
                     continue
+                if use_flow and last[c] is not None and last[c][0] == t - 1:
+                    # motion since the previous frame: minus the flow from this frame back to it
+                    flows.append(-dense_flow(frame, last[c][1]))
+                else:
+                    flows.append(None)
+                last[c] = (t, frame)
                 if log_images:
                     obs.report("image", camera=c, image=frame, frame=t)
                 sil = extractors[c].extract(frame, previous[c])
                 previous[c] = (frame, sil.mask) if sil.usable else None
                 masks.append(sil.mask)
             t_fg = time.perf_counter() - t0
-            est = estimator.step(masks, t, None if edits is None else edits.for_frame(t))
+            est = estimator.step(masks, t, None if edits is None else edits.for_frame(t), flows if use_flow else None)
             est.timings["foreground"] = t_fg
             yield est, masks
     finally:
