@@ -14,9 +14,11 @@ One frame is rendered fan by fan, back to front:
    ``sum alpha_j w_j / sum alpha_j omega_j``;
 4. the fan is composited *over* the fans behind it (fans occlude each other,
    billboards of one fan blend);
-5. the discontinuities met on the way (fan borders against background or
-   another fan, and places where another camera takes over) are recorded and
-   smoothed afterwards with a small Gaussian, only there.  The smoothing
+5. the discontinuities met on the way (the subject's border against the
+   background; fan borders against another fan and places where another
+   camera takes over, where the colour jumps there by more than
+   ``smoothing_min_jump``) are recorded and smoothed afterwards with a small
+   Gaussian, only there.  The smoothing
    strength is the attenuation ``1 - exp(-d^2/2 sigma^2)`` of the view, so a
    virtual camera on a source camera still reproduces that image exactly.
 """
@@ -138,6 +140,18 @@ def _edges(labels: np.ndarray) -> np.ndarray:
     return e
 
 
+def _jump(rgb: np.ndarray) -> np.ndarray:
+    """Largest colour difference (max over channels, 0..255) of each pixel to its 4-neighbours."""
+    j = np.zeros(rgb.shape[:2], np.float32)
+    d = np.abs(rgb[1:] - rgb[:-1]).max(axis=-1)
+    j[1:] = np.maximum(j[1:], d)
+    j[:-1] = np.maximum(j[:-1], d)
+    d = np.abs(rgb[:, 1:] - rgb[:, :-1]).max(axis=-1)
+    j[:, 1:] = np.maximum(j[:, 1:], d)
+    j[:, :-1] = np.maximum(j[:, :-1], d)
+    return j
+
+
 def composite(model: BillboardModel, camera: Camera, warper: Warper, config: BlendConfig = BlendConfig(),
               offset=(0.0, 0.0), observer: Observer | None = None, frame: int | None = None) -> RenderResult:
     """Render the billboard model into ``camera`` with view-dependent blending.
@@ -237,7 +251,11 @@ def composite(model: BillboardModel, camera: Camera, warper: Warper, config: Ble
     box = (slice(by0, by1), slice(bx0, bx1))
     disc = np.zeros((h_img, w_img), bool)
     smoothed = np.zeros_like(disc)
-    disc[box] = _edges(top[box]) | (_edges(dominant[box]) & (top[box] > 0))
+    # subject against background: always; between fans or where another camera takes over: only where
+    # the colour actually jumps (a visible seam), so the inside of a part stays sharp
+    t_box = top[box]
+    inner = (_edges(t_box) & (t_box > 0)) | (_edges(dominant[box]) & (t_box > 0))
+    disc[box] = _edges(t_box > 0) | (inner & (_jump(rgb[box]) > config.smoothing_min_jump))
     # smoothing strength: 0 on a source camera (exact reproduction), -> 1 far from all of them
     strength = float(attenuation(np.min(np.linalg.norm(model.rig.centers - camera.center, axis=1)),
                                  config.attenuation_sigma_m))
