@@ -45,8 +45,10 @@ from toolkit.synthetic import generate_scene, parse_spec  # noqa: E402
 from toolkit.template import Template, camera_with_offset, subject_height_px  # noqa: E402
 
 #: Seeded scenes: (name, seed, layout, motion, cameras, calibration error px, stature m).
-SCENES = [("broadcast_11", 11, "broadcast", "walk", 3, 4.0, 1.75), ("broadcast_12", 12, "broadcast", "run", 3, 4.0, 1.75),
-          ("broadcast_13", 13, "broadcast", "kick", 3, 4.0, 1.75), ("studio_21", 21, "studio", "wave", 4, 0.0, 1.70),
+SCENES = [("broadcast_11", 11, "broadcast", "walk", 3, 4.0, 1.75),
+          ("broadcast_12", 12, "broadcast", "run", 3, 4.0, 1.75),
+          ("broadcast_13", 13, "broadcast", "kick", 3, 4.0, 1.75),
+          ("studio_21", 21, "studio", "wave", 4, 0.0, 1.70),
           ("studio_22", 22, "studio", "turn", 4, 0.0, 1.70)]
 FRAMES = 24
 STAGES = ("template", "confident", "gmm", "closed")

@@ -73,9 +73,9 @@ class PoseSource:
 
 
 def segment_views(frames: Callable[[str, int], np.ndarray], silhouettes: Callable[[str, int], np.ndarray],
-                  poses: PoseSource, n_frames: int, template: Template, config: SegmentationConfig = SegmentationConfig(),
-                  observer=None, database: PoseDatabase | None = None,
-                  cameras=None) -> Iterator[tuple[int, str, SegmentationResult]]:
+                  poses: PoseSource, n_frames: int, template: Template,
+                  config: SegmentationConfig = SegmentationConfig(), observer=None,
+                  database: PoseDatabase | None = None, cameras=None) -> Iterator[tuple[int, str, SegmentationResult]]:
     """Segment every camera of every frame.
 
     Parameters

@@ -207,7 +207,7 @@ def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarra
     template : Template
     config : SegmentationConfig
     observer : Observer, optional
-        Receives ``labels`` (template, thin, thick, final), ``mask`` (confident,
+        Receives ``labels`` (thinned and thickened template, final), ``mask`` (confident,
         uncertain), ``text`` (per-part model summaries, parts without a model).
     offset : array_like of shape (2,), optional
         Stage-1 pixel offset added to ``camera``'s projections.
@@ -328,12 +328,10 @@ def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarra
 
     missing = models.parts_without_model
     names = SKELETON_14.part_names
-    obs.report("labels", labels=proj.labels, name="segmentation/template", **extra)
     obs.report("labels", labels=proj.thin, name="segmentation/template_thin", **extra)
     obs.report("labels", labels=proj.thick, name="segmentation/template_thick", **extra)
     obs.report("mask", mask=confident, name="segmentation/confident", **extra)
     obs.report("mask", mask=uncertain, name="segmentation/uncertain", **extra)
-    obs.report("labels", labels=colour_labels, name="segmentation/colour", **extra)
     obs.report("labels", labels=labels, name="segmentation/parts", **extra)
     obs.report("text", name="segmentation/models", text=models.summary(names), **extra)
     obs.report("text", name="segmentation/parts_without_model",

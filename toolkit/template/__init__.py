@@ -32,4 +32,5 @@ from toolkit.template.projection import (
 __all__ = ["FRAMES_PER_MOTION", "YAW_STEPS", "ApproximatePose", "PoseDatabase", "approximate_pose",
            "canonical_poses", "TemplatePose", "camera_with_offset", "default_database", "exact_fit",
            "fit_template_pose", "standing_pose_in_box", "MIN_RADIUS_PX", "N_PARTS", "TEMPLATE_DETAIL",
-           "THIN_PART_FRACTION", "THIN_THICK_FRACTION", "Template", "TemplateProjection", "disc", "subject_height_px", "thin_thick"]
+           "THIN_PART_FRACTION", "THIN_THICK_FRACTION", "Template", "TemplateProjection", "disc",
+           "subject_height_px", "thin_thick"]
