@@ -160,9 +160,9 @@ def test_energy_jacobian_matches_finite_differences(idle_sequence):
     for i in range(len(x)):
         e = np.zeros_like(x)
         e[i] = h
-        res._cache_x = None
+        res._cache_list = []
         rp = res.evaluate(x + e)[0].copy()
-        res._cache_x = None
+        res._cache_list = []
         rm = res.evaluate(x - e)[0].copy()
         Jn[:, i] = (rp - rm) / (2 * h)
     k = 0

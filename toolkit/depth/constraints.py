@@ -124,7 +124,7 @@ def segment_distance(p0, p1, q0, q1):
 
 
 def _limb_radii(dims: BodyDimensions) -> np.ndarray:
-    return np.array([np.mean(dims.radius(key)) for *_, key in LIMBS])
+    return dims.limb_radii.mean(1)
 
 
 _LA = np.array([a for a, _ in LENGTH_PAIRS])

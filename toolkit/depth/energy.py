@@ -38,6 +38,7 @@ Within ``gate_m`` a Huber weight keeps outliers from dominating.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -49,7 +50,7 @@ from toolkit.depth.model import END_SPHERES, LIMBS, N_POINTS, BodyDimensions
 from toolkit.depth.orus import OrusGrid
 
 __all__ = ["EnergyConfig", "FitData", "fit_data", "Assignment", "assign", "Residuals", "EnergyTerms",
-           "energy_terms", "support_fraction", "N_PRIMITIVES", "PRIMITIVE_NAMES", "TORSO", "CONTOUR_SAMPLES"]
+           "energy_terms", "unexplained_penalty", "support_fraction", "N_PRIMITIVES", "PRIMITIVE_NAMES", "TORSO", "CONTOUR_SAMPLES"]
 
 #: Primitive order: the 8 limb capsules, the 5 end spheres, the torso.
 PRIMITIVE_NAMES = tuple(n for n, *_ in LIMBS) + tuple(n for n, *_ in END_SPHERES) + ("torso",)
@@ -59,6 +60,16 @@ _N_CAPS = len(LIMBS)
 _CAP_A = np.array([a for _, a, _, _ in LIMBS])
 _CAP_B = np.array([b for _, _, b, _ in LIMBS])
 _SPH = np.array([p for _, p, _ in END_SPHERES])
+_XYZ = np.arange(3)[None, :]
+
+
+def _torso_points():
+    from toolkit.depth.model import L_HIP, L_SHOULDER, R_HIP, R_SHOULDER
+
+    return (L_SHOULDER, R_SHOULDER, L_HIP, R_HIP)
+
+
+_TORSO_POINTS = _torso_points()
 
 
 def _contour_samples() -> np.ndarray:
@@ -280,9 +291,7 @@ def _sphere_distances(P: np.ndarray, X: np.ndarray, radii: np.ndarray):
 
 
 def _radii(dims: BodyDimensions) -> tuple[np.ndarray, np.ndarray]:
-    caps = np.array([dims.radius(key) for *_, key in LIMBS])
-    sph = np.array([dims.radius(key) for *_, key in END_SPHERES])
-    return caps, sph
+    return dims.limb_radii, dims.sphere_radii
 
 
 # ---------------------------------------------------------- assignment
@@ -388,53 +397,70 @@ class Residuals:
         self.c_w = data.centre_weight[self.c_idx] * np.sqrt(np.minimum(1.0, kc / np.maximum(adc, 1e-9))) \
             / config.centre_sigma_m
         self.sizes = None
-        self._cache_x = None
-        self._cache = None
+        self._cache_list = []
+        self._wp = self.w_prev / config.previous_sigma_m
+        self._Jp = np.diag(np.repeat(self._wp, 3))
+        self._sgroups = self._groups(data.surface[self.s_idx], self.s_prim, self.s_w)
+        self._cgroups = self._groups(data.centres[self.c_idx], self.c_prim, self.c_w)
 
     # ---------------------------------------------------------------- data
-    def _points_block(self, X, P, prim, w, with_radius: bool):
-        """Residuals and Jacobian rows of points given to capsules / spheres / the torso."""
-        n = len(P)
+    @staticmethod
+    def _groups(P, prim, w):
+        """Split assigned points by primitive type once (capsules, spheres, torso)."""
+        caps = np.nonzero(prim < _N_CAPS)[0]
+        sph = np.nonzero((prim >= _N_CAPS) & (prim < TORSO))[0]
+        tor = np.nonzero(prim == TORSO)[0]
+        kc = prim[caps]
+        ks = prim[sph] - _N_CAPS
+        return {"n": len(P), "w": w,
+                "caps": (caps, P[caps], kc, 3 * _CAP_A[kc][:, None] + _XYZ, 3 * _CAP_B[kc][:, None] + _XYZ),
+                "sph": (sph, P[sph], ks, 3 * _SPH[ks][:, None] + _XYZ),
+                "tor": (tor, P[tor])}
+
+    def _points_block(self, X, g, with_radius: bool):
+        """Residuals (n,) and Jacobian rows (n, 39) of points given to capsules / spheres / the torso."""
+        n = g["n"]
         r = np.zeros(n)
-        J = np.zeros((n, N_POINTS, 3))
+        J = np.zeros((n, 3 * N_POINTS))
         if n == 0:
             return r, J
-        caps = prim < _N_CAPS
-        if caps.any():
-            i = np.nonzero(caps)[0]
-            k = prim[i]
+        i, P, k, ca, cb = g["caps"]
+        if len(i):
             A, B = X[_CAP_A[k]], X[_CAP_B[k]]
             AB = B - A
             L2 = np.maximum(np.einsum("ij,ij->i", AB, AB), 1e-12)
-            AP = P[i] - A
+            AP = P - A
             t = np.clip(np.einsum("ij,ij->i", AP, AB) / L2, 0.0, 1.0)
             q = AP - t[:, None] * AB
-            dist = np.linalg.norm(q, axis=1)
+            dist = np.sqrt(np.einsum("ij,ij->i", q, q))
             qh = q / np.maximum(dist, 1e-9)[:, None]
             rad = self.cap_r[k, 0] + t * (self.cap_r[k, 1] - self.cap_r[k, 0]) if with_radius else 0.0
             r[i] = dist - rad
-            J[i, _CAP_A[k]] = -(1 - t)[:, None] * qh
-            J[i, _CAP_B[k]] = -t[:, None] * qh
-        sph = (prim >= _N_CAPS) & (prim < TORSO)
-        if sph.any():
-            i = np.nonzero(sph)[0]
-            k = prim[i] - _N_CAPS
-            q = P[i] - X[_SPH[k]]
-            dist = np.linalg.norm(q, axis=1)
+            rows = i[:, None]
+            J[rows, ca] = -(1 - t)[:, None] * qh
+            J[rows, cb] = -t[:, None] * qh
+        i, P, k, cs = g["sph"]
+        if len(i):
+            q = P - X[_SPH[k]]
+            dist = np.sqrt(np.einsum("ij,ij->i", q, q))
             r[i] = dist - (self.sph_r[k] if with_radius else 0.0)
-            J[i, _SPH[k]] = -q / np.maximum(dist, 1e-9)[:, None]
-        tor = prim == TORSO
-        if tor.any():
-            i = np.nonzero(tor)[0]
-            r[i], J[i] = self._torso_block(X, P[i])
-        return r * w, J * w[:, None, None]
+            J[i[:, None], cs] = -q / np.maximum(dist, 1e-9)[:, None]
+        i, P = g["tor"]
+        if len(i):
+            d, G = self._torso_block(X, P)
+            r[i] = d
+            for c, idx in enumerate(_TORSO_POINTS):
+                J[i, 3 * idx:3 * idx + 3] = G[:, c]
+        w = g["w"]
+        return r * w, J * w[:, None]
 
     def _torso_block(self, X, P):
+        """Torso residuals (n,) and their Jacobian (n, 4, 3) on (l_shoulder, r_shoulder, l_hip, r_hip)."""
         from toolkit.depth.model import L_HIP, L_SHOULDER, R_HIP, R_SHOULDER
 
         d, x = _torso_distance(P, X, self.dims)
         n = len(P)
-        J = np.zeros((n, N_POINTS, 3))
+        G = np.zeros((n, 4, 3))
         v, qh, cl, a, b, rho = x["v"], x["qh"], x["cl"], x["a"], x["b"], x["rho"]
         # distance to the axis line through ms and mh: d/dms = -(1 - w) qh, d/dmh = -w qh,
         # w the projection parameter of the point along ms -> mh
@@ -443,46 +469,45 @@ class Residuals:
         axis = mh - ms
         wpar = ((P - ms) @ axis) / max(axis @ axis, 1e-12)
         # moving the axis also turns the direction qh of the point, hence its angle on the ellipse
-        drho_dcl = -rho ** 3 * cl * (1.0 / a ** 2 - 1.0 / b ** 2)
+        rho3 = rho ** 3
+        drho_dcl = -rho3 * cl * (1.0 / a ** 2 - 1.0 / b ** 2)
         el = x["el"]
         gC = -qh + (drho_dcl / np.maximum(x["rp"], 1e-6))[:, None] * (el[None] - cl[:, None] * qh)
-        for idx, wgt in ((L_SHOULDER, (1 - wpar) / 2), (R_SHOULDER, (1 - wpar) / 2), (L_HIP, wpar / 2),
-                         (R_HIP, wpar / 2)):
-            J[:, idx] += wgt[:, None] * gC
+        gs = (0.5 * (1 - wpar))[:, None] * gC
+        gh = (0.5 * wpar)[:, None] * gC
         # the ellipse radius rho depends on the half-width a (shoulder and hip spans) and on the lateral axis
-        drho_da = rho ** 3 * cl ** 2 / a ** 3
+        drho_da = rho3 * cl ** 2 / a ** 3
         es = X[R_SHOULDER] - X[L_SHOULDER]
         eh = X[R_HIP] - X[L_HIP]
-        es_u = es / max(np.linalg.norm(es), 1e-9)
-        eh_u = eh / max(np.linalg.norm(eh), 1e-9)
-        ga_s = (-drho_da * (1 - v) / 2)[:, None] * es_u[None]
-        ga_h = (-drho_da * v / 2)[:, None] * eh_u[None]
-        J[:, R_SHOULDER] += ga_s
-        J[:, L_SHOULDER] -= ga_s
-        J[:, R_HIP] += ga_h
-        J[:, L_HIP] -= ga_h
+        es_u = es / max(np.sqrt(es @ es), 1e-9)
+        eh_u = eh / max(np.sqrt(eh @ eh), 1e-9)
+        ga_s = (-0.5 * drho_da * (1 - v))[:, None] * es_u[None]
+        ga_h = (-0.5 * drho_da * v)[:, None] * eh_u[None]
         eu, nl = x["eu"], x["nl"]
-        Pm = (np.eye(3) - np.outer(el, el)) @ (np.eye(3) - np.outer(eu, eu)) / max(nl, 1e-9)
-        g_lat = (-drho_dcl)[:, None] * (qh @ Pm.T)
-        J[:, R_SHOULDER] += g_lat
-        J[:, R_HIP] += g_lat
-        J[:, L_SHOULDER] -= g_lat
-        J[:, L_HIP] -= g_lat
+        # d(cl)/d(lateral) = P_u (I - el el^T) qh / |P_u lateral|  (el is perpendicular to eu)
+        qp = qh - (qh @ el)[:, None] * el[None]
+        qp = qp - (qp @ eu)[:, None] * eu[None]
+        g_lat = (-drho_dcl / max(nl, 1e-9))[:, None] * qp
+        G[:, 0] = gs - ga_s - g_lat
+        G[:, 1] = gs + ga_s + g_lat
+        G[:, 2] = gh - ga_h - g_lat
+        G[:, 3] = gh + ga_h + g_lat
         # beyond the ends: d = sqrt(max(d_rad, 0)^2 + beyond^2), the axial excess moving with the nearer end
         beyond = x["beyond"]
         out = np.abs(beyond) > 1e-9
         if out.any():
             dd = np.maximum(d[out], 1e-9)
             kr = np.maximum(x["d_rad"][out], 0.0) / dd
-            kb = beyond[out] / dd
-            Jo = J[out] * kr[:, None, None]
-            above = x["v"][out] <= 0.0
-            ends = np.where(above[:, None], np.array([L_SHOULDER, R_SHOULDER])[None], np.array([L_HIP, R_HIP])[None])
-            rows = np.arange(len(kb))
-            for c in range(2):
-                Jo[rows, ends[:, c]] += 0.5 * kb[:, None] * eu[None]
-            J[out] = Jo
-        return d, J
+            kb = 0.5 * beyond[out] / dd
+            Go = G[out] * kr[:, None, None]
+            above = v[out] <= 0.0
+            add = kb[:, None] * eu[None]
+            Go[above, 0] += add[above]
+            Go[above, 1] += add[above]
+            Go[~above, 2] += add[~above]
+            Go[~above, 3] += add[~above]
+            G[out] = Go
+        return d, G
 
     def _contour_block(self, X):
         data = self.data
@@ -549,7 +574,7 @@ class Residuals:
                 J[3 * k + c, base, c] = -w
         return r, J
 
-    @property
+    @cached_property
     def _rest_lengths(self):
         from toolkit.depth.model import L_ELBOW, L_FOOT, L_HAND, L_HIP, L_KNEE, L_SHOULDER
 
@@ -577,29 +602,23 @@ class Residuals:
     # ------------------------------------------------------------- assembly
     def evaluate(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Residual vector (M,) and Jacobian (M, 39) at ``x`` (39,)."""
-        if self._cache_x is not None and np.array_equal(x, self._cache_x):
-            return self._cache
+        for cx, val in self._cache_list:
+            if np.array_equal(x, cx):
+                return val
         X = x.reshape(N_POINTS, 3)
         blocks = []
-        rs, Js = self._points_block(X, self.data.surface[self.s_idx], self.s_prim, self.s_w, True)
-        blocks.append((rs, Js))
-        rc, Jc = self._points_block(X, self.data.centres[self.c_idx], self.c_prim, self.c_w, False)
-        blocks.append((rc, Jc))
+        blocks.append(self._points_block(X, self._sgroups, True))
+        blocks.append(self._points_block(X, self._cgroups, False))
         blocks.append(self._contour_block(X))
-        wp = self.w_prev / self.config.previous_sigma_m
-        rp = ((X - self.X_pred) * wp[:, None]).ravel()
-        Jp = np.zeros((3 * N_POINTS, N_POINTS, 3))
-        idx = np.arange(3 * N_POINTS)
-        Jp[idx, idx // 3, idx % 3] = np.repeat(wp, 3)
-        blocks.append((rp, Jp))
+        rp = ((X - self.X_pred) * self._wp[:, None]).ravel()
+        blocks.append((rp, self._Jp))
         blocks.append(self._rest_block(X))
         for rr, JJ in constraint_residuals(X, self.dims, self.constraints, self.ground_y):
             blocks.append((rr, JJ))
         self.sizes_of_blocks = [len(b[0]) for b in blocks]
         r = np.concatenate([b[0] for b in blocks])
         J = np.concatenate([b[1].reshape(len(b[0]), 3 * N_POINTS) for b in blocks], axis=0)
-        self._cache_x = x.copy()
-        self._cache = (r, J)
+        self._cache_list = ([(x.copy(), (r, J))] + self._cache_list)[:3]
         return r, J
 
     def fun(self, x):
@@ -666,15 +685,21 @@ class EnergyTerms:
     assignment: Assignment | None = None
 
 
+def unexplained_penalty(data: FitData, a: Assignment, config: EnergyConfig) -> float:
+    """Energy of the data no primitive explains: ``(gate / sigma)^2 / 4`` per surface bin (weighted)
+    and half that per curvature centre."""
+    bad = a.surface_prim < 0
+    wun = float(data.surface_weight[bad].sum()) if bad.any() else 0.0
+    nc = int((a.centre_prim < 0).sum())
+    return (wun * 0.25 * (config.gate_m / config.surface_sigma_m) ** 2
+            + nc * 0.125 * (config.centre_gate_m / config.centre_sigma_m) ** 2)
+
+
 def energy_terms(data: FitData, X: np.ndarray, dims: BodyDimensions, X_pred: np.ndarray, w_prev: np.ndarray,
                  config: EnergyConfig, constraints: ConstraintConfig, ground_y=None) -> EnergyTerms:
     """The energy of ``X`` (13, 3), re-assigning the data first (used to compare skeletons)."""
     a = assign(data, X, dims, config)
     res = Residuals(data, a, dims, X_pred, w_prev, config, constraints, ground_y)
     terms = res.block_energies(np.asarray(X, float).ravel())
-    n_un = int((a.surface_prim < 0).sum())
-    wun = data.surface_weight[a.surface_prim < 0].sum() if n_un else 0.0
-    terms["unexplained"] = float(wun * (config.gate_m / config.surface_sigma_m) ** 2 * 0.25)
-    nc = int((a.centre_prim < 0).sum())
-    terms["unexplained"] += float(nc * 0.25 * (config.centre_gate_m / config.centre_sigma_m) ** 2 * 0.5)
+    terms["unexplained"] = unexplained_penalty(data, a, config)
     return EnergyTerms(terms, float(sum(terms.values())), a.explained_fraction(), a)

@@ -28,7 +28,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from toolkit.depth.constraints import ConstraintConfig
-from toolkit.depth.energy import EnergyConfig, EnergyTerms, FitData, Residuals, assign, energy_terms
+from toolkit.depth.energy import EnergyConfig, EnergyTerms, FitData, Residuals, assign, unexplained_penalty
 from toolkit.depth.model import N_POINTS, BodyDimensions
 from toolkit.observe import as_observer
 
@@ -45,6 +45,8 @@ class FitConfig:
         Assignment / Levenberg-Marquardt rounds.
     lm_max_evaluations : int
         Residual evaluations per Levenberg-Marquardt run.
+    init_outer_iterations, init_lm_max_evaluations : int
+        The same for the fits of the initial-pose candidates (once per (re)start, so more).
     solver : {"lm", "scipy"}
         ``"scipy"``: ``scipy.optimize.least_squares(method="lm")`` (MINPACK);
         ``"lm"``: the same damped Gauss-Newton steps in a small loop here
@@ -63,6 +65,8 @@ class FitConfig:
 
     outer_iterations: int = 2
     lm_max_evaluations: int = 4
+    init_outer_iterations: int = 2
+    init_lm_max_evaluations: int = 4
     solver: str = "lm"
     converged_m: float = 0.003
     max_moves: int = 2
@@ -199,7 +203,11 @@ def fit_local(X0: np.ndarray, data: FitData, dims: BodyDimensions, X_pred: np.nd
         X = Xn
         if moved < config.converged_m:
             break
-    e = energy_terms(data, X, dims, X_pred, w_prev, energy, constraints, ground_y)
+    # the energy at the result: block energies of the last round, unexplained data re-assigned at X
+    a = assign(data, X, dims, energy)
+    terms = dict(history[-1]) if history else {}
+    terms["unexplained"] = unexplained_penalty(data, a, energy)
+    e = EnergyTerms(terms, float(sum(terms.values())), a.explained_fraction(), a)
     return LocalFit(X, e, history, nfev)
 
 

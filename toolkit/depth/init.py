@@ -11,10 +11,9 @@
    torso within a few hops, and roughly aligned with the principal direction
    from the centroid.
 4. **Torso extrapolated from height**: the user is assumed standing; stature is
-   measured from the head top to the ground (or to the lowest point, or, for a
-   person cut by the image border, from the shoulder breadth) and the torso
-   patch placed below the head with the median proportions of that stature,
-   facing the camera.
+   measured from the head top to the ground (or to the lowest point; a person
+   cut by the image border gets a default stature) and the torso patch placed
+   below the head with the median proportions of that stature, facing the camera.
 5. **Limbs by back-tracking**: the remaining extremities are assigned to the
    hands and feet (or to none) by a depth-first search that prunes every
    partial assignment breaking a joint or morphology constraint (reach of the
@@ -44,12 +43,10 @@ from toolkit.motion.kinematics import two_bone_ik
 
 __all__ = ["InitConfig", "KeyPoints", "key_points", "HeadCandidate", "head_candidates", "estimate_stature",
            "InitialPose", "initial_poses", "EXTREMITY", "LIMB", "TORSO_CLASS", "CLASS_NAMES",
-           "SHOULDER_BREADTH_RATIO"]
+]
 
 EXTREMITY, LIMB, TORSO_CLASS = 0, 1, 2
 CLASS_NAMES = ("extremity", "limb", "torso")
-#: Silhouette breadth at shoulder level over stature (shoulders and upper arms of an average adult).
-SHOULDER_BREADTH_RATIO = 0.26
 
 
 @dataclass(frozen=True)
@@ -114,16 +111,20 @@ class KeyPoints:
     labels: np.ndarray
 
 
-def key_points(grid: OrusGrid, profile: RadialProfile | None, rng, config: InitConfig = InitConfig()) -> KeyPoints:
-    """Cluster the grid into key points, link them and classify them."""
+def key_points(grid: OrusGrid, profile: RadialProfile | None, rng=None, config: InitConfig = InitConfig()) -> KeyPoints:
+    """Cluster the grid into key points, link them and classify them.
+
+    ``rng`` None starts the k-means seeding at the highest bin (the same grid always
+    gives the same key points); a generator or seed starts it at a random bin.
+    """
     r, c = np.nonzero(grid.filled)
     P = grid.mean[r, c]
     n = len(P)
     k = int(np.clip(round(n / config.bins_per_keypoint), config.min_keypoints, config.max_keypoints))
     k = max(min(k, n), 1)
-    rng = np.random.default_rng(rng)
-    # deterministic, spread-out seeds: farthest-point sampling
-    seeds = [int(rng.integers(n))]
+    # spread-out seeds by farthest-point sampling from the highest bin: the same grid always
+    # gives the same key points (``rng`` is kept for callers that want random restarts)
+    seeds = [int(np.argmin(P[:, 1]))] if rng is None else [int(np.random.default_rng(rng).integers(n))]
     dmin = np.linalg.norm(P - P[seeds[0]], axis=1)
     for _ in range(1, k):
         j = int(np.argmax(dmin))
@@ -326,38 +327,26 @@ def head_candidates(kp: KeyPoints, centroid: np.ndarray, principal: np.ndarray, 
 
 def estimate_stature(grid: OrusGrid, head_xy: np.ndarray, ground_y: float | None, cut_bottom: bool,
                      config: InitConfig = InitConfig()) -> float:
-    """Stature from the head top down to the ground (or the lowest point), else from the shoulder breadth."""
+    """Stature from the top of the head down to the ground (or to the lowest point).
+
+    A user cut by the image's lower border gets :attr:`InitConfig.default_stature_m`
+    (the silhouette's breadth, quantised by the grid's bins, says too little); the
+    segment lengths are refined while tracking.
+    """
     ys = grid.bin_centres()
     filled = grid.filled
     near = filled & (np.abs(ys[..., 0] - head_xy[0]) < 0.2)
-    if not near.any():
+    if not near.any() or cut_bottom:
         return config.default_stature_m
     top = grid.mean[..., 1][near].min() - grid.bin_size / 2
     lo, hi = config.stature_range_m
-    if not cut_bottom:
-        bottom = ground_y if ground_y is not None else grid.mean[..., 1][filled].max() + grid.bin_size / 2
-        h = bottom - top
-        if lo <= h <= hi:
-            return float(h)
-        if h > 0.5 * lo and ground_y is None:
-            return float(np.clip(h, lo, hi))
-    # shoulder breadth: silhouette width about 0.2 m below the head top
-    row = int(np.clip(np.floor((top + 0.22 * config.default_stature_m / 1.75 * 1.0 - grid.origin[1]) / grid.bin_size),
-                      0, grid.shape[0] - 1))
-    cols = np.nonzero(filled[row])[0]
-    if len(cols) == 0:
-        return config.default_stature_m
-    j0 = int(np.floor((head_xy[0] - grid.origin[0]) / grid.bin_size))
-    # the run of filled bins containing the head column
-    run = [j for j in cols if abs(j - j0) < 30]
-    if not run:
-        return config.default_stature_m
-    seg = np.split(np.array(run), np.nonzero(np.diff(run) > 1)[0] + 1)
-    best = max(seg, key=lambda s: len(s) - 10 * min(abs(s - j0)))
-    breadth = len(best) * grid.bin_size
-    h = breadth / SHOULDER_BREADTH_RATIO
-    # arms held out widen the row: then the breadth says nothing
-    return float(h) if lo <= h <= hi else config.default_stature_m
+    bottom = ground_y if ground_y is not None else grid.mean[..., 1][filled].max() + grid.bin_size / 2
+    h = bottom - top
+    if lo <= h <= hi:
+        return float(h)
+    if h > 0.5 * lo and ground_y is None:
+        return float(np.clip(h, lo, hi))
+    return config.default_stature_m
 
 
 @dataclass(frozen=True)

@@ -142,9 +142,9 @@ def user_mask(depth: np.ndarray, camera: Camera, *, background: BackgroundModel 
         Empty (``found`` False) when no component is large enough.
     """
     d = _check_depth(depth, camera)
-    valid = np.isfinite(d) & (d > config.near_m) & (d < config.far_m)
+    with np.errstate(invalid="ignore"):
+        valid = (d > config.near_m) & (d < config.far_m)          # False for NaN
     f2 = camera.K[0, 0] * camera.K[1, 1]
-    pix_area = np.where(valid, d, 0.0) ** 2 / f2  # m^2 per pixel
     if given is not None:
         g = np.asarray(given, bool)
         if g.shape != d.shape:
@@ -152,21 +152,24 @@ def user_mask(depth: np.ndarray, camera: Camera, *, background: BackgroundModel 
         m = g & valid
         if not m.any():
             return _empty(d.shape)
-        return UserMask(m, 1, float(pix_area[m].sum()), float(np.median(d[m])))
+        zm = d[m].astype(np.float64)
+        return UserMask(m, 1, float((zm * zm).sum() / f2), float(np.median(zm)))
     fg = valid
     if background is not None:
         bg = background.depth
         if bg.shape != d.shape:
             raise InputError("background", f"a depth map of shape {d.shape}", f"shape {bg.shape}")
         with np.errstate(invalid="ignore"):
-            closer = d < bg - (config.background_margin_m + config.background_margin_rel * bg)
-        fg = valid & (~np.isfinite(bg) | closer)
+            farther = d >= bg - (config.background_margin_m + config.background_margin_rel * bg)   # False for NaN bg
+        fg = valid & ~farther
     if not fg.any():
         return _empty(d.shape)
-    n, lab, stats, _ = cv2.connectedComponentsWithStats(fg.astype(np.uint8), connectivity=8)
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(fg.view(np.uint8), connectivity=8)
     if n <= 1:
         return _empty(d.shape)
-    areas = np.bincount(lab.ravel(), weights=pix_area.ravel(), minlength=n)
+    lf = lab[fg]
+    zf = d[fg].astype(np.float64)
+    areas = np.bincount(lf, weights=zf * zf, minlength=n) / f2      # m^2: a pixel covers (z / f)^2
     areas[0] = 0.0
     big = np.nonzero(areas >= config.min_area_m2)[0]
     if len(big) == 0:
@@ -182,10 +185,12 @@ def user_mask(depth: np.ndarray, camera: Camera, *, background: BackgroundModel 
         # the most prominent person: most pixels (a nearer person covers more of the image)
         main = int(big[np.argmax(stats[big, cv2.CC_STAT_AREA])])
     m = lab == main
-    zmed = float(np.median(d[m]))
+    zmed = float(np.median(zf[lf == main]))
     # join nearby components at a similar depth
     gap_px = int(np.ceil(config.join_gap_m * camera.K[0, 0] / max(zmed, 0.1)))
-    if gap_px > 0:
+    others = (areas >= config.min_join_area_m2)
+    others[main] = False
+    if gap_px > 0 and others.any():
         x0, y0, ww, hh = stats[main, :4]
         H, W = d.shape
         r0, r1 = max(y0 - gap_px, 0), min(y0 + hh + gap_px, H)
@@ -194,8 +199,9 @@ def user_mask(depth: np.ndarray, camera: Camera, *, background: BackgroundModel 
         near = cv2.dilate(m[r0:r1, c0:c1].astype(np.uint8), k) > 0
         cand = np.unique(lab[r0:r1, c0:c1][near])
         for c in cand:
-            if c in (0, main) or areas[c] < config.min_join_area_m2:
+            if c == 0 or not others[c]:
                 continue
-            if abs(float(np.median(d[lab == c])) - zmed) <= config.join_depth_m:
+            if abs(float(np.median(zf[lf == c])) - zmed) <= config.join_depth_m:
                 m |= lab == c
-    return UserMask(m, int(len(big)), float(pix_area[m].sum()), float(np.median(d[m])))
+    zm = d[m].astype(np.float64)
+    return UserMask(m, int(len(big)), float((zm * zm).sum() / f2), float(np.median(zm)))

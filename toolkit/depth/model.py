@@ -26,6 +26,7 @@ and are refined while tracking.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -243,11 +244,25 @@ class BodyDimensions:
         v = TYPICAL_RADII[key]
         return tuple(x * self.scale for x in v) if isinstance(v, tuple) else v * self.scale
 
+    @cached_property
+    def limb_radii(self) -> np.ndarray:
+        """(proximal, distal) radii of the limb capsules, (8, 2) metres, order of :data:`LIMBS`."""
+        return np.array([self.radius(key) for *_, key in LIMBS])
+
+    @cached_property
+    def sphere_radii(self) -> np.ndarray:
+        """Radii of the end spheres, (5,) metres, order of :data:`END_SPHERES`."""
+        return np.array([self.radius(key) for *_, key in END_SPHERES])
+
     def with_lengths(self, lengths: np.ndarray) -> "BodyDimensions":
         return replace(self, lengths=np.asarray(lengths, float).copy())
 
     def length(self, a: int, b: int) -> float:
-        for k, (p, q) in enumerate(LENGTH_PAIRS):
-            if {p, q} == {a, b}:
-                return float(self.lengths[k])
-        raise KeyError((a, b))
+        """Expected distance between control points ``a`` and ``b`` (a :data:`LENGTH_PAIRS` pair)."""
+        k = _PAIR_INDEX.get((a, b), _PAIR_INDEX.get((b, a)))
+        if k is None:
+            raise KeyError((a, b))
+        return float(self.lengths[k])
+
+
+_PAIR_INDEX = {pair: k for k, pair in enumerate(LENGTH_PAIRS)}

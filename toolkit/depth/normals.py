@@ -1,10 +1,11 @@
 """Normal maps from depth gradients with a 3 x 3 kernel (source 001, figures 3 and 4).
 
-The 3 x 3 Sobel kernel (:data:`SOBEL_X`, :data:`SOBEL_Y`) is applied to the
-back-projected point image ``P(u, v) = z(u, v) * ray(u, v)``: its horizontal and
-vertical derivatives are the surface tangents, their cross product the normal.
-This is the source's "depth gradients dZ/dX and dZ/dY from a 3 x 3 convolution
-mask" made exact under perspective.  Pixels whose 3 x 3 neighbourhood holds a
+The 3 x 3 Sobel kernel (:data:`SOBEL_X`, :data:`SOBEL_Y`) gives the depth
+gradients ``z_u``, ``z_v`` per pixel (the source's "dZ/dX and dZ/dY from a 3 x 3
+convolution mask"); with the back-projection ``P(u, v) = z (x, y, 1)`` the
+surface tangents are ``dP/du = z_u (x, y, 1) + (z / f_x) e_x`` and
+``dP/dv = z_v (x, y, 1) + (z / f_y) e_y``, and their cross product is the
+normal, exact under perspective.  Pixels whose 3 x 3 neighbourhood holds a
 missing reading or a depth jump get no normal (NaN).
 
 The same kernel gives the normals of the orthographic user grid from its depth
@@ -70,19 +71,25 @@ def normal_map(depth: np.ndarray, camera: Camera, mask: np.ndarray | None = None
         return out
     r0, r1 = max(rows.min() - 1, 0), min(rows.max() + 2, h)
     c0, c1 = max(cols.min() - 1, 0), min(cols.max() + 2, w)
-    z = np.where(valid[r0:r1, c0:c1], d[r0:r1, c0:c1], 0).astype(np.float32)
-    P = pixel_rays(camera)[r0:r1, c0:c1] * z[..., None]
-    du = np.stack([_sobel(P[..., k], SOBEL_X) for k in range(3)], -1)
-    dv = np.stack([_sobel(P[..., k], SOBEL_Y) for k in range(3)], -1)
-    n = np.cross(du, dv)  # x right, y down: du x dv points away from the camera; flip below
-    norm = np.linalg.norm(n, axis=-1, keepdims=True)
-    n = -n / np.maximum(norm, 1e-12)
+    vb = valid[r0:r1, c0:c1]
+    z = np.where(vb, d[r0:r1, c0:c1], 0).astype(np.float32)
+    zu = _sobel(z, SOBEL_X)
+    zv = _sobel(z, SOBEL_Y)
+    rays = pixel_rays(camera)[r0:r1, c0:c1]
+    fx, fy = float(camera.K[0, 0]), float(camera.K[1, 1])
+    # P = z (x, y, 1): dP/du = zu (x, y, 1) + (z / fx) e_x, dP/dv = zv (x, y, 1) + (z / fy) e_y; their
+    # cross product, scaled by fx fy / z and turned towards the camera:
+    n = np.empty(z.shape + (3,), np.float32)
+    n[..., 0] = fx * zu
+    n[..., 1] = fy * zv
+    n[..., 2] = -(fx * zu * rays[..., 0] + fy * zv * rays[..., 1] + z)
+    norm = np.sqrt(np.einsum("...i,...i", n, n))[..., None]
+    n /= np.maximum(norm, 1e-12)
     k = np.ones((3, 3), np.uint8)
-    zf = np.where(valid[r0:r1, c0:c1], z, 0).astype(np.float32)
-    zbig = np.where(valid[r0:r1, c0:c1], z, 1e4).astype(np.float32)
-    full = cv2.erode(valid[r0:r1, c0:c1].astype(np.uint8), k, borderType=cv2.BORDER_CONSTANT, borderValue=0) > 0
-    rng_ = cv2.dilate(zf, k) - cv2.erode(zbig, k)
-    ok = full & (rng_ <= max_jump_m + 0.05 * zf) & sel[r0:r1, c0:c1] & (norm[..., 0] > 0)
+    zbig = np.where(vb, z, 1e4).astype(np.float32)
+    full = cv2.erode(vb.astype(np.uint8), k, borderType=cv2.BORDER_CONSTANT, borderValue=0) > 0
+    rng_ = cv2.dilate(z, k) - cv2.erode(zbig, k)
+    ok = full & (rng_ <= max_jump_m + 0.05 * z) & sel[r0:r1, c0:c1] & (norm[..., 0] > 0)
     block = out[r0:r1, c0:c1]
     block[ok] = n[ok]
     return out

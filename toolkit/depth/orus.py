@@ -162,10 +162,8 @@ def _fill(mean, normal, sel, iterations, min_nb):
             break
         m0 = np.where(filled[..., None], mean, 0.0).astype(np.float32)
         n0 = np.where(filled[..., None] & np.isfinite(normal), normal, 0.0).astype(np.float32)
-        s = np.stack([cv2.filter2D(np.ascontiguousarray(m0[..., i]), -1, k, borderType=cv2.BORDER_CONSTANT)
-                      for i in range(3)], -1)
-        sn = np.stack([cv2.filter2D(np.ascontiguousarray(n0[..., i]), -1, k, borderType=cv2.BORDER_CONSTANT)
-                       for i in range(3)], -1)
+        s = cv2.filter2D(m0, -1, k, borderType=cv2.BORDER_CONSTANT)          # 3 channels at once
+        sn = cv2.filter2D(n0, -1, k, borderType=cv2.BORDER_CONSTANT)
         mean[new] = s[new] / nb[new][:, None]
         nn = sn[new]
         nrm = np.linalg.norm(nn, axis=-1, keepdims=True)

@@ -468,7 +468,7 @@ class DepthTracker:
     # ------------------------------------------------------------- helpers
     def _initialise(self, grid, profile, cloud, data: FitData) -> LocalFit | None:
         cfg = self.config
-        kp = key_points(grid, profile, self.rng, cfg.init)
+        kp = key_points(grid, profile, None, cfg.init)
         heads = head_candidates(kp, cloud.centroid, cloud.principal_axis, profile, cfg.init, grid)
         if not heads:
             return None
@@ -477,8 +477,10 @@ class DepthTracker:
                               cfg.init)
         best = None
         best_dims = None
+        init_fit = replace(cfg.fit, outer_iterations=cfg.fit.init_outer_iterations,
+                           lm_max_evaluations=cfg.fit.init_lm_max_evaluations)
         for p in poses:
-            f = fit_local(p.X, data, p.dims, p.X, np.full(N_POINTS, cfg.prev_weight_recovering), cfg.fit,
+            f = fit_local(p.X, data, p.dims, p.X, np.full(N_POINTS, cfg.prev_weight_recovering), init_fit,
                           cfg.energy, cfg.constraints, self.ground_y, self.observer, self.index, tag="init")
             if best is None or f.energy.total < best.energy.total:
                 best, best_dims = f, p.dims
