@@ -13,8 +13,10 @@ frames the joints are optimised (source 000 §3.2) from two starts:
 
 * stage-1 joints and offsets (``recipes/pose_from_silhouettes.py``), when stage 1
   produced a 3D estimate for the frame;
-* ground-truth joints displaced by 5 cm RMS 3D noise (seeded), with the stage-1
-  offsets of the frame when there are any (zero otherwise).
+* ground-truth joints displaced by 5 cm RMS 3D noise (seeded), with the ideal
+  offsets (per camera, the mean difference between the ground-truth joints
+  projected through the true and the measured calibration): a test of stage 3
+  alone, independent of how well stage 1 estimated the offsets.
 
 Part labels: the scenes' ground-truth part labels and depth (for the seams),
 because the stage-2 segmentation is not wired into this benchmark; the output
@@ -126,16 +128,24 @@ def main(argv=None) -> int:
                 labels = {c: ds.gt_parts(c, t) for c in ds.camera_names}
                 seams = {c: detect_seams(labels[c], ds.gt_depth(c, t)) for c in ds.camera_names}
                 have_s1 = s1_joints is not None and np.all(np.isfinite(s1_joints[t]))
-                off = np.nan_to_num(s1_offsets[t]) if have_s1 else np.zeros((len(ds.rig), 2))
-                scorer = PositionScorer(images, labels, ds.rig, off, seams)
-                for j in range(14):  # single-evaluation timing at the ground truth
-                    t0 = time.perf_counter()
-                    scorer.joint_score(gt[t], j)
-                    eval_ms.append((time.perf_counter() - t0) * 1000)
-                starts = [("gt+5cm", gt[t] + rng.normal(0, GT_NOISE_M / np.sqrt(3), gt[t].shape))]
+                ideal = np.array([np.mean(ds.gt_rig[c.name].project(gt[t]) - c.project(gt[t]), axis=0)
+                                  for c in ds.rig])
+                scorer = PositionScorer(images, labels, ds.rig, ideal, seams)
+                for j in range(14):  # one candidate's score at the ground truth, as in the search (views and
+                    # billboards fixed per joint): median of 5 after a warm-up
+                    vis = {p: scorer.visibility(gt[t], p) for p in scorer.adjacent_parts(j)}
+                    scorer.joint_score(gt[t], j, vis)
+                    reps = []
+                    for _ in range(5):
+                        t0 = time.perf_counter()
+                        scorer.joint_score(gt[t], j, vis)
+                        reps.append((time.perf_counter() - t0) * 1000)
+                    eval_ms.append(float(np.median(reps)))
+                starts = [("gt+5cm", gt[t] + rng.normal(0, GT_NOISE_M / np.sqrt(3), gt[t].shape), scorer)]
                 if have_s1:
-                    starts.insert(0, ("stage1", s1_joints[t]))
-                for name, J0 in starts:
+                    s1_scorer = PositionScorer(images, labels, ds.rig, np.nan_to_num(s1_offsets[t]), seams)
+                    starts.insert(0, ("stage1", s1_joints[t], s1_scorer))
+                for name, J0, scorer in starts:
                     res = optimize_pose(scorer, J0, cons, config)
                     rows.append((root.name, t, name, mpjpe(J0, gt[t]), mpjpe(res.joints, gt[t]),
                                  res.n_evaluations, res.seconds, res.n_sweeps))
@@ -163,9 +173,10 @@ def main(argv=None) -> int:
             verdict = f"  (target >= {TARGET_REDUCTION:.0%} reduction: {'met' if a <= (1 - TARGET_REDUCTION) * b else 'NOT met'})"
         print(f"{name}: MPJPE {b * 100:.1f} -> {a * 100:.1f} cm ({(a / b - 1) * 100:+.0f} %){verdict}")
     e = np.array(eval_ms)
-    print(f"one joint's score at 1280x720 on one core: mean {e.mean():.2f} ms, median {np.median(e):.2f} ms, "
-          f"max {e.max():.2f} ms over {e.size} evaluations (target < {TARGET_EVAL_MS:.0f} ms: "
-          f"{'met' if e.mean() < TARGET_EVAL_MS else 'NOT met'} on average)")
+    print(f"one joint's score at 1280x720 on one core (median of 5 per joint and frame): mean {e.mean():.2f} ms, "
+          f"max {e.max():.2f} ms over {e.size} joint-frames (target < {TARGET_EVAL_MS:.0f} ms: "
+          f"{'met' if e.mean() < TARGET_EVAL_MS else 'NOT met'} on average, "
+          f"{'met' if e.max() < TARGET_EVAL_MS else 'NOT met'} for every joint)")
     return 0
 
 

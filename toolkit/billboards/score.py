@@ -188,7 +188,7 @@ class PositionScorer:
 
     # ------------------------------------------------------------------ geometry
     def _billboard(self, ci: int, p: int, ends: np.ndarray):
-        """Frame and clamped quad (4, 3) of part p for camera ci, or None."""
+        """Frame and footprint points (K, 3) on the plane of part p for camera ci, or None."""
         src = self.sources[ci].get(p)
         if src is None:
             return None
@@ -210,8 +210,10 @@ class PositionScorer:
         s0, s1 = max(s.min(), -mx), min(s.max(), fr.length + mx)
         if a1 <= a0 or s1 <= s0:
             return None
-        quad = fr.origin + np.array([[a0, s0], [a1, s0], [a1, s1], [a0, s1]]) @ np.stack([fr.e_u, fr.e_v])
-        return fr, quad
+        # the segment's outline on the plane (clamped like the billboard): a tighter footprint
+        # than the billboard's rectangle when the plane is oblique to the view
+        outline = np.stack([np.clip(a, a0, a1), np.clip(s, s0, s1)], axis=1)
+        return fr, fr.origin + outline @ np.stack([fr.e_u, fr.e_v])
 
     def _view_from_source(self, vi: int, ci: int, normal: np.ndarray, point: np.ndarray) -> np.ndarray:
         cam = self.rig.cameras[ci]
