@@ -142,3 +142,16 @@ def test_open3d_and_raycast_renderers_agree():
     # textures are filtered differently (Open3D mip-maps, the ray caster samples bilinearly)
     assert np.median(diff) < 12
     assert isinstance(spec, SceneSpec)
+
+
+def test_depth_camera_table_writes_depth_sequence(tmp_path):
+    """A ``[depth_camera]`` table makes the generator write the depth camera and the 13/17-point truth."""
+    from toolkit.synthetic import generate_scene
+    text = TINY_SPEC.replace("frames = 3", "frames = 2") + "\n[depth_camera]\nresolution = [160, 120]\nnoise = true\n"
+    generate_scene(parse_spec(text, "depth.toml"), tmp_path / "d", progress=False).close()
+    root = tmp_path / "d"
+    assert (root / "depth_camera" / "intrinsics.toml").is_file()
+    assert sorted(p.name for p in (root / "depth_camera" / "depth").iterdir()) == ["000000.png", "000001.png"]
+    s13 = np.load(root / "groundtruth" / "skeleton13.npz")
+    assert s13["joints"].shape == (2, 13, 3) and len(s13["names"]) == 13
+    assert np.load(root / "groundtruth" / "skeleton17.npz")["joints"].shape == (2, 17, 3)
