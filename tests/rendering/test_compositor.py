@@ -95,3 +95,21 @@ def test_subject_missing_in_one_view_still_renders(studio, studio_frame):
     cam = f["rig"][0]
     out = CpuCompositor().render(model, cam).over(np.zeros_like(f["images"][cam.name]))
     assert psnr(out, f["images"][cam.name], f["masks"][cam.name]) > STAGE3_TEXTURE_PSNR_DB
+
+
+def test_two_subjects_nearer_one_occludes(studio_frame, studio_model):
+    from toolkit.rendering import composite_subjects
+
+    f = studio_frame
+    cam = f["rig"][0]
+    near = CpuCompositor().render(studio_model, cam)
+    # a second, uniformly red subject layer covering the whole image, farther away
+    far = near.__class__(np.full_like(near.rgb, 0) + np.array([255, 0, 0], np.float32), np.ones_like(near.alpha),
+                         near.fan, near.dominant, near.discontinuities, near.smoothed, None, ())
+    bg = np.zeros_like(f["images"][cam.name])
+    img = composite_subjects([far, near], [10.0, 5.0], bg)
+    mask = f["masks"][cam.name]
+    assert psnr(img, f["images"][cam.name], mask) > REPRODUCTION_PSNR_DB  # the nearer subject is on top
+    assert np.all(img[~mask & (near.alpha == 0)] == [255, 0, 0])
+    swapped = composite_subjects([far, near], [5.0, 10.0], bg)  # now the red layer is in front
+    assert np.all(swapped == [255, 0, 0])

@@ -3,7 +3,7 @@ weights, the per-pixel blend, the CPU compositor and the Open3D renderer, virtua
 camera paths, baselines and image metrics."""
 
 from toolkit.rendering.baselines import VisualHull, render_points, sample_billboard, standard_billboards, visual_hull
-from toolkit.rendering.blend import RenderResult, composite, fan_weights
+from toolkit.rendering.blend import RenderResult, composite, composite_subjects, fan_weights
 from toolkit.rendering.compositor import CpuCompositor, warp_to_view
 from toolkit.rendering.config import BlendConfig
 from toolkit.rendering.fans import RENDER_SUPERSAMPLE, render_billboards
@@ -13,7 +13,7 @@ from toolkit.rendering.weights import (ANGLE_SIGMA, ATTENUATION_SIGMA_M, CameraW
                                        grazing_fade, omega, view_angles)
 
 __all__ = ["VisualHull", "render_points", "sample_billboard", "standard_billboards", "visual_hull", "RenderResult",
-           "composite", "fan_weights", "CpuCompositor", "warp_to_view", "BlendConfig", "RENDER_SUPERSAMPLE",
+           "composite", "composite_subjects", "fan_weights", "CpuCompositor", "warp_to_view", "BlendConfig", "RENDER_SUPERSAMPLE",
            "render_billboards", "bbox_scores", "mask_bbox", "psnr", "ssim", "birds_eye", "interpolate_cameras",
            "orbit_path", "source_path", "ANGLE_SIGMA", "ATTENUATION_SIGMA_M", "CameraWeights", "attenuation",
            "camera_weights", "grazing_fade", "omega", "view_angles"]

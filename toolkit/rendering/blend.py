@@ -280,3 +280,31 @@ def composite(model: BillboardModel, camera: Camera, warper: Warper, config: Ble
         obs.report("scalar", name=f"render/{camera.name}/weight/{n}",
                    value=float(np.mean(cw.weight[:, j])), **extra)
     return result
+
+
+def composite_subjects(layers: list, depths, background: np.ndarray) -> np.ndarray:
+    """Composite several rendered subjects over a background, farthest first.
+
+    Parameters
+    ----------
+    layers : list of RenderResult
+        One per subject, all of the same view.
+    depths : sequence of float
+        Each subject's distance along the view's optical axis (e.g. the depth of its pelvis), metres.
+    background : ndarray of shape (H, W, 3)
+        uint8 or float 0..255.
+
+    Returns
+    -------
+    ndarray of shape (H, W, 3), uint8
+    """
+    bg = np.asarray(background, np.float32)
+    if len(layers) != len(depths):
+        raise InputError("composite_subjects: depths", f"{len(layers)} depths (one per layer)", f"{len(depths)}")
+    out = bg.copy()
+    for i in np.argsort(-np.asarray(depths, float), kind="stable"):
+        r = layers[i]
+        if r.rgb.shape != out.shape:
+            raise InputError(f"composite_subjects: layers[{i}]", f"shape {out.shape}", f"shape {r.rgb.shape}")
+        out = r.rgb + (1.0 - r.alpha[..., None]) * out
+    return np.clip(out + 0.5, 0, 255).astype(np.uint8)
