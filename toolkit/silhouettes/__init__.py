@@ -50,6 +50,7 @@ from toolkit.silhouettes.pipeline import (
     FrameEstimate,
     SilhouettePoseEstimator,
     Stage1Config,
+    estimate_dataset,
     stack_estimates,
 )
 from toolkit.silhouettes.query import (
@@ -71,7 +72,8 @@ __all__ = [
     "check_silhouette", "denormalise_joints", "descriptor_grid", "flow_descriptor", "normalise_joints",
     "quantise_descriptor", "silhouette_descriptor", "silhouette_grid",
     "Edits", "JointEdit", "edits_template", "parse_edits", "read_edits",
-    "FRAME_STATES", "FrameEstimate", "SilhouettePoseEstimator", "Stage1Config", "stack_estimates",
+    "FRAME_STATES", "FrameEstimate", "SilhouettePoseEstimator", "Stage1Config", "estimate_dataset",
+    "stack_estimates",
     "K_BEST", "LAMBDA_TEMPORAL", "Candidates", "QueryConfig", "hausdorff_distance", "query_database",
     "silhouette_distances",
 ]
