@@ -97,6 +97,7 @@ class _Source:
     occ_origin: np.ndarray  # (2,) image pixel of occluder[0, 0]
     rays: np.ndarray       # (K, 3) unit world directions of the segment outline (offset removed)
     n_pixels: int
+    has_occluder: bool
 
 
 @dataclass(frozen=True)
@@ -166,7 +167,8 @@ class PositionScorer:
                 bx0, by0 = max(x0 - self._border, 0), max(y0 - self._border, 0)
                 bx1, by1 = min(x1 + self._border, cam.width), min(y1 + self._border, cam.height)
                 occ = ((members[cam.name][by0:by1, bx0:bx1] != 0) & ~m[by0:by1, bx0:bx1]).astype(np.uint8)
-                per[p] = _Source(patch, occ, np.array([x0, y0], float), np.array([bx0, by0], float), d, n)
+                per[p] = _Source(patch, occ, np.array([x0, y0], float), np.array([bx0, by0], float), d, n,
+                                 bool(occ.any()))
             self.sources.append(per)
         # constant per (view, source camera): relative pose and intrinsics
         self._rel = []
@@ -177,6 +179,10 @@ class PositionScorer:
                 row.append((T[:3, :3].copy(), T[:3, 3].copy()))
             self._rel.append(row)
         self._Kinv = [np.linalg.inv(c.K) for c in rig]
+        # view_from_source = K_V (R + t n_s^T / d_s) K_s^-1 = M + (K_V t) (n_s^T K_s^-1 / d_s)
+        self._M = [[v.camera.K @ R @ self._Kinv[ci] for ci, (R, _) in enumerate(row)]
+                   for v, row in zip(self.views, self._rel)]
+        self._kt = [[v.camera.K @ t for _, t in row] for v, row in zip(self.views, self._rel)]
         self._centers = rig.centers
         self._view_centers = np.array([v.camera.center for v in self.views])
         self._adjacent = [skeleton.parts_of_joint(j) for j in range(skeleton.n_joints)]
@@ -215,13 +221,16 @@ class PositionScorer:
         outline = np.stack([np.clip(a, a0, a1), np.clip(s, s0, s1)], axis=1)
         return fr, fr.origin + outline @ np.stack([fr.e_u, fr.e_v])
 
-    def _view_from_source(self, vi: int, ci: int, normal: np.ndarray, point: np.ndarray) -> np.ndarray:
+    def _plane_row(self, ci: int, normal: np.ndarray, point: np.ndarray) -> np.ndarray:
+        """``n_s^T K_s^-1 / d_s`` (3,) of a world plane for source camera ci."""
         cam = self.rig.cameras[ci]
         n_s = cam.R @ normal
         d_s = float(n_s @ (cam.R @ point + cam.t))
-        R, t = self._rel[vi][ci]
-        H = self.views[vi].camera.K @ (R + np.outer(t, n_s) / d_s) @ self._Kinv[ci]
-        return H
+        return (n_s @ self._Kinv[ci]) / d_s
+
+    def _view_from_source(self, vi: int, ci: int, normal: np.ndarray, point: np.ndarray) -> np.ndarray:
+        """Homography (3, 3) from camera ci's measured pixels to view vi's, through a world plane."""
+        return self._M[vi][ci] + np.outer(self._kt[vi][ci], self._plane_row(ci, normal, point))
 
     # ------------------------------------------------------------------- scores
     def visibility(self, joints: np.ndarray, part: int) -> np.ndarray:
@@ -270,6 +279,7 @@ class PositionScorer:
         if len(used) < 2:
             return PartScore(float("nan"), per_view, counts)
         bbs = {ci: self._billboard(ci, part, ends) for ci in used}
+        rows = {ci: self._plane_row(ci, r[0].normal, r[0].origin) for ci, r in bbs.items() if r is not None}
         for vi, view in enumerate(self.views):
             cams = [ci for ci in used if vis[vi, ci]]
             if len(cams) < 2:
@@ -299,21 +309,26 @@ class PositionScorer:
                 y1 = int(min(np.ceil(allp[:, 1].max()) + 1, h))
                 if x1 > x0 and y1 > y0:
                     dsize = (x1 - x0, y1 - y0)
-                    B = np.array([[1.0, 0, view.offset[0] - x0], [0, 1.0, view.offset[1] - y0], [0, 0, 1]])
+                    bx, by = view.offset[0] - x0, view.offset[1] - y0
                     for ci, (fr, _) in alive.items():
                         src = self.sources[ci][part]
-                        BH = B @ self._view_from_source(vi, ci, fr.normal, fr.origin)
+                        H = self._M[vi][ci] + np.outer(self._kt[vi][ci], rows[ci])
+                        H[0] += bx * H[2]  # then into the ROI of the view (offset added)
+                        H[1] += by * H[2]
                         so = self.offsets[ci]
-                        A = np.array([[1.0, 0, src.origin[0] - so[0]], [0, 1.0, src.origin[1] - so[1]], [0, 0, 1]])
-                        wp = cv2.warpPerspective(src.patch, BH @ A, dsize, flags=cv2.INTER_LINEAR,
+                        Hp = H.copy()  # from patch pixels (image pixel - offset = measured pixel)
+                        Hp[:, 2] += H[:, :2] @ (src.origin - so)
+                        wp = cv2.warpPerspective(src.patch, Hp, dsize, flags=cv2.INTER_LINEAR,
                                                  borderMode=cv2.BORDER_CONSTANT)
                         act[ci] = wp[..., 3] >= self._thr
                         rgb[ci] = wp[..., :3]
-                        if cfg.occlusion:
-                            A[:2, 2] = src.occ_origin - so
-                            hid = cv2.warpPerspective(src.occluder, BH @ A, dsize, flags=cv2.INTER_NEAREST,
+                        if cfg.occlusion and src.has_occluder:
+                            Hp[:, 2] = H[:, 2] + H[:, :2] @ (src.occ_origin - so)
+                            hid = cv2.warpPerspective(src.occluder, Hp, dsize, flags=cv2.INTER_NEAREST,
                                                       borderMode=cv2.BORDER_CONSTANT)
                             occl[ci] = hid.astype(bool) & ~act[ci]
+                        elif cfg.occlusion:
+                            occl[ci] = np.zeros(act[ci].shape, bool)
             counts[vi] = len(act)
             num = 0.0
             den = 0.0
