@@ -66,6 +66,9 @@ class SegmentationConfig:
         Confident pixels a part needs for a model.
     max_pixels : int
         Confident pixels per part used to fit (random subset).
+    reg_covar : float
+        Added to the mixtures' covariance diagonals (feature units squared):
+        the smallest colour spread a component may have.
     rule : str
         ``"colour"`` or ``"colour_then_nearest"`` (see the module docstring).
     colour_margin : float
@@ -82,8 +85,9 @@ class SegmentationConfig:
     n_components: int = DEFAULT_COMPONENTS
     min_pixels: int = 30
     max_pixels: int = 1500
+    reg_covar: float = 1e-4
     rule: str = "colour_then_nearest"
-    colour_margin: float = 20.0
+    colour_margin: float = 100.0
     thin_thick_fraction: float = THIN_THICK_FRACTION
     closing_fraction: float = 0.008
     seed: int = 0
@@ -276,7 +280,7 @@ def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarra
     conf_b = confident[by, bx]
     models = fit_part_models(feats[conf_b], proj.thin[by, bx][conf_b], n_parts, n_components=config.n_components,
                              min_pixels=config.min_pixels, max_pixels=config.max_pixels,
-                             space=config.colour_space, rng=config.seed)
+                             reg_covar=config.reg_covar, space=config.colour_space, rng=config.seed)
 
     # 4. uncertain pixels
     unc_b = uncertain[by, bx]
