@@ -184,7 +184,8 @@ def main(argv=None) -> int:
             s = metrics["methods"].get(m)
             if s:
                 print(f"  {m:12s} PSNR {s['psnr']:.2f} dB  SSIM {s['ssim']:.3f}  ({s['n']} views)")
-        print(f"  pose error {metrics['pose']['mpjpe_m'] * 100:.1f} cm (stage 1: {metrics['pose_stage1']['mpjpe_m'] * 100:.1f} cm)")
+        e, e1 = metrics["pose"]["mpjpe_m"], metrics["pose_stage1"]["mpjpe_m"]
+        print(f"  pose error {e * 100:.1f} cm (stage 1: {e1 * 100:.1f} cm)")
     print(f"outputs in {out}; recording: rerun {out / 'recording.rrd'}")
     return 1 if stopped else 0
 

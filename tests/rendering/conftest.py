@@ -1,6 +1,5 @@
 """A small studio scene with ground truth, generated once per test session."""
 
-import numpy as np
 import pytest
 
 STUDIO_SPEC = """

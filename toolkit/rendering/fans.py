@@ -6,8 +6,8 @@ blurs it (measured: 31-35 dB PSNR inside the subject on 320x180 studio
 scenes).  :func:`render_billboards` builds the same fans from images and part
 labels enlarged ``supersample`` times (bilinear colour, nearest labels) with
 the rig scaled to match, so the textures carry 1/supersample source pixels per
-texel and a virtual camera on a source camera reproduces it (about 40 dB at 4x, 43 dB at 6x on 320x180 studio scenes); only the
-subject's bounding box is enlarged.
+texel and a virtual camera on a source camera reproduces it (about 40 dB at 4x,
+43 dB at 6x on 320x180 studio scenes); only the subject's bounding box is enlarged.
 """
 
 from __future__ import annotations
@@ -30,7 +30,8 @@ CROP_MARGIN_PX = 8
 
 
 def render_billboards(images: dict, labels: dict, joints3d: np.ndarray, rig: Rig, offsets=None,
-                      seams: dict | None = None, config: BillboardConfig = BillboardConfig(), *, supersample: int = RENDER_SUPERSAMPLE,
+                      seams: dict | None = None, config: BillboardConfig = BillboardConfig(), *,
+                      supersample: int = RENDER_SUPERSAMPLE,
                       frame: int = 0, observer: Observer | None = None) -> BillboardModel:
     """:func:`toolkit.billboards.build_billboards` with ``supersample`` x finer textures.
 
