@@ -59,7 +59,7 @@ def test_recipe_end_to_end(dataset, tmp_path, capsys):
     assert "part labels: ground truth" in text
     z = np.load(out / "joints3d.npz")
     assert z["joints"].shape == (1, 14, 3) and np.all(np.isfinite(z["joints"]))
-    assert z["n_evaluations"][0] > 14 * 27
+    assert z["n_evaluations"][0] > 100  # joint-score evaluations: the grids of 14 joints
     m = json.loads((out / "metrics.json").read_text())
     assert 0.02 < m["mpjpe_before_m"] < 0.08
     assert abs(m["mpjpe_after_m"] - m["mpjpe_before_m"]) < MAX_CHANGE_M

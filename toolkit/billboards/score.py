@@ -190,6 +190,7 @@ class PositionScorer:
         # so this is the angle between their viewing directions of the subject)
         fw = np.array([c.forward for c in rig])
         self._pair_w = pair_weight(np.arccos(np.clip(fw @ fw.T, -1.0, 1.0)), config.sigma)
+        #: Joint-score evaluations so far (one per candidate position of a joint).
         self.n_evaluations = 0
 
     # ------------------------------------------------------------------ geometry
@@ -274,7 +275,6 @@ class PositionScorer:
         nv, nc = len(self.views), len(self.rig)
         per_view = np.full(nv, np.nan)
         counts = np.zeros(nv, int)
-        self.n_evaluations += 1
         used = [ci for ci in range(nc) if vis[:, ci].any()]
         if len(used) < 2:
             return PartScore(float("nan"), per_view, counts)
@@ -374,6 +374,7 @@ class PositionScorer:
         if not 0 <= joint < self.skeleton.n_joints:
             raise InputError("joint", f"a joint index in [0, {self.skeleton.n_joints})", f"{joint}")
         vis = visibility or {}
+        self.n_evaluations += 1
         vals = [self.part_score(J, p, vis.get(p)).value for p in self.adjacent_parts(joint)]
         vals = [v for v in vals if np.isfinite(v)]
         return float(sum(vals)) if vals else float("nan")
