@@ -60,8 +60,9 @@ class Open3DRenderer:
 
     Notes
     -----
-    One instance owns one ``OffscreenRenderer`` (Open3D allows one per process
-    at a time); reuse it for all frames and views of that size.
+    One instance owns one ``OffscreenRenderer`` and measures the shader's
+    transfer curve when created (about 0.5 s); reuse it for all frames and
+    views of that size.
     """
 
     def __init__(self, size: tuple[int, int], config: BlendConfig = BlendConfig()):
