@@ -315,6 +315,17 @@ class DatasetWriter:
             out[key] = a
         return atomic_save_npz(self.layout.joints2d, **out)
 
+    def write_background(self, camera: str, rgb: np.ndarray) -> Path:
+        """Write the clean plate of ``camera`` (the empty scene) to ``background/<camera>.png``."""
+        self._open_check("write_background")
+        cam = self._measured("write_background")[camera]
+        img = np.asarray(rgb)
+        w, h = cam.size
+        if img.shape != (h, w, 3) or img.dtype != np.uint8:
+            raise InputError(f"write_background: {camera}", f"a ({h}, {w}, 3) uint8 RGB image",
+                             f"shape {img.shape}, dtype {img.dtype}")
+        return atomic_write_png(self.layout.background_dir / f"{camera}.png", img)
+
     def write_scene_toml(self, text: str) -> Path:
         """Write ``scene.toml`` (a copy of the scene spec)."""
         self._open_check("write_scene_toml")
@@ -728,6 +739,14 @@ class Dataset:
         return self._read(self.layout.novel_parts(camera, self._index(i)), cam, 1, np.uint8)
 
     # -- optional files
+    def background(self, camera: str) -> np.ndarray | None:
+        """The clean plate of ``camera`` (``background/<camera>.png``), (H, W, 3) uint8 RGB, or None."""
+        cam = self.rig[camera]
+        path = self.layout.background_dir / f"{camera}.png"
+        if not path.is_file():
+            return None
+        return self._read(path, cam, 3, np.uint8)
+
     @property
     def scene_toml(self) -> Path | None:
         """``scene.toml`` if present."""

@@ -66,6 +66,11 @@ class DatasetLayout:
         object.__setattr__(self, "root", Path(self.root))
 
     @property
+    def background_dir(self) -> Path:
+        """``background/``: optional clean plates ``<camera>.png`` (the empty scene)."""
+        return self.root / "background"
+
+    @property
     def calibration(self) -> Path:
         return self.root / self.CALIBRATION
 

@@ -508,7 +508,8 @@ def estimate_dataset(dataset, database: SilhouetteDatabase, config: Stage1Config
     estimator = SilhouettePoseEstimator(rig, database, config, observer)
     readers = {c: VideoReader(dataset.video_path(c)) for c in names}
     try:
-        backgrounds = {} if backgrounds is None else backgrounds
+        if backgrounds is None:  # the dataset's clean plates, where it has them
+            backgrounds = {c: [img] for c in names if (img := dataset.background(c)) is not None}
         extractors = {c: ForegroundExtractor(foreground).fit(backgrounds[c] if c in backgrounds else readers[c])
                       for c in names}
         ended: dict[str, bool] = {c: False for c in names}

@@ -166,6 +166,9 @@ def generate_scene(spec: SceneSpec, out: str | Path, observer: Observer | None =
         env = make_environment(spec.layout, scene.rngs["environment"])
         renderer = make_renderer(spec, env)
         renderer.prepare([*scene.rig, *scene.novel])
+        for cam in scene.rig:  # clean plates, as a broadcast crew records the empty pitch
+            plate = np.clip(renderer.background_plate(cam) + 0.5, 0, 255).astype(np.uint8)
+            writer.write_background(cam.name, plate)
         caster = Raycaster(env)
         frames = range(spec.frames)
         if progress:
