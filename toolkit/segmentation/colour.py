@@ -18,8 +18,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import warnings
+
 import cv2
 import numpy as np
+from sklearn.exceptions import ConvergenceWarning
 from sklearn.mixture import GaussianMixture
 from threadpoolctl import threadpool_limits
 
@@ -171,7 +174,9 @@ def fit_part_models(features: np.ndarray, labels: np.ndarray, n_parts: int, *, n
         k = int(max(1, min(n_components, len(idx) // min_pixels, distinct)))
         g = GaussianMixture(k, covariance_type=covariance_type, reg_covar=reg_covar, max_iter=50,
                             random_state=int(rng.integers(2**31)))
-        with threadpool_limits(limits=_THREADS):
+        # an EM run stopped at max_iter still gives a usable model (the best initialisation is kept)
+        with threadpool_limits(limits=_THREADS), warnings.catch_warnings():
+            warnings.simplefilter("ignore", ConvergenceWarning)
             g.fit(f[idx])
         models[p] = g
     return PartColourModels(models, int(n_parts), counts, space)
