@@ -193,3 +193,18 @@ def test_template_project_radius_scales_with_image_height(walk):
     assert np.isfinite(p.part_depth).all()
     with pytest.raises(InputError, match="joints3d"):
         t.project(np.full((14, 3), np.nan), cam)
+
+
+def test_database_from_bvh_matches_the_motion(tmp_path, walk):
+    from toolkit.motion import write_bvh
+    from toolkit.skeleton.mappings import SKELETON14_BVH_TO_14
+
+    path = tmp_path / "walk.bvh"
+    write_bvh(path, walk, fps=25.0)
+    db = PoseDatabase.from_bvh([path], 1.75, every=5, mapping=SKELETON14_BVH_TO_14, units=0.01)
+    assert len(db) == 6 and db.sources[1] == "walk.bvh:5"
+    # same body, same poses: only position and heading were removed (bone lengths retargeted to the
+    # same median body, so within the BVH round trip's precision)
+    np.testing.assert_allclose(db.poses, canonical_poses(walk[::5]), atol=0.01)
+    with pytest.raises(InputError, match="paths"):
+        PoseDatabase.from_bvh([])

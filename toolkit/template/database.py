@@ -140,13 +140,25 @@ class PoseDatabase:
         return cls.from_joints(np.concatenate(J), height, src)
 
     @classmethod
-    def from_bvh(cls, paths, height: float = 1.75, every: int = 5) -> "PoseDatabase":
-        """Poses from BVH files (every ``every``-th frame), mapped to the 14-joint skeleton."""
+    def from_bvh(cls, paths, height: float = 1.75, every: int = 5, **bvh_options) -> "PoseDatabase":
+        """Poses from BVH files (every ``every``-th frame at 25 fps), mapped to the 14-joint skeleton.
+
+        Parameters
+        ----------
+        paths : sequence of str or PathLike
+        height : float
+            Stature the poses are retargeted to (bone lengths of the median body), metres.
+        every : int
+            Keep every ``every``-th frame.
+        **bvh_options
+            ``mapping``, ``units``, ``up_axis`` of :func:`toolkit.motion.motion_from_bvh`
+            (default: the CMU motion-capture library's).
+        """
         from toolkit.motion import motion_from_bvh
 
         J, src = [], []
         for p in paths:
-            joints = motion_from_bvh(p, BodyProportions.from_height(float(height)))
+            joints = motion_from_bvh(p, BodyProportions.from_height(float(height)), **bvh_options)
             idx = np.arange(0, len(joints), max(1, int(every)))
             J.append(joints[idx])
             src += [f"{Path(p).name}:{i}" for i in idx]
