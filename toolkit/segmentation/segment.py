@@ -287,23 +287,19 @@ def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarra
     lab_b = labels[by, bx]
     if unc_b.any():
         if models.models:
-            ll = models.log_likelihood(feats[unc_b])
-            # parts without a model stay candidates where the template puts them: their colour
-            # score is the best modelled part's minus the margin
-            ll = np.where(np.isfinite(ll), ll, ll.max(1, keepdims=True) - config.colour_margin)
+            ll = models.log_likelihood(feats[unc_b])  # -inf for parts without a model
             dist = None
-            if config.rule != "colour":
+            if config.rule == "colour_then_nearest":
+                # parts without a model stay candidates where the template puts them: colour score
+                # the best modelled part's minus the margin, distance to their template pixels
+                ll = np.where(np.isfinite(ll), ll, ll.max(1, keepdims=True) - config.colour_margin)
                 dist = np.full(ll.shape, np.inf)
                 tmpl_b = proj.labels[by, bx]
                 for p in range(1, n_parts + 1):
-                    # distance to the part's confident pixels (template pixels for parts without a model)
-                    seed = (lab_b == p) if (p in models.models and config.rule == "colour_then_nearest") \
-                        else (tmpl_b == p) | (lab_b == p)
+                    seed = (lab_b == p) if p in models.models else (tmpl_b == p)
                     if seed.any():
                         dt = cv2.distanceTransform((~seed).astype(np.uint8), cv2.DIST_L2, 3)
                         dist[:, p - 1] = dt[unc_b]
-            if config.rule == "colour":
-                ll = np.where(np.isin(np.arange(1, n_parts + 1), list(models.models))[None], ll, -np.inf)
             lab_b[unc_b] = (label_uncertain(ll, config.rule, config.colour_margin, dist) + 1).astype(np.uint8)
         else:
             near = _nearest_label(proj.labels[by, bx])
