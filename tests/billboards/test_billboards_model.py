@@ -138,6 +138,8 @@ def test_build_rejects_bad_input(planar_scene):
         build_billboards({}, s.labels, s.joints, s.rig)
     with pytest.raises(InputError, match="joints3d"):
         build_billboards(s.images, s.labels, s.joints[:5], s.rig)
+    with pytest.raises(InputError, match="non-finite"):
+        build_billboards(s.images, s.labels, np.full((14, 3), np.nan), s.rig)
     with pytest.raises(InputError, match="offsets"):
         build_billboards(s.images, s.labels, s.joints, s.rig, offsets=np.zeros((1, 2)))
 

@@ -160,8 +160,9 @@ def build_billboards(images: Mapping[str, np.ndarray], labels: Mapping[str, np.n
     """
     off = check_inputs(images, labels, rig, offsets)
     J = skeleton.check_joints(joints3d, "joints3d")
-    if J.shape != (skeleton.n_joints, 3):
-        raise InputError("joints3d", f"an array of shape ({skeleton.n_joints}, 3)", f"shape {J.shape}")
+    if J.shape != (skeleton.n_joints, 3) or not np.all(np.isfinite(J)):
+        raise InputError("joints3d", f"finite joints of shape ({skeleton.n_joints}, 3)",
+                         f"shape {J.shape}, {int(np.sum(~np.isfinite(J)))} non-finite values")
     obs = as_observer(observer)
     members = memberships(labels, seams, rig.names)
     ends = skeleton.part_endpoints(J)
