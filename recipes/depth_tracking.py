@@ -112,8 +112,9 @@ def main(argv=None) -> int:
             if args.images is not None:
                 d = depths.pop(r.index)
                 uv = tracker.frame.project(r.joints_view)
+                lo, hi = np.nanpercentile(d, [1, 99]) if np.isfinite(d).any() else (0.5, 4.5)
                 img = draw_skeleton(d, uv, r.observed, f"{inp.frames[r.index].name} {r.state_name}", scale=0.5,
-                                    depth_range=(float(np.nanmin(d)) if np.isfinite(d).any() else 0.5, 4.5))
+                                    depth_range=(float(lo), float(hi) + 0.3))
                 atomic_write_png(args.images / f"{inp.frames[r.index].stem}.png", img)
 
         t0 = time.perf_counter()

@@ -72,14 +72,23 @@ def _torso_points():
 _TORSO_POINTS = _torso_points()
 
 
+#: Fractions along each limb sampled by the contour term (besides the control points).
+CONTOUR_FRACTIONS = (0.5,)
+
+
 def _contour_samples() -> np.ndarray:
-    """Weights (S, 13) of the points checked against the silhouette: control points and limb midpoints."""
+    """Weights (S, 13) of the points checked against the silhouette: the control points and
+    the points at :data:`CONTOUR_FRACTIONS` along every limb."""
     W = [np.eye(N_POINTS)]
-    for _, a, b, _ in LIMBS:
-        w = np.zeros(N_POINTS)
-        w[a] = w[b] = 0.5
-        W.append(w[None])
+    for f in CONTOUR_FRACTIONS:
+        for _, a, b, _ in LIMBS:
+            w = np.zeros(N_POINTS)
+            w[a], w[b] = 1.0 - f, f
+            W.append(w[None])
     return np.concatenate(W)
+
+
+
 
 
 #: Weights (S, 13) of the contour samples.
@@ -248,14 +257,14 @@ def _torso_frame(X: np.ndarray, dims: BodyDimensions):
 def _torso_distance(P: np.ndarray, X: np.ndarray, dims: BodyDimensions):
     """Signed distance of points (n, 3) to the torso's elliptic cylinder and the quantities for its Jacobian."""
     top, bot, eu, el, ef, ws, wh, ds, dh, nl = _torso_frame(X, dims)
-    L = max(np.linalg.norm(top - bot), 1e-9)
+    tb = bot - top
+    L = max(np.sqrt(tb @ tb), 1e-9)
     v_raw = ((top - P) @ eu) / L
-    v = np.clip(v_raw, 0.0, 1.0)
-    C = top[None] + v[:, None] * (bot - top)[None]
-    q = P - C
+    v = np.minimum(np.maximum(v_raw, 0.0), 1.0)
+    q = P - top[None] - v[:, None] * tb[None]
     qu = q @ eu
     qp = q - qu[:, None] * eu[None]
-    rp = np.linalg.norm(qp, axis=1)
+    rp = np.sqrt(np.einsum("ij,ij->i", qp, qp))
     qh = qp / np.maximum(rp, 1e-9)[:, None]
     cl = qh @ el
     cf = qh @ ef
@@ -277,16 +286,16 @@ def _capsule_distances(P: np.ndarray, X: np.ndarray, radii: np.ndarray):
     AB = B - A                                            # (8, 3)
     L2 = np.maximum(np.einsum("ij,ij->i", AB, AB), 1e-12)
     AP = P[:, None, :] - A[None]                           # (n, 8, 3)
-    t = np.clip(np.einsum("nij,ij->ni", AP, AB) / L2, 0.0, 1.0)
+    t = np.minimum(np.maximum(np.einsum("nij,ij->ni", AP, AB) / L2, 0.0), 1.0)
     q = AP - t[..., None] * AB[None]
-    dist = np.linalg.norm(q, axis=-1)
+    dist = np.sqrt(np.einsum("nij,nij->ni", q, q))
     r = radii[:, 0][None] + t * (radii[:, 1] - radii[:, 0])[None]
     return dist - r, dist, t, q
 
 
 def _sphere_distances(P: np.ndarray, X: np.ndarray, radii: np.ndarray):
     q = P[:, None, :] - X[_SPH][None]
-    dist = np.linalg.norm(q, axis=-1)
+    dist = np.sqrt(np.einsum("nij,nij->ni", q, q))
     return dist - radii[None], dist, q
 
 
@@ -328,13 +337,15 @@ def assign(data: FitData, X: np.ndarray, dims: BodyDimensions, config: EnergyCon
         dc, _, _, _ = _capsule_distances(P, X, cr)
         ds, _, _ = _sphere_distances(P, X, sr)
         dt, _ = _torso_distance(P, X, dims)
-        D = np.abs(np.concatenate([dc, ds, dt[:, None]], axis=1))
+        Ds = np.concatenate([dc, ds, dt[:, None]], axis=1)
         gates = np.full(N_PRIMITIVES, config.gate_m)
         gates[TORSO] = config.torso_gate_m
-        D = np.where(D <= gates, D, np.inf)
+        D = np.abs(Ds)
+        D[D > gates] = np.inf
         k = np.argmin(D, axis=1)
-        d = np.concatenate([dc, ds, dt[:, None]], axis=1)[np.arange(len(P)), k]
-        k = np.where(np.isfinite(D[np.arange(len(P)), k]), k, -1)
+        rows = np.arange(len(P))
+        d = Ds[rows, k]
+        k[~np.isfinite(D[rows, k])] = -1
     else:
         k, d = np.zeros(0, int), np.zeros(0)
     C = data.centres
@@ -595,7 +606,8 @@ class Residuals:
             from toolkit.depth.model import L_HIP, L_SHOULDER, R_HIP, R_SHOULDER
 
             rad[[L_SHOULDER, R_SHOULDER, L_HIP, R_HIP]] = 0.6 * torso
-            mids = self.cap_r.mean(1)
+            mids = np.concatenate([self.cap_r[:, 0] + f * (self.cap_r[:, 1] - self.cap_r[:, 0])
+                                   for f in CONTOUR_FRACTIONS])
             self.sizes = np.concatenate([rad, mids])
         return self.sizes
 
