@@ -9,8 +9,8 @@ bash scripts/setup.sh
 OUT="${OUT:-out}"
 PY=.venv/bin/python
 $PY recipes/make_scene.py datasets_synthetic/default.toml --out "$OUT/default_scene"
-$PY recipes/pose_from_silhouettes.py "$OUT/default_scene" --out "$OUT/default_pose"
+$PY recipes/free_viewpoint.py "$OUT/default_scene" --out "$OUT/default_fvv"
 echo
 echo "Done. Open the recordings with:"
-echo "  .venv/bin/rerun $OUT/default_scene/scene.rrd"
-echo "  .venv/bin/rerun $OUT/default_pose/recording.rrd"
+echo "  .venv/bin/rerun $OUT/default_scene/scene.rrd     (the scene and its ground truth)"
+echo "  .venv/bin/rerun $OUT/default_fvv/recording.rrd   (every stage of the pipeline)"

@@ -29,7 +29,7 @@ from toolkit.errors import InputError
 from toolkit.observe import Observer
 from toolkit.rendering.blend import RenderResult, composite
 from toolkit.rendering.config import BlendConfig
-from toolkit.synthetic.render import _TEXTURE_GAIN, open3d_intrinsics, srgb_encode
+from toolkit.synthetic.render import TEXTURE_GAIN, open3d_intrinsics, srgb_encode
 
 def _quad(corners: np.ndarray) -> o3d.geometry.TriangleMesh:
     """Both windings of the quad TL, TR, BR, BL, texture row 0 at TL (Open3D's v = 0 is the last row)."""
@@ -44,7 +44,7 @@ def _quad(corners: np.ndarray) -> o3d.geometry.TriangleMesh:
 def _material(texture_rgb: np.ndarray) -> rendering.MaterialRecord:
     mat = rendering.MaterialRecord()
     mat.shader = "defaultUnlit"
-    mat.base_color = (_TEXTURE_GAIN, _TEXTURE_GAIN, _TEXTURE_GAIN, 1.0)
+    mat.base_color = (TEXTURE_GAIN, TEXTURE_GAIN, TEXTURE_GAIN, 1.0)
     mat.albedo_img = o3d.geometry.Image(np.ascontiguousarray(srgb_encode(texture_rgb)))
     return mat
 

@@ -40,7 +40,7 @@ def open3d_intrinsics(camera: Camera) -> np.ndarray:
 #: Measured here: with post-processing off the unlit shader outputs half the
 #: linear (sRGB-decoded) texture value; this base colour (sRGB-decoded to ~2)
 #: compensates, leaving a gain error under 2 % (texture values within 4 levels).
-_TEXTURE_GAIN = 1.3624
+TEXTURE_GAIN = 1.3624
 
 
 def srgb_encode(image: np.ndarray) -> np.ndarray:
@@ -110,7 +110,7 @@ class SceneRenderer:
         else:
             m.triangle_uvs = o3d.utility.Vector2dVector(
                 np.asarray(surface.uvs, np.float64)[surface.triangles.reshape(-1)])
-            mat.base_color = (_TEXTURE_GAIN, _TEXTURE_GAIN, _TEXTURE_GAIN, 1.0)
+            mat.base_color = (TEXTURE_GAIN, TEXTURE_GAIN, TEXTURE_GAIN, 1.0)
             mat.albedo_img = o3d.geometry.Image(np.ascontiguousarray(srgb_encode(surface.texture)))
         self._r.scene.add_geometry(name, m, mat)
         self._env_names.append(name)
