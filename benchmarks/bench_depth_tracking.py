@@ -104,12 +104,21 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="1 seed x 30 frames")
     ap.add_argument("--repeats", type=int, default=3, help="timing runs per sequence (the fastest counts)")
     ap.add_argument("--no-timing", action="store_true")
+    ap.add_argument("--no-accuracy", action="store_true")
     args = ap.parse_args(argv)
     if args.quick:
         args.seeds, args.frames, args.timing_frames = 1, 30, 20
     motions = [m for m in args.motions.split(",") if m]
 
     # ------------------------------------------------------------ accuracy
+    if not args.no_accuracy:
+        accuracy(args, motions)
+    if not args.no_timing:
+        timing(args, motions)
+    return 0
+
+
+def accuracy(args, motions) -> None:
     print(f"accuracy: {len(motions)} motions x {args.seeds} seeds x {args.frames} frames, 320 x 240, "
           "Kinect-like noise")
     all_err, all_vis, all_states, per_motion = [], [], [], {}
@@ -149,9 +158,8 @@ def main(argv=None) -> int:
     print(f"target: MPJPE under {TARGET_MPJPE_MM:.0f} mm on non-occluded frames: "
           f"{1000 * total.mpjpe_unoccluded_m:.1f} mm -> {'met' if ok else 'NOT met'}")
 
-    # --------------------------------------------------------------- timing
-    if args.no_timing:
-        return 0
+
+def timing(args, motions) -> None:
     print(f"\ntime per frame, CPU ms on one core (median over {len(motions)} motions x {args.timing_frames} "
           f"frames, first seed; per frame the fastest of {args.repeats} runs)")
     print(f"{'resolution':12s}{'total':>9s}{'fps':>8s}{'mask+cloud':>12s}{'grid+curv':>11s}{'fit':>9s}"
@@ -188,7 +196,6 @@ def main(argv=None) -> int:
     print(f"target: fitting time at 640 x 480 within {TARGET_FIT_RATIO}x of 320 x 240: fit {ratio_fit:.2f}x, "
           f"everything after the point cloud {ratio_after:.2f}x -> "
           f"{'met' if ratio_fit <= TARGET_FIT_RATIO else 'NOT met'}")
-    return 0
 
 
 if __name__ == "__main__":

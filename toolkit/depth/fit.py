@@ -44,7 +44,9 @@ class FitConfig:
     outer_iterations : int
         Assignment / Levenberg-Marquardt rounds.
     lm_max_evaluations : int
-        Residual evaluations per Levenberg-Marquardt run.
+        Residual evaluations of the first Levenberg-Marquardt run ...
+    lm_refine_evaluations : int
+        ... and of the later ones (after the data are assigned again).
     init_outer_iterations, init_lm_max_evaluations : int
         The same for the fits of the initial-pose candidates (once per (re)start, so more).
     solver : {"lm", "scipy"}
@@ -65,6 +67,7 @@ class FitConfig:
 
     outer_iterations: int = 2
     lm_max_evaluations: int = 4
+    lm_refine_evaluations: int = 3
     init_outer_iterations: int = 2
     init_lm_max_evaluations: int = 4
     solver: str = "lm"
@@ -187,11 +190,12 @@ def fit_local(X0: np.ndarray, data: FitData, dims: BodyDimensions, X_pred: np.nd
         a = assign(data, X, dims, energy)
         res = Residuals(data, a, dims, X_pred, w_prev, energy, constraints, ground_y)
         if config.solver == "scipy":
-            sol = least_squares(res.fun, X.ravel(), jac=res.jac, method="lm", max_nfev=config.lm_max_evaluations,
-                                xtol=1e-4, ftol=1e-4)
+            sol = least_squares(res.fun, X.ravel(), jac=res.jac, method="lm", xtol=1e-4, ftol=1e-4,
+                                max_nfev=config.lm_max_evaluations if it == 0 else config.lm_refine_evaluations)
             x, k = sol.x, sol.nfev
         else:
-            x, k = levenberg_marquardt(res, X.ravel(), config.lm_max_evaluations)
+            x, k = levenberg_marquardt(res, X.ravel(), config.lm_max_evaluations if it == 0
+                                       else config.lm_refine_evaluations)
         nfev += k
         Xn = x.reshape(N_POINTS, 3)
         terms = res.block_energies(x)

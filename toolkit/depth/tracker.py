@@ -104,6 +104,9 @@ class TrackerConfig:
         ... when they are more than this fraction of the user's bins and show a
         head of their own (a second person touching the user); otherwise the far
         bins are the user moving away from the prediction and are kept.
+    touching_memory : int
+        After a second person was seen touching the user, far bins are left out for
+        this many frames without asking for their head again.
     second_head_m : float
         When the user is first found, two head candidates at the same height
         at least this far apart sideways are two people; the grid is split
@@ -144,6 +147,7 @@ class TrackerConfig:
     person_gate_m: float = 0.12
     touching_fraction: float = 0.2
     second_head_m: float = 0.45
+    touching_memory: int = 15
     min_body_m: float = 0.8
     support_radius_m: float = 0.15
     support_min_bins: int = 2
@@ -290,6 +294,7 @@ class DepthTracker:
         self.prev_mask = None
         self.good = 0
         self.poor = 0
+        self.touching = 0
         self.state = LOST
 
     @property
@@ -375,21 +380,29 @@ class DepthTracker:
         if predicted is not None:
             keep = self._near_body(grid, predicted)
             n_far = int((grid.filled & ~keep).sum())
-            if n_far > max(cfg.min_bins // 2, cfg.touching_fraction * grid.filled.sum()) and \
-                    top_contour_peaks(replace(grid, filled=grid.filled & ~keep), min_body_m=cfg.min_body_m):
+            many = n_far > max(cfg.min_bins // 2, cfg.touching_fraction * grid.filled.sum())
+            if many and (self.touching > 0 or top_contour_peaks(replace(grid, filled=grid.filled & ~keep),
+                                                                min_body_m=cfg.min_body_m)):
                 # much more than one body: a second person touches the user; fit only the user's part
+                # (once seen, for touching_memory frames even when their head is not clear)
                 reason = "touching"
+                self.touching = cfg.touching_memory
                 grid = replace(grid, filled=grid.filled & keep, occupied=grid.occupied & keep)
+            else:
+                self.touching = max(self.touching - 1, 0)
         if predicted is None:
             keep = self._one_person(grid, cloud)
             if keep is not None:
                 reason = "touching"
+                self.touching = cfg.touching_memory
                 grid = replace(grid, filled=grid.filled & keep, occupied=grid.occupied & keep)
         if grid.filled.sum() < cfg.min_bins:
             return self._lost("no user", cloud.n_points, timings)
         curv = curvature_centres(grid, cfg.curvature)
         centroid = grid.mean[grid.filled].mean(0)
-        profile = radial_profile(grid, centroid, cfg.radial)
+        # the radial profile serves the initial pose, the global moves and the recording only
+        need_profile = self.X is None or self.observer is not None or self._moves_due()
+        profile = radial_profile(grid, centroid, cfg.radial) if need_profile else None
         data = fit_data(grid, curv, self.frame)
         timings["orus_curvature"] = time.thread_time() - t1
         t2 = time.thread_time()
@@ -410,7 +423,9 @@ class DepthTracker:
             w_prev[~self.observed_prev] = cfg.prev_weight_unseen
             fit = fit_local(predicted, data, self.dims, predicted, w_prev, cfg.fit, cfg.energy, cfg.constraints,
                             self.ground_y, self.observer, self.index)
-            if fit.energy.explained < cfg.fit.move_trigger_explained or self.index % cfg.fit.move_every == 0:
+            if fit.energy.explained < cfg.fit.move_trigger_explained or self._moves_due():
+                if profile is None:
+                    profile = radial_profile(grid, centroid, cfg.radial)
                 ctx = MoveContext(profile=profile, grid=grid, data=data, dims=self.dims, frame=self.frame,
                                   predicted=predicted, tracker=self, assignment=fit.energy.assignment,
                                   data_index=data.index)
@@ -466,6 +481,9 @@ class DepthTracker:
         return r
 
     # ------------------------------------------------------------- helpers
+    def _moves_due(self) -> bool:
+        return self.index % self.config.fit.move_every == 0
+
     def _initialise(self, grid, profile, cloud, data: FitData) -> LocalFit | None:
         cfg = self.config
         kp = key_points(grid, profile, None, cfg.init)
@@ -478,7 +496,8 @@ class DepthTracker:
         best = None
         best_dims = None
         init_fit = replace(cfg.fit, outer_iterations=cfg.fit.init_outer_iterations,
-                           lm_max_evaluations=cfg.fit.init_lm_max_evaluations)
+                           lm_max_evaluations=cfg.fit.init_lm_max_evaluations,
+                           lm_refine_evaluations=cfg.fit.init_lm_max_evaluations)
         for p in poses:
             f = fit_local(p.X, data, p.dims, p.X, np.full(N_POINTS, cfg.prev_weight_recovering), init_fit,
                           cfg.energy, cfg.constraints, self.ground_y, self.observer, self.index, tag="init")
