@@ -124,7 +124,7 @@ def accuracy(args, motions) -> None:
     all_err, all_vis, all_states, per_motion = [], [], [], {}
     t0 = time.perf_counter()
     for motion in motions:
-        errs, vis, states, joints, truth = [], [], [], [], []
+        vis, states, joints, truth = [], [], [], []
         for seed in range(args.seeds):
             cam, depth, bg, gt, visible = sequence(motion, seed, args.frames, (320, 240), args.cache)
             res = track(cam, depth, bg)

@@ -75,7 +75,7 @@ def main(argv=None) -> int:
     from tqdm import tqdm
 
     from toolkit.depth import (
-        STATE_NAMES, DepthTracker, OrusConfig, TrackerConfig, open_depth_input, track_sequence,
+        STATE_NAMES, DepthTracker, TrackerConfig, open_depth_input, track_sequence,
     )
     from toolkit.depth.evaluate import draw_skeleton, summarise
     from toolkit.io import atomic_save_npz, atomic_write_png, atomic_write_text

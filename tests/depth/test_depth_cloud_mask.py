@@ -7,7 +7,11 @@ import pytest
 
 from toolkit.cameras import Camera
 from toolkit.depth.cloud import (
-    ViewFrame, depth_to_points, open3d_points_from_depth, principal_direction, user_cloud,
+    ViewFrame,
+    depth_to_points,
+    open3d_points_from_depth,
+    principal_direction,
+    user_cloud,
 )
 from toolkit.depth.mask import BackgroundModel, MaskConfig, user_mask
 from toolkit.depth.normals import grid_normals, normal_map

@@ -8,15 +8,36 @@ import pytest
 from toolkit.depth.cloud import ViewFrame, user_cloud
 from toolkit.depth.complete import CompletionConfig, PointKalman, complete
 from toolkit.depth.constraints import (
-    COLLISION_PAIRS, JOINT_LIMITS_DEG, ConstraintConfig, LengthEstimator, constraint_residuals,
-    constraint_violations, enforce_collisions, enforce_joint_limits, enforce_lengths, enforce_velocity,
+    COLLISION_PAIRS,
+    JOINT_LIMITS_DEG,
+    ConstraintConfig,
+    LengthEstimator,
+    constraint_residuals,
+    constraint_violations,
+    enforce_collisions,
+    enforce_joint_limits,
+    enforce_lengths,
+    enforce_velocity,
     segment_distance,
 )
 from toolkit.depth.curvature import curvature_centres
 from toolkit.depth.energy import EnergyConfig, Residuals, assign, fit_data
 from toolkit.depth.model import (
-    L_ELBOW, L_FOOT, L_HAND, L_HIP, L_KNEE, L_SHOULDER, LENGTH_BOUNDS, LENGTH_PAIRS, LIMBS, R_FOOT, R_HAND,
-    R_KNEE, BodyDimensions, mirror13, rest_pose13,
+    L_ELBOW,
+    L_FOOT,
+    L_HAND,
+    L_HIP,
+    L_KNEE,
+    L_SHOULDER,
+    LENGTH_BOUNDS,
+    LENGTH_PAIRS,
+    LIMBS,
+    R_FOOT,
+    R_HAND,
+    R_KNEE,
+    BodyDimensions,
+    mirror13,
+    rest_pose13,
 )
 from toolkit.depth.normals import normal_map
 from toolkit.depth.orus import OrusConfig, build_orus
@@ -154,7 +175,7 @@ def test_energy_jacobian_matches_finite_differences(idle_sequence):
     res = Residuals(data, assign(data, X, dims, EnergyConfig()), dims, X + 0.02, np.ones(13), EnergyConfig(),
                     ConstraintConfig(), vf.ground_y)
     x = X.ravel()
-    r, J = res.evaluate(x)
+    _, J = res.evaluate(x)
     h = 1e-6
     Jn = np.zeros_like(J)
     for i in range(len(x)):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import make_sequence
 
 from toolkit.depth.cloud import ViewFrame, user_cloud
 from toolkit.depth.curvature import CONCAVE, CONVEX, PLANAR, curvature_centres
@@ -11,8 +12,6 @@ from toolkit.depth.normals import normal_map
 from toolkit.depth.orus import ORUS_BIN_SIZE_M, OrusConfig, build_orus
 from toolkit.depth.radial import radial_profile
 from toolkit.errors import InputError
-
-from conftest import make_sequence
 
 #: Curvature centres of a cylinder of radius 6 cm lie on its axis within this (bins of 2 cm).
 AXIS_TOLERANCE_M = 0.015
@@ -34,7 +33,7 @@ def _surface(fn, xs, ys):
 
 
 def test_grid_of_a_plane():
-    P, N = _surface(lambda X, Y: (2.0 + 0 * X, 0 * X, 0 * X), np.arange(-0.3, 0.3, 0.004), np.arange(-0.5, 0.5, 0.004))
+    P, _ = _surface(lambda X, Y: (2.0 + 0 * X, 0 * X, 0 * X), np.arange(-0.3, 0.3, 0.004), np.arange(-0.5, 0.5, 0.004))
     g = build_orus(P, [0.0, 0.0], OrusConfig())
     assert g.shape == OrusConfig().shape == (52, 52)
     assert g.bin_size == ORUS_BIN_SIZE_M

@@ -8,6 +8,7 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import REPO_ROOT
 
 from toolkit.anthropometry.proportions import BodyProportions
 from toolkit.depth.cloud import ViewFrame
@@ -18,10 +19,8 @@ from toolkit.motion import generate_motion
 from toolkit.synthetic.body import BodyModel
 from toolkit.synthetic.depth_sensor import DepthCameraSpec, render_depth_camera
 
-from conftest import REPO_ROOT
-
 sys.path.insert(0, str(REPO_ROOT / "recipes"))
-import depth_tracking  # noqa: E402
+import depth_tracking
 
 #: MPJPE the recipe must reach on the small synthetic dataset (8 standing frames, 320 x 240, noise).
 RECIPE_MPJPE_MM = 45.0

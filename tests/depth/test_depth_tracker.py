@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import make_sequence, mpjpe
 
 from toolkit.depth.constraints import ConstraintConfig, constraint_violations
 from toolkit.depth.model import BodyDimensions
@@ -11,8 +12,6 @@ from toolkit.depth.tracker import LOST, RECOVERING, TRACKING, DepthTracker, Trac
 from toolkit.errors import InputError
 from toolkit.observe import RecordingObserver
 from toolkit.synthetic.depth_sensor import SecondPerson
-
-from conftest import make_sequence, mpjpe
 
 #: Standing person, 320 x 240 with Kinect-like noise at about 3 m: largest per-point error once
 #: tracking (the ground truth is inside the body; the sensor sees its front surface).
@@ -36,7 +35,7 @@ def _track(seq, **kw):
 
 def test_standing_pose_per_point_error(idle_sequence):
     seq = idle_sequence
-    tr, res = _track(seq)
+    _, res = _track(seq)
     states = [r.state for r in res]
     assert states[0] == RECOVERING and states[-1] == TRACKING
     J = np.array([r.joints for r in res])
@@ -110,7 +109,7 @@ def test_partly_out_of_frame():
     """The camera sees the person from the hips up only: no crash, a skeleton for the visible part."""
     seq, _, _ = make_sequence("idle", 6, seed=8, target_height_m=1.6, distance_m=1.8, height_m=1.5)
     assert seq.visible13[:, -2:].sum() == 0                   # the feet are out of the image
-    tr, res = _track(seq)
+    _, res = _track(seq)
     assert all(r.state != LOST for r in res)
     J = np.array([r.joints for r in res])
     seen = np.nonzero(seq.visible13.all(0))[0]                 # head, shoulders, elbows, hips

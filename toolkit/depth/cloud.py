@@ -17,8 +17,16 @@ import numpy as np
 from toolkit.cameras import Camera
 from toolkit.errors import InputError
 
-__all__ = ["ViewFrame", "pixel_rays", "depth_to_points", "UserCloud", "user_cloud", "principal_direction",
-           "to_open3d_pointcloud", "open3d_points_from_depth"]
+__all__ = [
+    "UserCloud",
+    "ViewFrame",
+    "depth_to_points",
+    "open3d_points_from_depth",
+    "pixel_rays",
+    "principal_direction",
+    "to_open3d_pointcloud",
+    "user_cloud",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -40,7 +48,7 @@ class ViewFrame:
     pose_known: bool
 
     @classmethod
-    def from_camera(cls, camera: Camera, pose_known: bool = True) -> "ViewFrame":
+    def from_camera(cls, camera: Camera, pose_known: bool = True) -> ViewFrame:
         """The view frame of ``camera``; level camera assumed when ``pose_known`` is False."""
         if not pose_known:
             return cls(camera, np.eye(3), False)

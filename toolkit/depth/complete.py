@@ -23,12 +23,25 @@ import numpy as np
 
 from toolkit.depth.constraints import enforce_joint_limits
 from toolkit.depth.model import (
-    HEAD, L_ELBOW, L_FOOT, L_HAND, L_HIP, L_KNEE, L_SHOULDER, N_POINTS, R_ELBOW, R_FOOT, R_HAND, R_HIP,
-    R_KNEE, R_SHOULDER, BodyDimensions,
+    HEAD,
+    L_ELBOW,
+    L_FOOT,
+    L_HAND,
+    L_HIP,
+    L_KNEE,
+    L_SHOULDER,
+    N_POINTS,
+    R_ELBOW,
+    R_FOOT,
+    R_HAND,
+    R_HIP,
+    R_KNEE,
+    R_SHOULDER,
+    BodyDimensions,
 )
 from toolkit.motion.kinematics import two_bone_ik
 
-__all__ = ["CompletionConfig", "PointKalman", "complete", "GRAVITY_WEIGHTS"]
+__all__ = ["GRAVITY_WEIGHTS", "CompletionConfig", "PointKalman", "complete"]
 
 #: Relative weight of each control point in the gravity simulation.
 GRAVITY_WEIGHTS = np.array([0.0, 0.0, 0.0, 0.5, 0.5, 1.0, 1.0, 0.0, 0.0, 0.3, 0.3, 1.0, 1.0])
@@ -166,7 +179,8 @@ def complete(X: np.ndarray, observed: np.ndarray, predicted: np.ndarray | None, 
         ref = X_prev if X_prev is not None else Y
         pole = ref[b] - 0.5 * (ref[a] + ref[c])
         if np.linalg.norm(pole) < 1e-6:
-            pole = np.array([0.0, 0.0, -1.0]) if c in (L_HAND, R_HAND) else np.array([0.0, 0.0, -1.0])
+            # a straight limb of a user facing the camera: elbows bend backwards, knees forwards
+            pole = np.array([0.0, 0.0, 1.0]) if c in (L_HAND, R_HAND) else np.array([0.0, 0.0, -1.0])
         target = Y[c]
         mid, end, _ = two_bone_ik(Y[a][None], target[None], l1, l2, pole)
         Y[b] = mid[0]

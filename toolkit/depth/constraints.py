@@ -30,14 +30,40 @@ from dataclasses import dataclass
 import numpy as np
 
 from toolkit.depth.model import (
-    HEAD, L_ELBOW, L_FOOT, L_HAND, L_HIP, L_KNEE, L_SHOULDER, LENGTH_BOUNDS, LENGTH_PAIRS, LIMBS, N_POINTS,
-    R_ELBOW, R_FOOT, R_HAND, R_HIP, R_KNEE, R_SHOULDER, BodyDimensions,
+    HEAD,
+    L_ELBOW,
+    L_FOOT,
+    L_HAND,
+    L_HIP,
+    L_KNEE,
+    L_SHOULDER,
+    LENGTH_BOUNDS,
+    LENGTH_PAIRS,
+    LIMBS,
+    N_POINTS,
+    R_ELBOW,
+    R_FOOT,
+    R_HAND,
+    R_HIP,
+    R_KNEE,
+    R_SHOULDER,
+    BodyDimensions,
 )
 
-__all__ = ["ConstraintConfig", "COLLISION_PAIRS", "JOINT_LIMITS_DEG", "constraint_residuals", "segment_distance",
-           "segment_distances",
-           "enforce_lengths", "enforce_velocity", "enforce_collisions", "enforce_joint_limits",
-           "constraint_violations", "LengthEstimator"]
+__all__ = [
+    "COLLISION_PAIRS",
+    "JOINT_LIMITS_DEG",
+    "ConstraintConfig",
+    "LengthEstimator",
+    "constraint_residuals",
+    "constraint_violations",
+    "enforce_collisions",
+    "enforce_joint_limits",
+    "enforce_lengths",
+    "enforce_velocity",
+    "segment_distance",
+    "segment_distances",
+]
 
 #: Pairs of limb segments (indices into LIMBS) that must not intersect.
 COLLISION_PAIRS = ((2, 3), (0, 1), (4, 5), (6, 7), (2, 4), (3, 5))

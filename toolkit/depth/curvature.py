@@ -32,8 +32,16 @@ import numpy as np
 from toolkit.depth.orus import OrusGrid
 from toolkit.errors import InputError
 
-__all__ = ["PLANAR", "CONVEX", "CONCAVE", "LABEL_NAMES", "CurvatureConfig", "OsculatingSpheres",
-           "CurvatureResult", "curvature_centres"]
+__all__ = [
+    "CONCAVE",
+    "CONVEX",
+    "LABEL_NAMES",
+    "PLANAR",
+    "CurvatureConfig",
+    "CurvatureResult",
+    "OsculatingSpheres",
+    "curvature_centres",
+]
 
 #: Bin / sphere labels (0 = no data).
 PLANAR, CONVEX, CONCAVE = 1, 2, 3

@@ -46,32 +46,57 @@ import numpy as np
 from toolkit.depth.cloud import ViewFrame
 from toolkit.depth.constraints import ConstraintConfig, constraint_residuals
 from toolkit.depth.curvature import PLANAR, CurvatureResult
-from toolkit.depth.model import END_SPHERES, LIMBS, N_POINTS, BodyDimensions
+from toolkit.depth.model import (
+    HEAD,
+    L_ELBOW,
+    L_FOOT,
+    L_HAND,
+    L_HIP,
+    L_KNEE,
+    L_SHOULDER,
+    LIMBS,
+    N_POINTS,
+    R_FOOT,
+    R_HAND,
+    R_HIP,
+    R_SHOULDER,
+    BodyDimensions,
+)
 from toolkit.depth.orus import OrusGrid
+from toolkit.depth.primitives import (
+    _CAP_A,
+    _CAP_B,
+    _N_CAPS,
+    _SPH,
+    _TORSO_POINTS,
+    _XYZ,
+    N_PRIMITIVES,
+    PRIMITIVE_NAMES,
+    TORSO,
+    capsule_distances,
+    primitive_radii,
+    sphere_distances,
+    torso_distance,
+)
 
-__all__ = ["EnergyConfig", "FitData", "fit_data", "Assignment", "assign", "Residuals", "EnergyTerms",
-           "energy_terms", "unexplained_penalty", "support_fraction", "N_PRIMITIVES", "PRIMITIVE_NAMES", "TORSO", "CONTOUR_SAMPLES"]
+__all__ = [
+    "CONTOUR_SAMPLES",
+    "N_PRIMITIVES",
+    "PRIMITIVE_NAMES",
+    "TORSO",
+    "Assignment",
+    "EnergyConfig",
+    "EnergyTerms",
+    "FitData",
+    "Residuals",
+    "assign",
+    "energy_terms",
+    "fit_data",
+    "support_fraction",
+    "unexplained_penalty",
+]
 
 #: Primitive order: the 8 limb capsules, the 5 end spheres, the torso.
-PRIMITIVE_NAMES = tuple(n for n, *_ in LIMBS) + tuple(n for n, *_ in END_SPHERES) + ("torso",)
-N_PRIMITIVES = len(PRIMITIVE_NAMES)
-TORSO = N_PRIMITIVES - 1
-_N_CAPS = len(LIMBS)
-_CAP_A = np.array([a for _, a, _, _ in LIMBS])
-_CAP_B = np.array([b for _, _, b, _ in LIMBS])
-_SPH = np.array([p for _, p, _ in END_SPHERES])
-_XYZ = np.arange(3)[None, :]
-
-
-def _torso_points():
-    from toolkit.depth.model import L_HIP, L_SHOULDER, R_HIP, R_SHOULDER
-
-    return (L_SHOULDER, R_SHOULDER, L_HIP, R_HIP)
-
-
-_TORSO_POINTS = _torso_points()
-
-
 #: Fractions along each limb sampled by the contour term (besides the control points).
 CONTOUR_FRACTIONS = (0.5,)
 
@@ -230,79 +255,6 @@ def fit_data(grid: OrusGrid, curvature: CurvatureResult | None, frame: ViewFrame
                    frame, np.stack([r, c], -1))
 
 
-# ------------------------------------------------------------ geometry
-def _torso_frame(X: np.ndarray, dims: BodyDimensions):
-    """Torso axis ends, unit axes (up, lateral, forward), half-widths at top and bottom, half-depths."""
-    from toolkit.depth.model import L_HIP, L_SHOULDER, R_HIP, R_SHOULDER, TYPICAL_RADII
-
-    s = dims.scale
-    ms = 0.5 * (X[L_SHOULDER] + X[R_SHOULDER])
-    mh = 0.5 * (X[L_HIP] + X[R_HIP])
-    d = ms - mh
-    eu = d / max(np.linalg.norm(d), 1e-9)
-    lat = (X[R_SHOULDER] - X[L_SHOULDER]) + (X[R_HIP] - X[L_HIP])
-    lat_p = lat - (lat @ eu) * eu
-    nl = np.linalg.norm(lat_p)
-    el = lat_p / nl if nl > 1e-9 else np.cross(eu, [0.0, 0.0, 1.0]) / max(np.linalg.norm(np.cross(eu, [0, 0, 1.0])), 1e-9)
-    ef = np.cross(eu, el)
-    top = ms + TYPICAL_RADII["torso_top_extent"] * s * eu
-    bot = mh - TYPICAL_RADII["torso_bottom_extent"] * s * eu
-    ext_s, ext_h = (x * s for x in TYPICAL_RADII["torso_side_extent"])
-    ws = 0.5 * np.linalg.norm(X[R_SHOULDER] - X[L_SHOULDER]) + ext_s
-    wh = 0.5 * np.linalg.norm(X[R_HIP] - X[L_HIP]) + ext_h
-    ds, dh = (x * s for x in TYPICAL_RADII["torso_half_depth"])
-    return top, bot, eu, el, ef, ws, wh, ds, dh, nl
-
-
-def _torso_distance(P: np.ndarray, X: np.ndarray, dims: BodyDimensions):
-    """Signed distance of points (n, 3) to the torso's elliptic cylinder and the quantities for its Jacobian."""
-    top, bot, eu, el, ef, ws, wh, ds, dh, nl = _torso_frame(X, dims)
-    tb = bot - top
-    L = max(np.sqrt(tb @ tb), 1e-9)
-    v_raw = ((top - P) @ eu) / L
-    v = np.minimum(np.maximum(v_raw, 0.0), 1.0)
-    q = P - top[None] - v[:, None] * tb[None]
-    qu = q @ eu
-    qp = q - qu[:, None] * eu[None]
-    rp = np.sqrt(np.einsum("ij,ij->i", qp, qp))
-    qh = qp / np.maximum(rp, 1e-9)[:, None]
-    cl = qh @ el
-    cf = qh @ ef
-    a = (1 - v) * ws + v * wh
-    b = (1 - v) * ds + v * dh
-    rho = 1.0 / np.sqrt(cl ** 2 / a ** 2 + cf ** 2 / b ** 2)
-    d_rad = rp - rho
-    beyond = (v_raw - v) * L
-    d = np.where(np.abs(beyond) > 1e-9, np.sqrt(np.maximum(d_rad, 0.0) ** 2 + beyond ** 2) * np.sign(
-        np.maximum(d_rad, 0.0) + np.abs(beyond)), d_rad)
-    aux = dict(v=v, qh=qh, cl=cl, a=a, b=b, rho=rho, eu=eu, el=el, nl=nl, rp=rp, beyond=beyond, d_rad=d_rad)
-    return d, aux
-
-
-def _capsule_distances(P: np.ndarray, X: np.ndarray, radii: np.ndarray):
-    """Distances (n, 8) of points to the limb capsules' surfaces, with projections t and unit offsets."""
-    A = X[_CAP_A]
-    B = X[_CAP_B]
-    AB = B - A                                            # (8, 3)
-    L2 = np.maximum(np.einsum("ij,ij->i", AB, AB), 1e-12)
-    AP = P[:, None, :] - A[None]                           # (n, 8, 3)
-    t = np.minimum(np.maximum(np.einsum("nij,ij->ni", AP, AB) / L2, 0.0), 1.0)
-    q = AP - t[..., None] * AB[None]
-    dist = np.sqrt(np.einsum("nij,nij->ni", q, q))
-    r = radii[:, 0][None] + t * (radii[:, 1] - radii[:, 0])[None]
-    return dist - r, dist, t, q
-
-
-def _sphere_distances(P: np.ndarray, X: np.ndarray, radii: np.ndarray):
-    q = P[:, None, :] - X[_SPH][None]
-    dist = np.sqrt(np.einsum("nij,nij->ni", q, q))
-    return dist - radii[None], dist, q
-
-
-def _radii(dims: BodyDimensions) -> tuple[np.ndarray, np.ndarray]:
-    return dims.limb_radii, dims.sphere_radii
-
-
 # ---------------------------------------------------------- assignment
 @dataclass(frozen=True)
 class Assignment:
@@ -331,12 +283,12 @@ class Assignment:
 
 def assign(data: FitData, X: np.ndarray, dims: BodyDimensions, config: EnergyConfig) -> Assignment:
     """Give every datum to its nearest primitive (or none beyond the gates)."""
-    cr, sr = _radii(dims)
+    cr, sr = primitive_radii(dims)
     P = data.surface
     if len(P):
-        dc, _, _, _ = _capsule_distances(P, X, cr)
-        ds, _, _ = _sphere_distances(P, X, sr)
-        dt, _ = _torso_distance(P, X, dims)
+        dc, _, _, _ = capsule_distances(P, X, cr)
+        ds, _, _ = sphere_distances(P, X, sr)
+        dt, _ = torso_distance(P, X, dims)
         Ds = np.concatenate([dc, ds, dt[:, None]], axis=1)
         gates = np.full(N_PRIMITIVES, config.gate_m)
         gates[TORSO] = config.torso_gate_m
@@ -350,8 +302,8 @@ def assign(data: FitData, X: np.ndarray, dims: BodyDimensions, config: EnergyCon
         k, d = np.zeros(0, int), np.zeros(0)
     C = data.centres
     if len(C):
-        _, dc, _, _ = _capsule_distances(C, X, cr)
-        _, ds, _ = _sphere_distances(C, X, np.zeros(len(sr)))
+        _, dc, _, _ = capsule_distances(C, X, cr)
+        _, ds, _ = sphere_distances(C, X, np.zeros(len(sr)))
         D = np.concatenate([dc, ds], axis=1)
         kc = np.argmin(D, axis=1)
         dcen = D[np.arange(len(C)), kc]
@@ -392,7 +344,7 @@ class Residuals:
         self.X_pred = np.asarray(X_pred, float)
         self.w_prev = np.asarray(w_prev, float)
         self.ground_y = ground_y
-        self.cap_r, self.sph_r = _radii(dims)
+        self.cap_r, self.sph_r = primitive_radii(dims)
         a = assignment
         self.s_idx = np.nonzero(a.surface_prim >= 0)[0]
         self.s_prim = a.surface_prim[self.s_idx]
@@ -467,9 +419,7 @@ class Residuals:
 
     def _torso_block(self, X, P):
         """Torso residuals (n,) and their Jacobian (n, 4, 3) on (l_shoulder, r_shoulder, l_hip, r_hip)."""
-        from toolkit.depth.model import L_HIP, L_SHOULDER, R_HIP, R_SHOULDER
-
-        d, x = _torso_distance(P, X, self.dims)
+        d, x = torso_distance(P, X, self.dims)
         n = len(P)
         G = np.zeros((n, 4, 3))
         v, qh, cl, a, b, rho = x["v"], x["qh"], x["cl"], x["a"], x["b"], x["rho"]
@@ -568,8 +518,6 @@ class Residuals:
         return r, J
 
     def _rest_block(self, X):
-        from toolkit.depth.model import L_FOOT, L_HAND, L_HIP, L_SHOULDER, R_FOOT, R_HAND, R_HIP, R_SHOULDER
-
         w = 1.0 / self.config.rest_sigma_m
         down = 0.5 * (X[L_HIP] + X[R_HIP]) - 0.5 * (X[L_SHOULDER] + X[R_SHOULDER])
         down = down / max(np.linalg.norm(down), 1e-9)
@@ -587,8 +535,6 @@ class Residuals:
 
     @cached_property
     def _rest_lengths(self):
-        from toolkit.depth.model import L_ELBOW, L_FOOT, L_HAND, L_HIP, L_KNEE, L_SHOULDER
-
         d = self.dims
         arm = 0.97 * (d.length(L_SHOULDER, L_ELBOW) + d.length(L_ELBOW, L_HAND))
         leg = 0.97 * (d.length(L_HIP, L_KNEE) + d.length(L_KNEE, L_FOOT))
@@ -596,15 +542,11 @@ class Residuals:
 
     def _sample_radius(self):
         if self.sizes is None:
-            from toolkit.depth.model import HEAD, L_FOOT, L_HAND, R_FOOT, R_HAND
-
             rad = np.full(N_POINTS, self.dims.radius("upper_arm")[1])
             rad[HEAD] = self.sph_r[0]
             rad[[L_HAND, R_HAND]] = self.dims.radius("hand") * 0.5
             rad[[L_FOOT, R_FOOT]] = self.dims.radius("foot") * 0.5
             torso = self.dims.radius("torso_half_depth")[0]
-            from toolkit.depth.model import L_HIP, L_SHOULDER, R_HIP, R_SHOULDER
-
             rad[[L_SHOULDER, R_SHOULDER, L_HIP, R_HIP]] = 0.6 * torso
             mids = np.concatenate([self.cap_r[:, 0] + f * (self.cap_r[:, 1] - self.cap_r[:, 0])
                                    for f in CONTOUR_FRACTIONS])

@@ -19,13 +19,27 @@ import numpy as np
 
 from toolkit.depth.cloud import ViewFrame
 from toolkit.depth.model import (
-    HEAD, L_ELBOW, L_HAND, L_SHOULDER, N_POINTS, R_ELBOW, R_HAND, R_SHOULDER,
+    HEAD,
+    L_ELBOW,
+    L_HAND,
+    L_SHOULDER,
+    N_POINTS,
+    R_ELBOW,
+    R_HAND,
+    R_SHOULDER,
 )
 from toolkit.errors import InputError
 from toolkit.skeleton import JOINTS_13, SKELETON_13
 
-__all__ = ["errors_per_point", "TrackingSummary", "summarise", "Plausibility", "plausibility", "draw_skeleton",
-           "ARM_SAMPLES"]
+__all__ = [
+    "ARM_SAMPLES",
+    "Plausibility",
+    "TrackingSummary",
+    "draw_skeleton",
+    "errors_per_point",
+    "plausibility",
+    "summarise",
+]
 
 #: Points along each arm checked against the silhouette: fractions along shoulder-elbow and elbow-hand.
 ARM_SAMPLES = (0.5, 1.0, 1.5, 2.0)

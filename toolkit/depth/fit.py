@@ -21,18 +21,25 @@ scene are tried first.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 from scipy.optimize import least_squares
 
 from toolkit.depth.constraints import ConstraintConfig
-from toolkit.depth.energy import EnergyConfig, EnergyTerms, FitData, Residuals, assign, unexplained_penalty
+from toolkit.depth.energy import (
+    EnergyConfig,
+    EnergyTerms,
+    FitData,
+    Residuals,
+    assign,
+    unexplained_penalty,
+)
 from toolkit.depth.model import N_POINTS, BodyDimensions
 from toolkit.observe import as_observer
 
-__all__ = ["FitConfig", "LocalFit", "fit_local", "levenberg_marquardt", "Move", "MoveRecord", "GlobalSearch"]
+__all__ = ["FitConfig", "GlobalSearch", "LocalFit", "Move", "MoveRecord", "fit_local", "levenberg_marquardt"]
 
 
 @dataclass(frozen=True)

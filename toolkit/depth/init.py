@@ -34,15 +34,39 @@ import numpy as np
 from scipy.cluster.vq import kmeans2
 
 from toolkit.depth.model import (
-    HEAD, L_ELBOW, L_FOOT, L_HAND, L_HIP, L_KNEE, L_SHOULDER, R_ELBOW, R_FOOT, R_HAND, R_HIP, R_KNEE,
-    R_SHOULDER, BodyDimensions, rest_pose13,
+    HEAD,
+    L_ELBOW,
+    L_FOOT,
+    L_HAND,
+    L_HIP,
+    L_KNEE,
+    L_SHOULDER,
+    R_ELBOW,
+    R_FOOT,
+    R_HAND,
+    R_HIP,
+    R_KNEE,
+    R_SHOULDER,
+    BodyDimensions,
+    rest_pose13,
 )
 from toolkit.depth.orus import OrusGrid
 from toolkit.depth.radial import RadialProfile
 from toolkit.motion.kinematics import two_bone_ik
 
-__all__ = ["InitConfig", "KeyPoints", "key_points", "HeadCandidate", "head_candidates", "estimate_stature",
-           "InitialPose", "initial_poses", "EXTREMITY", "LIMB", "TORSO_CLASS", "CLASS_NAMES",
+__all__ = [
+    "CLASS_NAMES",
+    "EXTREMITY",
+    "LIMB",
+    "TORSO_CLASS",
+    "HeadCandidate",
+    "InitConfig",
+    "InitialPose",
+    "KeyPoints",
+    "estimate_stature",
+    "head_candidates",
+    "initial_poses",
+    "key_points",
 ]
 
 EXTREMITY, LIMB, TORSO_CLASS = 0, 1, 2

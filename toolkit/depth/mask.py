@@ -22,7 +22,7 @@ from toolkit.cameras import Camera
 from toolkit.depth.cloud import _check_depth
 from toolkit.errors import InputError
 
-__all__ = ["MaskConfig", "BackgroundModel", "UserMask", "user_mask"]
+__all__ = ["BackgroundModel", "MaskConfig", "UserMask", "user_mask"]
 
 
 @dataclass(frozen=True)
@@ -75,7 +75,7 @@ class BackgroundModel:
         self.depth = d
 
     @classmethod
-    def from_frames(cls, frames) -> "BackgroundModel":
+    def from_frames(cls, frames) -> BackgroundModel:
         """The farthest reading per pixel over empty-scene frames (T, H, W): noise and passers-by
         only make a pixel closer, so the maximum is the background."""
         F = np.asarray(frames, np.float32)
@@ -204,4 +204,4 @@ def user_mask(depth: np.ndarray, camera: Camera, *, background: BackgroundModel 
             if abs(float(np.median(zf[lf == c])) - zmed) <= config.join_depth_m:
                 m |= lab == c
     zm = d[m].astype(np.float64)
-    return UserMask(m, int(len(big)), float((zm * zm).sum() / f2), float(np.median(zm)))
+    return UserMask(m, len(big), float((zm * zm).sum() / f2), float(np.median(zm)))

@@ -36,12 +36,37 @@ from toolkit.errors import InputError
 from toolkit.skeleton import JOINTS_13, JOINTS_14, JOINTS_17, SKELETON_13, SKELETON_14
 
 __all__ = [
-    "HEAD", "L_SHOULDER", "R_SHOULDER", "L_ELBOW", "R_ELBOW", "L_HAND", "R_HAND", "L_HIP", "R_HIP",
-    "L_KNEE", "R_KNEE", "L_FOOT", "R_FOOT", "N_POINTS",
-    "HEAD_CENTRE_UP", "HAND_CENTRE_BEYOND_WRIST", "HAND_HALF_LENGTH", "FOOT_CENTRE_FORWARD",
-    "FOOT_CENTRE_DOWN", "FOOT_HALF_LENGTH", "TYPICAL_RADII", "LENGTH_PAIRS", "LENGTH_NAMES",
-    "LIMBS", "END_SPHERES", "LENGTH_BOUNDS", "BodyDimensions", "DEFAULT_STATURE_M", "control_points",
-    "rest_pose13", "mirror13",
+    "DEFAULT_STATURE_M",
+    "END_SPHERES",
+    "FOOT_CENTRE_DOWN",
+    "FOOT_CENTRE_FORWARD",
+    "FOOT_HALF_LENGTH",
+    "HAND_CENTRE_BEYOND_WRIST",
+    "HAND_HALF_LENGTH",
+    "HEAD",
+    "HEAD_CENTRE_UP",
+    "LENGTH_BOUNDS",
+    "LENGTH_NAMES",
+    "LENGTH_PAIRS",
+    "LIMBS",
+    "L_ELBOW",
+    "L_FOOT",
+    "L_HAND",
+    "L_HIP",
+    "L_KNEE",
+    "L_SHOULDER",
+    "N_POINTS",
+    "R_ELBOW",
+    "R_FOOT",
+    "R_HAND",
+    "R_HIP",
+    "R_KNEE",
+    "R_SHOULDER",
+    "TYPICAL_RADII",
+    "BodyDimensions",
+    "control_points",
+    "mirror13",
+    "rest_pose13",
 ]
 
 (HEAD, L_SHOULDER, R_SHOULDER, L_ELBOW, R_ELBOW, L_HAND, R_HAND, L_HIP, R_HIP, L_KNEE, R_KNEE, L_FOOT,
@@ -173,7 +198,7 @@ def control_points(joints14: np.ndarray, stature: float) -> tuple[np.ndarray, np
     if J.shape[-1] != 3:
         raise InputError("joints14", "an array of shape (..., 14, 3)", f"shape {J.shape}")
     s = float(stature) / 1.75
-    g = lambda n: J[..., _J14[n], :]  # noqa: E731
+    g = lambda n: J[..., _J14[n], :]
     up = _unit(g("head") - g("neck"))
     head = g("head") + HEAD_CENTRE_UP * s * up
     lateral = _unit((g("r_shoulder") - g("l_shoulder")) + (g("r_hip") - g("l_hip")))
@@ -225,7 +250,7 @@ class BodyDimensions:
     lengths: np.ndarray
 
     @classmethod
-    def from_stature(cls, stature: float) -> "BodyDimensions":
+    def from_stature(cls, stature: float) -> BodyDimensions:
         """Median proportions for a stature (clipped to 1.3 - 2.2 m)."""
         if not np.isfinite(stature) or stature <= 0:
             raise InputError("stature", "a positive number of metres", repr(stature))
@@ -254,7 +279,7 @@ class BodyDimensions:
         """Radii of the end spheres, (5,) metres, order of :data:`END_SPHERES`."""
         return np.array([self.radius(key) for *_, key in END_SPHERES])
 
-    def with_lengths(self, lengths: np.ndarray) -> "BodyDimensions":
+    def with_lengths(self, lengths: np.ndarray) -> BodyDimensions:
         return replace(self, lengths=np.asarray(lengths, float).copy())
 
     def length(self, a: int, b: int) -> float:

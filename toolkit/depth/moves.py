@@ -31,12 +31,24 @@ import numpy as np
 
 from toolkit.depth.fit import Move
 from toolkit.depth.model import (
-    HEAD, L_ELBOW, L_FOOT, L_HAND, L_HIP, L_KNEE, L_SHOULDER, R_ELBOW, R_FOOT, R_HAND, R_HIP, R_KNEE,
-    R_SHOULDER, mirror13,
+    HEAD,
+    L_ELBOW,
+    L_FOOT,
+    L_HAND,
+    L_HIP,
+    L_KNEE,
+    L_SHOULDER,
+    R_ELBOW,
+    R_FOOT,
+    R_HAND,
+    R_HIP,
+    R_KNEE,
+    R_SHOULDER,
+    mirror13,
 )
 from toolkit.motion.kinematics import two_bone_ik
 
-__all__ = ["MoveContext", "default_moves", "PEAK_EXPLAINED_M"]
+__all__ = ["PEAK_EXPLAINED_M", "MoveContext", "default_moves"]
 
 #: A profile peak with a hand, foot or head this close (in the grid plane) is explained, metres.
 PEAK_EXPLAINED_M = 0.15

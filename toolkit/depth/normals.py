@@ -21,7 +21,7 @@ from toolkit.cameras import Camera
 from toolkit.depth.cloud import _check_depth, pixel_rays
 from toolkit.errors import InputError
 
-__all__ = ["SOBEL_X", "SOBEL_Y", "NORMAL_MAX_JUMP_M", "normal_map", "grid_normals"]
+__all__ = ["NORMAL_MAX_JUMP_M", "SOBEL_X", "SOBEL_Y", "grid_normals", "normal_map"]
 
 #: Horizontal 3 x 3 derivative kernel (Sobel; divide by 8 for a unit-spacing derivative).
 SOBEL_X = np.array([[-1, 0, 1], [-2, 0, 2], [-1, 0, 1]], np.float32)

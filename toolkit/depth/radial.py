@@ -25,7 +25,7 @@ from scipy.signal import find_peaks
 from toolkit.depth.orus import OrusGrid
 from toolkit.errors import InputError
 
-__all__ = ["RADIAL_STEPS_DEG", "FEET_MAX_SEPARATION_DEG", "RadialConfig", "RadialProfile", "radial_profile"]
+__all__ = ["FEET_MAX_SEPARATION_DEG", "RADIAL_STEPS_DEG", "RadialConfig", "RadialProfile", "radial_profile"]
 
 #: Angular steps named by the source, degrees.
 RADIAL_STEPS_DEG = (2.0, 5.0, 10.0)

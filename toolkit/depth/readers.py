@@ -40,21 +40,21 @@ from toolkit.io import mm_to_depth, read_png
 from toolkit.io.frames import DEPTH_UNITS_PER_METRE
 
 __all__ = [
-    "KINECT_V1_SIZE",
-    "KINECT_V1_FOCAL_PX",
     "DEPTH_SUFFIXES",
+    "KINECT_V1_FOCAL_PX",
+    "KINECT_V1_SIZE",
     "DepthCameraInfo",
+    "DepthInput",
     "default_depth_camera",
+    "depth_intrinsics_text",
+    "list_depth_frames",
+    "open_depth_input",
     "read_depth",
+    "read_depth_intrinsics",
+    "read_depth_npy",
+    "read_depth_open3d",
     "read_depth_png",
     "read_depth_raw",
-    "read_depth_open3d",
-    "read_depth_npy",
-    "list_depth_frames",
-    "depth_intrinsics_text",
-    "read_depth_intrinsics",
-    "DepthInput",
-    "open_depth_input",
 ]
 
 #: Image size of a Kinect v1 depth frame (width, height).
@@ -270,7 +270,7 @@ def depth_intrinsics_text(camera: Camera, *, pose_known: bool = True,
     comment : str
         One line written as a TOML comment at the top.
     """
-    rows = lambda M: "[" + ", ".join("[" + ", ".join(_num(v) for v in r) + "]" for r in M) + "]"  # noqa: E731
+    rows = lambda M: "[" + ", ".join("[" + ", ".join(_num(v) for v in r) + "]" for r in M) + "]"
     lines = []
     if comment:
         lines.append("# " + comment.replace("\n", " "))

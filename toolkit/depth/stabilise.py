@@ -20,7 +20,7 @@ import numpy as np
 
 from toolkit.errors import InputError
 
-__all__ = ["StabiliserConfig", "Stabiliser"]
+__all__ = ["Stabiliser", "StabiliserConfig"]
 
 
 @dataclass(frozen=True)

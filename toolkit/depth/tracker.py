@@ -36,28 +36,51 @@ from toolkit.cameras import Camera
 from toolkit.depth.cloud import ViewFrame, user_cloud
 from toolkit.depth.complete import CompletionConfig, PointKalman, complete
 from toolkit.depth.constraints import (
-    ConstraintConfig, LengthEstimator, enforce_collisions, enforce_joint_limits, enforce_lengths, enforce_velocity,
+    ConstraintConfig,
+    LengthEstimator,
+    enforce_collisions,
+    enforce_joint_limits,
+    enforce_lengths,
+    enforce_velocity,
 )
 from toolkit.depth.curvature import CONVEX, PLANAR, CurvatureConfig, curvature_centres
-from toolkit.depth.energy import (
-    END_SPHERES, LIMBS, EnergyConfig, FitData, _capsule_distances, _radii, _sphere_distances,
-    _torso_distance, fit_data, support_fraction,
-)
+from toolkit.depth.energy import EnergyConfig, FitData, fit_data, support_fraction
 from toolkit.depth.fit import FitConfig, GlobalSearch, LocalFit, fit_local
-from toolkit.depth.init import InitConfig, head_candidates, initial_poses, key_points, top_contour_peaks
+from toolkit.depth.init import (
+    InitConfig,
+    head_candidates,
+    initial_poses,
+    key_points,
+    top_contour_peaks,
+)
 from toolkit.depth.mask import BackgroundModel, MaskConfig, user_mask
-from toolkit.depth.model import N_POINTS, BodyDimensions
+from toolkit.depth.model import END_SPHERES, LIMBS, N_POINTS
 from toolkit.depth.moves import MoveContext, default_moves
 from toolkit.depth.normals import normal_map
 from toolkit.depth.orus import OrusConfig, build_orus
+from toolkit.depth.primitives import (
+    capsule_distances,
+    primitive_radii,
+    sphere_distances,
+    torso_distance,
+)
 from toolkit.depth.radial import RadialConfig, radial_profile
 from toolkit.depth.stabilise import Stabiliser, StabiliserConfig
 from toolkit.errors import InputError
 from toolkit.observe import as_observer
 from toolkit.skeleton import SKELETON_13
 
-__all__ = ["LOST", "RECOVERING", "TRACKING", "STATE_NAMES", "TrackerConfig", "FrameResult", "DepthTracker",
-           "TrackResult", "track_sequence"]
+__all__ = [
+    "LOST",
+    "RECOVERING",
+    "STATE_NAMES",
+    "TRACKING",
+    "DepthTracker",
+    "FrameResult",
+    "TrackResult",
+    "TrackerConfig",
+    "track_sequence",
+]
 
 LOST, RECOVERING, TRACKING = 0, 1, 2
 STATE_NAMES = ("lost", "recovering", "tracking")
@@ -429,7 +452,7 @@ class DepthTracker:
                 ctx = MoveContext(profile=profile, grid=grid, data=data, dims=self.dims, frame=self.frame,
                                   predicted=predicted, tracker=self, assignment=fit.energy.assignment,
                                   data_index=data.index)
-                fit, won = self.search.run(fit, ctx, lambda X0: fit_local(
+                fit, _ = self.search.run(fit, ctx, lambda X0: fit_local(
                     X0, data, self.dims, predicted, w_prev, cfg.fit, cfg.energy, cfg.constraints, self.ground_y),
                     observer=self.observer, frame=self.index)
             X_fit = fit.X
@@ -542,10 +565,10 @@ class DepthTracker:
         if len(r) == 0:
             return keep
         P = grid.mean[r, c]
-        cr, sr = _radii(self.dims)
-        dc, _, _, _ = _capsule_distances(P, X, cr)
-        ds, _, _ = _sphere_distances(P, X, sr)
-        dt, _ = _torso_distance(P, X, self.dims)
+        cr, sr = primitive_radii(self.dims)
+        dc, _, _, _ = capsule_distances(P, X, cr)
+        ds, _, _ = sphere_distances(P, X, sr)
+        dt, _ = torso_distance(P, X, self.dims)
         d = np.min(np.concatenate([dc, ds, dt[:, None]], axis=1), axis=1)
         keep[r[d < self.config.person_gate_m], c[d < self.config.person_gate_m]] = True
         return keep
