@@ -79,7 +79,8 @@ def main(argv=None) -> int:
                 raise InputError(str(args.poses / "poses3d.npz"), "an array 'joints' (T, 14, 3)", f"{list(p3)}")
             init = np.asarray(p3["joints"], float)
             offs_file = args.poses / "offsets.npz"
-            offsets = np.asarray(np.load(offs_file)["offsets"], float) if offs_file.exists() else \
+            from toolkit.multiview import image_offsets
+            offsets = image_offsets(np.load(offs_file)["offsets"]) if offs_file.exists() else \
                 np.zeros((init.shape[0], len(rig), 2))
             source = f"stage 1 ({args.poses})"
         else:

@@ -95,7 +95,8 @@ def main(argv=None) -> int:
             for f, d, k in (("poses3d.npz", p3, "joints"), ("offsets.npz", off, "offsets")):
                 if k not in d:
                     raise InputError(str(args.poses / f), f"an array '{k}'", f"arrays {sorted(d)}")
-            poses = PoseSource(ds.rig, p3["joints"], {c: p2[c] for c in names if c in p2}, off["offsets"],
+            from toolkit.multiview import image_offsets
+            poses = PoseSource(ds.rig, p3["joints"], {c: p2[c] for c in names if c in p2}, image_offsets(off["offsets"]),
                                name=str(args.poses))
         else:
             print("no --poses or --gt-joints: the template is a standing pose fitted to each silhouette's box")

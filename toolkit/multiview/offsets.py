@@ -396,3 +396,26 @@ def offsets_modulo_gauge(estimated: np.ndarray, true: np.ndarray, rig: Rig, poin
     out = diff - G @ t
     out[~use] = np.nan
     return out
+
+
+def image_offsets(joint_offsets: np.ndarray) -> np.ndarray:
+    """Convert stage-1 offsets to the shift from a measured camera's projection to the image.
+
+    Stage 1 adds its offsets to the *detected* 2D joints so that they agree
+    with the projections of the 3D joints through the measured cameras
+    (``poses2d = poses2d_raw + offsets``).  Image-space consumers (template
+    projection, billboard texturing, rendering) need the opposite shift: where
+    a world point projected through a measured camera actually appears in that
+    camera's image, ``image ≈ camera.project(X) + image_offsets``.
+
+    Parameters
+    ----------
+    joint_offsets : ndarray of shape (..., 2)
+        Offsets as stage 1 reports them (``offsets.npz``, ``MultiViewSelection.offsets``), pixels.
+
+    Returns
+    -------
+    ndarray of shape (..., 2)
+        ``-joint_offsets`` with NaN (unused views) replaced by 0.
+    """
+    return -np.nan_to_num(np.asarray(joint_offsets, dtype=np.float64), nan=0.0)

@@ -145,7 +145,8 @@ class FrameProcessor:
         names = self.rig.names
         timings: dict = {}
         J1 = np.asarray(estimate.joints3d, float)
-        off = np.nan_to_num(np.asarray(estimate.offsets, float), nan=0.0)
+        from toolkit.multiview import image_offsets
+        off = image_offsets(estimate.offsets)  # stage 1 corrects the joints; images need the opposite shift
         empty = {c: np.zeros(self.rig[c].size[::-1], np.uint8) for c in names}
         if not estimate.ok or not np.isfinite(J1).all():
             obs.report("text", name="free_viewpoint/status", text=f"frame {frame}: {STATUS_NO_POSE}", frame=frame)

@@ -509,7 +509,8 @@ def estimate_dataset(dataset, database: SilhouetteDatabase, config: Stage1Config
     readers = {c: VideoReader(dataset.video_path(c)) for c in names}
     try:
         if backgrounds is None:  # the dataset's clean plates, where it has them
-            backgrounds = {c: [img] for c in names if (img := dataset.background(c)) is not None}
+            plate = getattr(dataset, "background", None)  # readers without clean plates have none
+            backgrounds = {} if plate is None else {c: [img] for c in names if (img := plate(c)) is not None}
         extractors = {c: ForegroundExtractor(foreground).fit(backgrounds[c] if c in backgrounds else readers[c])
                       for c in names}
         ended: dict[str, bool] = {c: False for c in names}
