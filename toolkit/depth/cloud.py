@@ -232,7 +232,7 @@ class UserCloud:
 
 
 def user_cloud(depth: np.ndarray, mask: np.ndarray, frame: ViewFrame, normals: np.ndarray | None = None,
-               border_px: int = 2) -> UserCloud | None:
+               border_px: int = 2, with_pca: bool = True) -> UserCloud | None:
     """The user's point cloud in the view frame, or None when fewer than 3 points remain.
 
     Parameters
@@ -246,6 +246,8 @@ def user_cloud(depth: np.ndarray, mask: np.ndarray, frame: ViewFrame, normals: n
         Camera-frame normal map (see :func:`toolkit.depth.normals.normal_map`).
     border_px : int
         Mask pixels this close to an image side count as touching it.
+    with_pca : bool
+        Compute the principal direction (NaN otherwise; the tracker needs it to initialise only).
     """
     pts, rows, cols = depth_to_points(depth, frame.camera, mask)
     if len(pts) < 3:
@@ -254,7 +256,10 @@ def user_cloud(depth: np.ndarray, mask: np.ndarray, frame: ViewFrame, normals: n
     nv = None
     if normals is not None:
         nv = frame.from_camera_points(np.asarray(normals)[rows, cols].astype(np.float64))
-    c, axes, var = principal_direction(pv)
+    if with_pca:
+        c, axes, var = principal_direction(pv)
+    else:
+        c, axes, var = pv.mean(0), np.full((3, 3), np.nan), np.full(3, np.nan)
     w, h = frame.camera.size
     touches = (bool(cols.min() < border_px), bool(cols.max() >= w - border_px),
                bool(rows.min() < border_px), bool(rows.max() >= h - border_px))

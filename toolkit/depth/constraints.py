@@ -71,6 +71,7 @@ COLLISION_PAIRS = ((2, 3), (0, 1), (4, 5), (6, 7), (2, 4), (3, 5))
 JOINT_LIMITS_DEG = {"elbow": 25.0, "knee": 30.0}
 _ELBOW_CHAINS = ((L_SHOULDER, L_ELBOW, L_HAND), (R_SHOULDER, R_ELBOW, R_HAND))
 _KNEE_CHAINS = ((L_HIP, L_KNEE, L_FOOT), (R_HIP, R_KNEE, R_FOOT))
+_JL_A, _JL_B, _JL_C = (np.array(v) for v in zip(*(_ELBOW_CHAINS + _KNEE_CHAINS)))
 
 
 @dataclass(frozen=True)
@@ -110,8 +111,8 @@ class ConstraintConfig:
 
 
 def _unit(v):
-    n = np.linalg.norm(v)
-    return v / n if n > 1e-12 else v * 0.0, max(n, 1e-12)
+    n = float(np.sqrt(v @ v))
+    return (v / n if n > 1e-12 else v * 0.0), max(n, 1e-12)
 
 
 def segment_distances(P0, P1, Q0, Q1):
@@ -197,14 +198,14 @@ def constraint_residuals(X: np.ndarray, dims: BodyDimensions, config: Constraint
     Jt[1, L_SHOULDER], Jt[1, R_SHOULDER] = -wt * e1, wt * e2
     es, ns = _unit(X[R_SHOULDER] - X[L_SHOULDER])
     h = X[HEAD] - 0.5 * (X[L_SHOULDER] + X[R_SHOULDER])
-    Ps = (_EYE3 - np.outer(es, es)) / ns
+    Ps = (_EYE3 - es[:, None] * es[None, :]) / ns
     rt[2] = wt * (h @ es)
     Jt[2, HEAD] = wt * es
     Jt[2, L_SHOULDER] = wt * (-0.5 * es - Ps @ h)
     Jt[2, R_SHOULDER] = wt * (-0.5 * es + Ps @ h)
     eh, nh = _unit(X[R_HIP] - X[L_HIP])
     wp = 1.0 / config.twist_sigma_rad
-    Ph = (_EYE3 - np.outer(eh, eh)) / nh
+    Ph = (_EYE3 - eh[:, None] * eh[None, :]) / nh
     rt[3:6] = wp * (es - eh)
     Jt[3:6, R_SHOULDER] = wp * Ps
     Jt[3:6, L_SHOULDER] = -wp * Ps
@@ -270,6 +271,9 @@ def enforce_lengths(X: np.ndarray, bounds: np.ndarray = LENGTH_BOUNDS) -> np.nda
     ndarray of shape (13, 3)
     """
     Y = np.array(X, float)
+    L = np.sqrt(np.einsum("ij,ij->i", Y[_LA] - Y[_LB], Y[_LA] - Y[_LB]))
+    if np.all((L >= bounds[:, 0]) & (L <= bounds[:, 1])):
+        return Y
     order = [12, 13, 6, 7, 0, 1, 2, 3, 4, 5, 8, 9, 10, 11]  # torso first, then limbs outwards
     sym = {12, 13, 6, 7}
     for k in order:
@@ -344,6 +348,10 @@ def enforce_collisions(X: np.ndarray, X_prev: np.ndarray | None, dims: BodyDimen
     Y = np.array(X, float)
     rad = _limb_radii(dims)
     fixed = 0
+    P = Y[_CP]
+    d, _, _ = segment_distances(P[:, 0], P[:, 1], P[:, 2], P[:, 3])
+    if np.all(d >= (rad[_CI] + rad[_CJ]) * (1 - config.collision_margin)):
+        return Y, 0
     for _ in range(3):
         changed = False
         for i, j in COLLISION_PAIRS:
@@ -394,6 +402,12 @@ def enforce_joint_limits(X: np.ndarray, limits: dict = JOINT_LIMITS_DEG) -> tupl
     """
     Y = np.array(X, float)
     fixed = 0
+    u = Y[_JL_A] - Y[_JL_B]
+    v = Y[_JL_C] - Y[_JL_B]
+    cosang = np.einsum("ij,ij->i", u, v) / np.maximum(np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1), 1e-12)
+    lims = np.array([limits["elbow"]] * 2 + [limits["knee"]] * 2)
+    if np.all(np.degrees(np.arccos(np.clip(cosang, -1, 1))) >= lims):
+        return Y, 0
     for chains, lim in ((_ELBOW_CHAINS, limits["elbow"]), (_KNEE_CHAINS, limits["knee"])):
         for a, b, c in chains:
             ang = _interior_angle(Y[a], Y[b], Y[c])

@@ -189,24 +189,27 @@ def curvature_centres(grid: OrusGrid, config: CurvatureConfig = CurvatureConfig(
     best_k[rr, cc] = bk
     best_t[rr, cc] = bt
     min_k[rr, cc] = mk
-    has = np.isfinite(best_k) & ok
+    # labels, radii and centres on the usable bins only
+    has = np.isfinite(bk)
     k_planar = 1.0 / config.planar_radius_m
+    cvx = has & (bk >= k_planar) & (bk >= -mk)
+    ccv = has & ~cvx & (mk <= -k_planar)
+    pln = has & ~cvx & ~ccv
     label = np.zeros((ny, nx), np.int8)
-    convex = has & (best_k >= k_planar) & (best_k >= -min_k)
-    concave = has & ~convex & (min_k <= -k_planar)
-    planar = has & ~convex & ~concave
-    label[planar] = PLANAR
-    label[convex] = CONVEX
-    label[concave] = CONCAVE
+    label[rr[pln], cc[pln]] = PLANAR
+    label[rr[cvx], cc[cvx]] = CONVEX
+    label[rr[ccv], cc[ccv]] = CONCAVE
+    rb = np.where(np.isfinite(bt), bt, 1.0 / np.maximum(bk, 1e-9))[cvx]
+    rb = np.minimum(np.maximum(rb, config.min_radius_m), config.max_radius_m)
+    cs = Pc[cvx] - rb[:, None] * Nc[cvx]
+    rs = rb
     radius = np.full((ny, nx), np.nan)
-    r = np.where(np.isfinite(best_t), best_t, 1.0 / np.maximum(best_k, 1e-9))
-    radius[convex] = np.clip(r[convex], config.min_radius_m, config.max_radius_m)
+    radius[rr[cvx], cc[cvx]] = rb
     centre = np.full((ny, nx, 3), np.nan)
-    centre[convex] = P[convex] - radius[convex][:, None] * N[convex]
-    curvature = np.where(has, best_k, np.nan)
+    centre[rr[cvx], cc[cvx]] = cs
+    curvature = np.full((ny, nx), np.nan)
+    curvature[rr[has], cc[has]] = bk[has]
     # accumulate the curvature centres and find the density maxima
-    cs = centre[convex]
-    rs = radius[convex]
     acc = np.zeros((ny, nx))
     spheres = OsculatingSpheres(np.zeros((0, 3)), np.zeros(0), np.zeros(0))
     if len(cs):

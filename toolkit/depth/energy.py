@@ -97,6 +97,21 @@ __all__ = [
 ]
 
 #: Primitive order: the 8 limb capsules, the 5 end spheres, the torso.
+_REST_BASE = np.array([L_SHOULDER, R_SHOULDER, L_HIP, R_HIP])
+_REST_END = np.array([L_HAND, R_HAND, L_FOOT, R_FOOT])
+_GRAVITY_VIEW = np.array([0.0, 1.0, 0.0])
+
+
+def _rest_jacobian() -> np.ndarray:
+    J = np.zeros((12, N_POINTS, 3))
+    for k, (b, e) in enumerate(zip(_REST_BASE, _REST_END)):
+        J[3 * k:3 * k + 3, e] = np.eye(3)
+        J[3 * k:3 * k + 3, b] = -np.eye(3)
+    return J
+
+
+_REST_J = _rest_jacobian()
+
 #: Fractions along each limb sampled by the contour term (besides the control points).
 CONTOUR_FRACTIONS = (0.5,)
 
@@ -269,12 +284,15 @@ class Assignment:
     centre_prim : ndarray of shape (K,), int
         Primitive of each curvature centre (capsules and end spheres only), -1 when unexplained.
     centre_dist : ndarray of shape (K,)
+    surface_near : ndarray of shape (B,)
+        Distance of each surface datum to the nearest primitive, whatever the gates.
     """
 
     surface_prim: np.ndarray
     surface_dist: np.ndarray
     centre_prim: np.ndarray
     centre_dist: np.ndarray
+    surface_near: np.ndarray | None = None
 
     def explained_fraction(self) -> float:
         n = len(self.surface_prim)
@@ -293,13 +311,14 @@ def assign(data: FitData, X: np.ndarray, dims: BodyDimensions, config: EnergyCon
         gates = np.full(N_PRIMITIVES, config.gate_m)
         gates[TORSO] = config.torso_gate_m
         D = np.abs(Ds)
+        near = D.min(axis=1)
         D[D > gates] = np.inf
         k = np.argmin(D, axis=1)
         rows = np.arange(len(P))
         d = Ds[rows, k]
         k[~np.isfinite(D[rows, k])] = -1
     else:
-        k, d = np.zeros(0, int), np.zeros(0)
+        k, d, near = np.zeros(0, int), np.zeros(0), np.zeros(0)
     C = data.centres
     if len(C):
         _, dc, _, _ = capsule_distances(C, X, cr)
@@ -310,7 +329,7 @@ def assign(data: FitData, X: np.ndarray, dims: BodyDimensions, config: EnergyCon
         kc = np.where(dcen <= config.centre_gate_m, kc, -1)
     else:
         kc, dcen = np.zeros(0, int), np.zeros(0)
-    return Assignment(k, d, kc, dcen)
+    return Assignment(k, d, kc, dcen, near)
 
 
 # ------------------------------------------------------------ residuals
@@ -361,6 +380,8 @@ class Residuals:
             / config.centre_sigma_m
         self.sizes = None
         self._cache_list = []
+        self._rest_J = _REST_J
+        self._KV = data.frame.camera.K @ data.frame.view_from_cam.T   # view frame to homogeneous pixels
         self._wp = self.w_prev / config.previous_sigma_m
         self._Jp = np.diag(np.repeat(self._wp, 3))
         self._sgroups = self._groups(data.surface[self.s_idx], self.s_prim, self.s_w)
@@ -478,10 +499,12 @@ class Residuals:
         w = 1.0 / cfg.contour_sigma_m
         r = np.zeros(2 * nS)
         J = np.zeros((2 * nS, N_POINTS, 3))
-        uv = data.frame.project(S)
+        ph = S @ self._KV.T                                          # pinhole projection of view points
+        z = ph[:, 2]
+        zs_ = np.where(z > 1e-6, z, 1.0)
+        u, v = ph[:, 0] / zs_, ph[:, 1] / zs_
         wimg, himg = data.frame.camera.size
-        seen = np.all(np.isfinite(uv), axis=1) & (uv[:, 0] >= 1) & (uv[:, 0] <= wimg - 2) & \
-            (uv[:, 1] >= 1) & (uv[:, 1] <= himg - 2)
+        seen = (z > 1e-6) & (u >= 1) & (u <= wimg - 2) & (v >= 1) & (v <= himg - 2)
         g = (S[:, :2] - data.origin) / data.bin_size - 0.5
         ny, nx = data.outside.shape
         gi = np.clip(np.round(g[:, 1]).astype(int), 0, ny - 1)
@@ -520,18 +543,11 @@ class Residuals:
     def _rest_block(self, X):
         w = 1.0 / self.config.rest_sigma_m
         down = 0.5 * (X[L_HIP] + X[R_HIP]) - 0.5 * (X[L_SHOULDER] + X[R_SHOULDER])
-        down = down / max(np.linalg.norm(down), 1e-9)
-        r = np.zeros(12)
-        J = np.zeros((12, N_POINTS, 3))
-        for k, (base, end, dirn) in enumerate(((L_SHOULDER, L_HAND, down), (R_SHOULDER, R_HAND, down),
-                                               (L_HIP, L_FOOT, np.array([0.0, 1.0, 0.0])),
-                                               (R_HIP, R_FOOT, np.array([0.0, 1.0, 0.0])))):
-            L = self._rest_lengths[k]
-            r[3 * k:3 * k + 3] = w * (X[end] - X[base] - L * dirn)
-            for c in range(3):
-                J[3 * k + c, end, c] = w
-                J[3 * k + c, base, c] = -w
-        return r, J
+        down = down / max(np.sqrt(down @ down), 1e-9)
+        dirs = np.stack([down, down, _GRAVITY_VIEW, _GRAVITY_VIEW])
+        L = np.asarray(self._rest_lengths)
+        r = (w * (X[_REST_END] - X[_REST_BASE] - L[:, None] * dirs)).ravel()
+        return r, self._rest_J * w
 
     @cached_property
     def _rest_lengths(self):

@@ -91,7 +91,7 @@ class FitConfig:
 
 
 def levenberg_marquardt(residuals, x0: np.ndarray, max_evaluations: int, lam0: float = 1e-3,
-                        xtol: float = 1e-4) -> tuple[np.ndarray, int]:
+                        xtol: float = 1e-4, ftol: float = 5e-3) -> tuple[np.ndarray, int]:
     """Minimise ``|r(x)|^2`` by Levenberg-Marquardt with Marquardt's diagonal scaling.
 
     Parameters
@@ -104,7 +104,9 @@ def levenberg_marquardt(residuals, x0: np.ndarray, max_evaluations: int, lam0: f
     lam0 : float
         Initial damping.
     xtol : float
-        Stop when no parameter moves more than this.
+        Stop when no parameter moves more than this ...
+    ftol : float
+        ... or when an accepted step lowers the cost by less than this fraction.
 
     Returns
     -------
@@ -129,9 +131,10 @@ def levenberg_marquardt(residuals, x0: np.ndarray, max_evaluations: int, lam0: f
         n += 1
         cn = float(rn @ rn)
         if cn < cost:
+            small = cost - cn < ftol * cost
             x, r, J, cost = xn, rn, Jn, cn
             lam = max(lam / 4.0, 1e-9)
-            if np.max(np.abs(dx)) < xtol:
+            if small or np.max(np.abs(dx)) < xtol:
                 break
         else:
             lam *= 8.0
@@ -164,7 +167,7 @@ class LocalFit:
 def fit_local(X0: np.ndarray, data: FitData, dims: BodyDimensions, X_pred: np.ndarray, w_prev: np.ndarray,
               config: FitConfig = FitConfig(), energy: EnergyConfig = EnergyConfig(),
               constraints: ConstraintConfig = ConstraintConfig(), ground_y=None, observer=None,
-              frame: int | None = None, tag: str = "local") -> LocalFit:
+              frame: int | None = None, tag: str = "local", first: Assignment | None = None) -> LocalFit:
     """Minimise the energy from ``X0`` by iterated assignment and Levenberg-Marquardt.
 
     Parameters
@@ -184,6 +187,8 @@ def fit_local(X0: np.ndarray, data: FitData, dims: BodyDimensions, X_pred: np.nd
     frame : int, optional
     tag : str
         Name of the minimisation in the reports.
+    first : Assignment, optional
+        The data assignment at ``X0`` if the caller has it already.
 
     Returns
     -------
@@ -194,7 +199,7 @@ def fit_local(X0: np.ndarray, data: FitData, dims: BodyDimensions, X_pred: np.nd
     history = []
     nfev = 0
     for it in range(config.outer_iterations):
-        a = assign(data, X, dims, energy)
+        a = first if (it == 0 and first is not None) else assign(data, X, dims, energy)
         res = Residuals(data, a, dims, X_pred, w_prev, energy, constraints, ground_y)
         if config.solver == "scipy":
             sol = least_squares(res.fun, X.ravel(), jac=res.jac, method="lm", xtol=1e-4, ftol=1e-4,

@@ -44,7 +44,7 @@ from toolkit.depth.constraints import (
     enforce_velocity,
 )
 from toolkit.depth.curvature import CONVEX, PLANAR, CurvatureConfig, curvature_centres
-from toolkit.depth.energy import EnergyConfig, FitData, fit_data, support_fraction
+from toolkit.depth.energy import EnergyConfig, FitData, assign, fit_data, support_fraction
 from toolkit.depth.fit import FitConfig, GlobalSearch, LocalFit, fit_local
 from toolkit.depth.init import (
     InitConfig,
@@ -386,7 +386,7 @@ class DepthTracker:
             return self._lost("no user")
         self.prev_mask = um.mask
         nmap = normal_map(d, self.camera, um.mask) if cfg.orus.normal_source == "pixels" else None
-        cloud = user_cloud(d, um.mask, self.frame, nmap)
+        cloud = user_cloud(d, um.mask, self.frame, nmap, with_pca=self.X is None)
         timings["mask_cloud"] = time.thread_time() - t0
         if cloud is None:
             return self._lost("no user")
@@ -399,20 +399,6 @@ class DepthTracker:
             centre = cloud.centroid
         grid = build_orus(cloud.points, centre, cfg.orus, cloud.normals)
         reason = "ok"
-        keep = None
-        if predicted is not None:
-            keep = self._near_body(grid, predicted)
-            n_far = int((grid.filled & ~keep).sum())
-            many = n_far > max(cfg.min_bins // 2, cfg.touching_fraction * grid.filled.sum())
-            if many and (self.touching > 0 or top_contour_peaks(replace(grid, filled=grid.filled & ~keep),
-                                                                min_body_m=cfg.min_body_m)):
-                # much more than one body: a second person touches the user; fit only the user's part
-                # (once seen, for touching_memory frames even when their head is not clear)
-                reason = "touching"
-                self.touching = cfg.touching_memory
-                grid = replace(grid, filled=grid.filled & keep, occupied=grid.occupied & keep)
-            else:
-                self.touching = max(self.touching - 1, 0)
         if predicted is None:
             keep = self._one_person(grid, cloud)
             if keep is not None:
@@ -422,11 +408,37 @@ class DepthTracker:
         if grid.filled.sum() < cfg.min_bins:
             return self._lost("no user", cloud.n_points, timings)
         curv = curvature_centres(grid, cfg.curvature)
+        data = fit_data(grid, curv, self.frame)
+        first = None
+        if predicted is not None:
+            # the first data assignment of the fit, at the prediction, also tells which bins are
+            # near the body: many far ones with a head of their own are a second person touching the user
+            first = assign(data, predicted, self.dims, cfg.energy)
+            near = first.surface_near < cfg.person_gate_m
+            n_far = int((~near).sum())
+            many = n_far > max(cfg.min_bins // 2, cfg.touching_fraction * len(near))
+            if many:
+                far = np.zeros(grid.shape, bool)
+                far[data.index[~near, 0], data.index[~near, 1]] = True
+            if many and (self.touching > 0 or top_contour_peaks(replace(grid, filled=far),
+                                                                min_body_m=cfg.min_body_m)):
+                # fit only the user's part (once seen, for touching_memory frames even when the
+                # other person's head is not clear)
+                reason = "touching"
+                self.touching = cfg.touching_memory
+                keep = grid.filled & ~far
+                grid = replace(grid, filled=keep, occupied=grid.occupied & keep)
+                if grid.filled.sum() < cfg.min_bins:
+                    return self._lost("no user", cloud.n_points, timings)
+                curv = curvature_centres(grid, cfg.curvature)
+                data = fit_data(grid, curv, self.frame)
+                first = None
+            else:
+                self.touching = max(self.touching - 1, 0)
         centroid = grid.mean[grid.filled].mean(0)
         # the radial profile serves the initial pose, the global moves and the recording only
         need_profile = self.X is None or self.observer is not None or self._moves_due()
         profile = radial_profile(grid, centroid, cfg.radial) if need_profile else None
-        data = fit_data(grid, curv, self.frame)
         timings["orus_curvature"] = time.thread_time() - t1
         t2 = time.thread_time()
         if self.observer is not None:
@@ -445,7 +457,7 @@ class DepthTracker:
                              else cfg.prev_weight_recovering)
             w_prev[~self.observed_prev] = cfg.prev_weight_unseen
             fit = fit_local(predicted, data, self.dims, predicted, w_prev, cfg.fit, cfg.energy, cfg.constraints,
-                            self.ground_y, self.observer, self.index)
+                            self.ground_y, self.observer, self.index, first=first)
             if fit.energy.explained < cfg.fit.move_trigger_explained or self._moves_due():
                 if profile is None:
                     profile = radial_profile(grid, centroid, cfg.radial)
@@ -557,21 +569,6 @@ class DepthTracker:
         off_a = np.hypot(*(self.frame.to_camera(a)[:2] / max(a[2], 1e-6)))
         off_b = np.hypot(*(self.frame.to_camera(b)[:2] / max(b[2], 1e-6)))
         return side_a if off_a <= off_b else ~side_a
-
-    def _near_body(self, grid, X: np.ndarray) -> np.ndarray:
-        """Grid bins within ``person_gate_m`` of the body primitives placed at ``X``."""
-        keep = np.zeros(grid.shape, bool)
-        r, c = np.nonzero(grid.filled)
-        if len(r) == 0:
-            return keep
-        P = grid.mean[r, c]
-        cr, sr = primitive_radii(self.dims)
-        dc, _, _, _ = capsule_distances(P, X, cr)
-        ds, _, _ = sphere_distances(P, X, sr)
-        dt, _ = torso_distance(P, X, self.dims)
-        d = np.min(np.concatenate([dc, ds, dt[:, None]], axis=1), axis=1)
-        keep[r[d < self.config.person_gate_m], c[d < self.config.person_gate_m]] = True
-        return keep
 
     def _observed(self, data: FitData, fit: LocalFit, X: np.ndarray) -> np.ndarray:
         """Control points with at least ``support_min_bins`` nearby bins given to their primitives,
