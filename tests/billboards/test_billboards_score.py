@@ -95,3 +95,44 @@ def test_score_evaluation_is_fast(planar_scene, scorer):
     for _ in range(20):
         scorer.joint_score(planar_scene.joints, WRIST)
     assert (time.perf_counter() - t0) / 20 < 0.05
+
+
+#: Principal-point errors of the measured cameras in the offsets test, pixels (measured
+#: projection = true projection - error, so the images sit at measured projection + error).
+CALIBRATION_ERROR_PX = np.array([[5.0, -4.0], [-3.0, 6.0], [2.0, 3.0]])
+#: A score this far below the aligned one means the billboards are misaligned by several pixels.
+MISALIGNED_DROP = 0.3
+#: Least score lost by the ground truth against stage 1's joints under stage 1's offsets (the
+#: offsets' gauge shifts the aligned pose by about a centimetre here).
+GAUGE_DROP = 0.1
+
+
+def test_stage1_offsets_realign_miscalibrated_cameras(planar_scene):
+    """Stage 1's offsets, converted by ``image_offsets``, realign the fan of stage 1's own joints.
+
+    Stage 1 (``fit_offsets``) adds its offsets to the detected 2D joints; the scorer adds
+    offsets to the measured projections, the opposite shift.  Passed unconverted, the
+    billboards are misaligned by twice the calibration error and the search drifts.
+    """
+    from toolkit.cameras import Rig
+    from toolkit.multiview import fit_offsets, image_offsets
+
+    s = planar_scene
+    measured = []
+    for cam, err in zip(s.rig, CALIBRATION_ERROR_PX):
+        K = cam.K.copy()
+        K[:2, 2] -= err
+        measured.append(cam.replace(K=K))
+    measured = Rig(tuple(measured))
+    fit = fit_offsets(np.stack([c.project(s.joints) for c in s.rig]), measured)
+    assert fit.success
+    converted = PositionScorer(s.images, s.labels, measured, image_offsets(fit.offsets))
+    raw = PositionScorer(s.images, s.labels, measured, fit.offsets)
+    aligned = converted.joint_score(fit.joints3d, WRIST)
+    assert abs(aligned - 1) < ALIGNED_TOL
+    assert raw.joint_score(fit.joints3d, WRIST) < aligned - MISALIGNED_DROP
+    # the offsets' gauge: stage 1's offsets align stage 1's joints (shifted a little from the
+    # truth), so the score prefers them to the ground truth; the true errors align the truth
+    assert converted.joint_score(s.joints, WRIST) < aligned - GAUGE_DROP
+    truth = PositionScorer(s.images, s.labels, measured, CALIBRATION_ERROR_PX)
+    assert abs(truth.joint_score(s.joints, WRIST) - 1) < ALIGNED_TOL
