@@ -25,7 +25,8 @@ Printed:
   tracker's per-stage thread CPU times; resolutions interleaved and every run
   repeated, the fastest time per frame kept, so that a busy machine inflates
   no resolution more than another), at 320 x 240, 640 x 480 and 1280 x 720
-  on the first seed of every motion: the whole frame, and the fitting stage
+  on the first seed of every motion (medians; the mean of the whole frame too,
+  which includes the frames where global moves run): the whole frame, and the fitting stage
   (the local and global minimisation) and everything after the point cloud
   (grid, curvature centres, radial profile, fit, constraints, stabilisation,
   completion), whose cost should not depend on the resolution.
@@ -163,7 +164,7 @@ def timing(args, motions) -> None:
     print(f"\ntime per frame, CPU ms on one core (median over {len(motions)} motions x {args.timing_frames} "
           f"frames, first seed; per frame the fastest of {args.repeats} runs)")
     print(f"{'resolution':12s}{'total':>9s}{'fps':>8s}{'mask+cloud':>12s}{'grid+curv':>11s}{'fit':>9s}"
-          f"{'post':>8s}{'after cloud':>13s}")
+          f"{'post':>8s}{'after cloud':>13s}{'mean total':>12s}")
     # resolutions interleaved per motion and each run repeated, keeping the fastest time of every frame:
     # other processes on the machine then slow all resolutions alike and inflate no figure
     keys = ("total", "mask_cloud", "orus_curvature", "fit", "post")
@@ -181,11 +182,12 @@ def timing(args, motions) -> None:
     rows = {}
     for res_wh in RESOLUTIONS:
         med = {k: 1000 * float(np.nanmedian(np.concatenate(per[res_wh][k]))) for k in keys}
+        mean_total = 1000 * float(np.nanmean(np.concatenate(per[res_wh]["total"])))
         t = med["total"]
         after = med["orus_curvature"] + med["fit"] + med["post"]
         rows[res_wh] = (t, med, after)
         print(f"{res_wh[0]:>5d}x{res_wh[1]:<6d}{t:9.2f}{1000 / t:8.1f}{med['mask_cloud']:12.2f}"
-              f"{med['orus_curvature']:11.2f}{med['fit']:9.2f}{med['post']:8.2f}{after:13.2f}")
+              f"{med['orus_curvature']:11.2f}{med['fit']:9.2f}{med['post']:8.2f}{after:13.2f}{mean_total:12.2f}")
     t320 = rows[(320, 240)]
     t640 = rows[(640, 480)]
     fps = 1000 / t320[0]

@@ -196,9 +196,7 @@ class FitData:
         Osculating sphere centres.
     centre_weight : ndarray of shape (K,)
     outside : ndarray of shape (ny, nx)
-        Distance outside the silhouette, metres (0 inside).
-    outside_grad : ndarray of shape (ny, nx, 2)
-        Its gradient (per metre).
+        Distance outside the silhouette, metres (0 inside; bilinear between bin centres).
     surface_z : ndarray of shape (ny, nx)
         Depth of the visible surface per bin (NaN outside).
     origin : ndarray of shape (2,)
@@ -214,7 +212,6 @@ class FitData:
     centres: np.ndarray
     centre_weight: np.ndarray
     outside: np.ndarray
-    outside_grad: np.ndarray
     surface_z: np.ndarray
     origin: np.ndarray
     bin_size: float
@@ -263,11 +260,9 @@ def fit_data(grid: OrusGrid, curvature: CurvatureResult | None, frame: ViewFrame
     else:
         dt = np.full(sel.shape, 1e3)
     dt *= grid.bin_size
-    gx = cv2.Sobel(dt, cv2.CV_64F, 1, 0, ksize=3) / (8.0 * grid.bin_size)
-    gy = cv2.Sobel(dt, cv2.CV_64F, 0, 1, ksize=3) / (8.0 * grid.bin_size)
     zs = np.where(sel, grid.zmin, np.nan)
-    return FitData(surface, w, planar, cen, cw, dt, np.stack([gx, gy], -1), zs, grid.origin.copy(), grid.bin_size,
-                   frame, np.stack([r, c], -1))
+    return FitData(surface, w, planar, cen, cw, dt, zs, grid.origin.copy(), grid.bin_size, frame,
+                   np.stack([r, c], -1))
 
 
 # ---------------------------------------------------------- assignment

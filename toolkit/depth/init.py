@@ -261,7 +261,8 @@ def top_contour_peaks(grid: OrusGrid, min_width_m: float = 0.10, max_width_m: fl
     Returns
     -------
     list of ndarray of shape (3,)
-        View-frame positions of the bumps' tops (mean of the run's top bins), highest first.
+        View-frame positions of the bumps' tops (mean of the run's top bins), highest first;
+        of bumps less than 20 cm apart sideways only the highest.
     """
     ny, nx = grid.shape
     filled = grid.filled
@@ -292,7 +293,11 @@ def top_contour_peaks(grid: OrusGrid, min_width_m: float = 0.10, max_width_m: fl
                 out.append((run_top, p))
         j = k + 1
     out.sort(key=lambda t: t[0])
-    return [p for _, p in out]
+    kept: list = []
+    for _, p in out:        # one bump per head: drop lower ones beside a higher one
+        if all(abs(p[0] - q[0]) > 0.2 for q in kept):
+            kept.append(p)
+    return kept
 
 
 def _column_filled(grid: OrusGrid, col: int, row: int, length_m: float) -> float:

@@ -378,12 +378,11 @@ class DepthTracker:
         if self.observer is not None:
             obs.report("depth", camera=self.camera.name, depth=np.nan_to_num(d, nan=0.0), name="depth",
                        frame=self.index)
-        if not np.any(np.isfinite(d) & (d > 0)):
-            return self._lost("no depth")
         um = user_mask(d, self.camera, background=self.background, given=mask, previous=self.prev_mask,
                        config=cfg.mask)
         if not um.found:
-            return self._lost("no user")
+            with np.errstate(invalid="ignore"):
+                return self._lost("no user" if np.any(d > 0) else "no depth")
         self.prev_mask = um.mask
         nmap = normal_map(d, self.camera, um.mask) if cfg.orus.normal_source == "pixels" else None
         cloud = user_cloud(d, um.mask, self.frame, nmap, with_pca=self.X is None)
@@ -580,7 +579,8 @@ class DepthTracker:
         ok = a.surface_prim >= 0
         P = data.surface[ok]
         prim = a.surface_prim[ok]
-        D = np.linalg.norm(P[:, None, :] - X[None], axis=-1)           # (B, 13)
+        Q = P[:, None, :] - X[None]
+        D = np.sqrt(np.einsum("bjk,bjk->bj", Q, Q))                      # (B, 13)
         sup = _SUPPORT_MASK[:, prim].T & (D < self.config.support_radius_m)
         out = sup.sum(0) >= self.config.support_min_bins
         uv = self.frame.project(X)
