@@ -16,6 +16,7 @@ module             stage
 ``radial``         the radial-distance profile and its peaks
 ``model``          the 13 control points, body primitives and dimensions
 ``init``           the initial pose (key points, head candidates, back-tracking)
+``primitives``     the body primitives (capsules, spheres, torso) and distances to them
 ``energy``         the fitting energy as stacked residual blocks
 ``constraints``    topological, geometric, velocity, collision constraints
 ``fit``            local Levenberg-Marquardt and guided global changes
@@ -23,6 +24,7 @@ module             stage
 ``stabilise``      threshold-gated progressive filtering
 ``complete``       completion of unseen points (Kalman, gravity, IK, limits)
 ``tracker``        the per-frame pipeline and its states
+``evaluate``       scores against ground truth, plausibility, pictures
 =================  ============================================================
 
 See ``docs/depth_tracking.md``.
