@@ -20,7 +20,8 @@ Per-frame **states**:
 A skeleton that fits poorly for :attr:`TrackerConfig.reinit_after` frames is
 dropped and searched for again.  When tracking, grid bins farther than
 :attr:`TrackerConfig.person_gate_m` from the predicted body are left out, so a
-second person touching the user is not fitted; when the user is first found,
+second person touching the user is not fitted (bins near both go to the nearer
+of the user's body and the other person as last seen); when the user is first found,
 two heads side by side split the grid between two people (the frame's
 ``reason`` says ``"touching"`` in both cases).
 """
@@ -318,6 +319,7 @@ class DepthTracker:
         self.good = 0
         self.poor = 0
         self.touching = 0
+        self.other = None              # view-frame bins of a second person touching the user
         self.state = LOST
 
     @property
@@ -403,6 +405,7 @@ class DepthTracker:
             if keep is not None:
                 reason = "touching"
                 self.touching = cfg.touching_memory
+                self.other = grid.mean[grid.filled & ~keep]
                 grid = replace(grid, filled=grid.filled & keep, occupied=grid.occupied & keep)
         if grid.filled.sum() < cfg.min_bins:
             return self._lost("no user", cloud.n_points, timings)
@@ -414,6 +417,11 @@ class DepthTracker:
             # near the body: many far ones with a head of their own are a second person touching the user
             first = assign(data, predicted, self.dims, cfg.energy)
             near = first.surface_near < cfg.person_gate_m
+            if self.touching > 0 and self.other is not None and len(self.other):
+                # bins near both people go to the nearer one (the other person as last seen)
+                dx = data.surface[:, None, :2] - self.other[None, :, :2]
+                d_other = np.sqrt(np.min(np.einsum("bkc,bkc->bk", dx, dx), axis=1))
+                near &= first.surface_near < d_other
             n_far = int((~near).sum())
             many = n_far > max(cfg.min_bins // 2, cfg.touching_fraction * len(near))
             if many:
@@ -425,6 +433,7 @@ class DepthTracker:
                 # other person's head is not clear)
                 reason = "touching"
                 self.touching = cfg.touching_memory
+                self.other = data.surface[~near]
                 keep = grid.filled & ~far
                 grid = replace(grid, filled=keep, occupied=grid.occupied & keep)
                 if grid.filled.sum() < cfg.min_bins:
@@ -434,6 +443,8 @@ class DepthTracker:
                 first = None
             else:
                 self.touching = max(self.touching - 1, 0)
+                if self.touching == 0:
+                    self.other = None
         centroid = grid.mean[grid.filled].mean(0)
         # the radial profile serves the initial pose, the global moves and the recording only
         need_profile = self.X is None or self.observer is not None or self._moves_due()
@@ -552,7 +563,7 @@ class DepthTracker:
     def _one_person(self, grid, cloud) -> np.ndarray | None:
         """When the user is first found: bins of one person if two heads stand side by side
         (a second person touching the user), else None.  The person kept is the one whose head is
-        nearer the camera's optical axis (the camera is aimed at the user)."""
+        nearer the camera's optical axis sideways (the camera is aimed at the user)."""
         cfg = self.config
         peaks = top_contour_peaks(grid, min_body_m=cfg.min_body_m)
         if len(peaks) < 2:
@@ -564,9 +575,11 @@ class DepthTracker:
         b = others[0]
         x = grid.bin_centres()[..., 0]
         side_a = np.abs(x - a[0]) <= np.abs(x - b[0])
-        # the user is the one the camera is aimed at: the head nearer the optical axis
-        off_a = np.hypot(*(self.frame.to_camera(a)[:2] / max(a[2], 1e-6)))
-        off_b = np.hypot(*(self.frame.to_camera(b)[:2] / max(b[2], 1e-6)))
+        # the user is the one the camera is aimed at: the head nearer the optical axis sideways
+        # (heights differ between people, the aim does not follow them)
+        ca, cb = self.frame.to_camera(a), self.frame.to_camera(b)
+        off_a = abs(ca[0] / max(ca[2], 1e-6))
+        off_b = abs(cb[0] / max(cb[2], 1e-6))
         return side_a if off_a <= off_b else ~side_a
 
     def _observed(self, data: FitData, fit: LocalFit, X: np.ndarray) -> np.ndarray:
