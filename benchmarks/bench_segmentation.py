@@ -39,6 +39,7 @@ sys.path.insert(0, str(ROOT))
 
 from toolkit.io import Dataset  # noqa: E402
 from toolkit.io.layout import load_npz  # noqa: E402
+from toolkit.multiview import image_offsets  # noqa: E402
 from toolkit.segmentation import SegmentationConfig, part_iou, segment_frame  # noqa: E402
 from toolkit.skeleton import SKELETON_14  # noqa: E402
 from toolkit.synthetic import generate_scene, parse_spec  # noqa: E402
@@ -90,8 +91,8 @@ def views(ds: Dataset, s1: Path, source: str, every: int, noise: float, rng):
                 x = g.project(J[t]) + rng.normal(0, noise * subject_height_px(J[t], g), (14, 2))
                 yield t, c, cam, J[t], x
             else:
-                o = off[t, i]
-                cam = camera_with_offset(ds.rig[c], o if np.isfinite(o).all() else np.zeros(2))
+                # stage 1's offsets correct the detected joints; the image needs the opposite shift
+                cam = camera_with_offset(ds.rig[c], image_offsets(off[t, i]))
                 x = p2[c][t] if c in p2 and np.isfinite(p2[c][t]).any() else None
                 yield t, c, cam, p3[t], x
 
