@@ -7,6 +7,7 @@ A scene spec with a ``[depth_camera]`` table makes the generator call
     <root>/depth_camera/depth/NNNNNN.png       uint16 millimetres, 0 = no reading
     <root>/depth_camera/background.png         the empty scene seen by the sensor (same noise)
     <root>/groundtruth/skeleton13.npz          joints (T, 13, 3) metres, world; names (13,); visible (T, 13)
+                                               (seen: not hidden, in the image and the sensor's range)
     <root>/groundtruth/skeleton17.npz          joints (T, 17, 3) metres, world; names (17,); visible (T, 17)
     <root>/groundtruth/depth_camera/masks/NNNNNN.png   uint8 255 where the tracked person is seen
 
@@ -54,9 +55,9 @@ against the mesh).
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator
 
 import numpy as np
 
@@ -64,32 +65,38 @@ from toolkit.anthropometry.proportions import BodyProportions
 from toolkit.cameras import Camera, Rig
 from toolkit.depth.model import control_points
 from toolkit.errors import InputError
-from toolkit.io import atomic_save_npz, atomic_write_png, atomic_write_text, depth_to_mm, frame_filename
+from toolkit.io import (
+    atomic_save_npz,
+    atomic_write_png,
+    atomic_write_text,
+    depth_to_mm,
+    frame_filename,
+)
 from toolkit.observe import as_observer
 from toolkit.skeleton import JOINTS_13, JOINTS_17, SKELETON_13, SKELETON_14, SKELETON_17
 
 __all__ = [
-    "KINECT_AXIAL_NOISE",
-    "KINECT_DISPARITY_STEP",
-    "KINECT_BASELINE_M",
-    "KINECT_RANGE_M",
-    "KINECT_FOV_X_DEG",
-    "EDGE_JUMP_M",
     "EDGE_DROPOUT_PROBABILITY",
+    "EDGE_JUMP_M",
+    "KINECT_AXIAL_NOISE",
+    "KINECT_BASELINE_M",
+    "KINECT_DISPARITY_STEP",
+    "KINECT_FOV_X_DEG",
+    "KINECT_RANGE_M",
     "RANDOM_DROPOUT_PROBABILITY",
-    "DepthCameraSpec",
-    "SecondPerson",
-    "DepthSequence",
     "DepthCameraOutput",
-    "control_points",
-    "control_point_visibility",
-    "depth_camera_for",
+    "DepthCameraSpec",
+    "DepthSequence",
+    "SecondPerson",
     "apply_sensor_noise",
-    "make_second_person",
+    "control_point_visibility",
+    "control_points",
+    "depth_camera_for",
     "iter_depth_frames",
-    "render_depth_sequence",
+    "make_second_person",
     "render_depth_camera",
     "render_depth_dataset",
+    "render_depth_sequence",
 ]
 
 #: Axial noise of Kinect v1, ``sigma(z) = a + b (z - z0)^2`` metres: (a, b, z0)
@@ -198,7 +205,7 @@ class DepthCameraSpec:
             raise InputError("DepthCameraSpec.resolution", "positive [width, height]", f"{self.resolution}")
 
     @classmethod
-    def from_table(cls, table: dict, source: str = "<spec>") -> "DepthCameraSpec":
+    def from_table(cls, table: dict, source: str = "<spec>") -> DepthCameraSpec:
         """Parse a ``[depth_camera]`` table.
 
         Parameters
@@ -321,13 +328,15 @@ _VIS17 = _visible_parts(JOINTS_17)
 
 
 def control_point_visibility(points: np.ndarray, camera: Camera, labels: np.ndarray, subject: np.ndarray,
-                             names=JOINTS_13, subject_id: int = 1) -> np.ndarray:
+                             names=JOINTS_13, subject_id: int = 1, depth: np.ndarray | None = None,
+                             range_m=None) -> np.ndarray:
     """Which control points the camera sees.
 
     A control point is visible when it projects inside the image onto a pixel
     of the same person showing one of the body parts around that point (the
     hand onto its forearm-and-hand part, the hip onto the torso or its thigh,
-    ...), that is when no other part or person hides it.
+    ...), that is when no other part or person hides it, and, if ``depth`` and
+    ``range_m`` are given, when that surface lies within the sensor's range.
 
     Parameters
     ----------
@@ -339,6 +348,10 @@ def control_point_visibility(points: np.ndarray, camera: Camera, labels: np.ndar
     names : sequence of str
         Control point names (``JOINTS_13`` or ``JOINTS_17``).
     subject_id : int
+    depth : ndarray of shape (H, W), optional
+        Exact depth of the ray cast, metres.
+    range_m : tuple of float, optional
+        The sensor's (near, far) range.
 
     Returns
     -------
@@ -354,7 +367,7 @@ def control_point_visibility(points: np.ndarray, camera: Camera, labels: np.ndar
             continue
         c, r = int(round(u)), int(round(v))
         if 0 <= c < w and 0 <= r < h and subject[r, c] == subject_id and labels[r, c] in sets[i]:
-            out[i] = True
+            out[i] = depth is None or range_m is None or bool(range_m[0] <= depth[r, c] <= range_m[1])
     return out
 
 
@@ -576,8 +589,8 @@ def iter_depth_frames(spec: DepthCameraSpec, body_model, joints: np.ndarray, rng
             bodies.append(model2.mesh(J2[t]))
         labels, subject, depth = rc.cast(camera, bodies)
         d = apply_sensor_noise(depth, camera, rng, spec.range_m) if spec.noise else _clip_range(depth, spec.range_m)
-        v13 = control_point_visibility(j13[t], camera, labels, subject, JOINTS_13)
-        v17 = control_point_visibility(j17[t], camera, labels, subject, JOINTS_17)
+        v13 = control_point_visibility(j13[t], camera, labels, subject, JOINTS_13, depth=depth, range_m=spec.range_m)
+        v17 = control_point_visibility(j17[t], camera, labels, subject, JOINTS_17, depth=depth, range_m=spec.range_m)
         yield DepthFrame(t, d, subject, labels, j13[t], j17[t], v13, v17)
 
 
