@@ -29,6 +29,7 @@ from scipy.optimize import least_squares
 
 from toolkit.depth.constraints import ConstraintConfig
 from toolkit.depth.energy import (
+    Assignment,
     EnergyConfig,
     EnergyTerms,
     FitData,

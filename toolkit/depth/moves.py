@@ -29,7 +29,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from toolkit.depth.cloud import principal_direction
 from toolkit.depth.fit import Move
+from toolkit.depth.init import head_candidates, initial_poses, key_points
 from toolkit.depth.model import (
     HEAD,
     L_ELBOW,
@@ -255,25 +257,17 @@ def _head_to_peak(X, ctx):
 
 
 def _reinit(X, ctx):
+    """The initial-pose search on this frame, from a random clustering of the grid."""
     tr = ctx.tracker
     if tr is None:
         return []
-    from toolkit.depth.init import head_candidates, initial_poses, key_points
-
     cfg = tr.config.init
     kp = key_points(ctx.grid, ctx.profile, tr.rng, cfg)
-    c = ctx.grid.mean[ctx.grid.filled].mean(0)
-    from toolkit.depth.cloud import principal_direction
-
-    _, axes, _ = principal_direction(ctx.grid.mean[ctx.grid.filled])
+    pts = ctx.grid.mean[ctx.grid.filled]
+    c, axes, _ = principal_direction(pts)
     heads = head_candidates(kp, c, axes[0], ctx.profile, cfg, ctx.grid)
     poses = initial_poses(ctx.grid, kp, heads[:1], c, axes[0], tr.ground_y, False, cfg)
-    out = []
-    for p in poses:
-        Y = p.X.copy()
-        # keep this user's sizes: rescale about the head
-        out.append(Y)
-    return out
+    return [p.X.copy() for p in poses]
 
 
 def default_moves() -> list:

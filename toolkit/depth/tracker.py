@@ -59,12 +59,6 @@ from toolkit.depth.model import END_SPHERES, LIMBS, N_POINTS
 from toolkit.depth.moves import MoveContext, default_moves
 from toolkit.depth.normals import normal_map
 from toolkit.depth.orus import OrusConfig, build_orus
-from toolkit.depth.primitives import (
-    capsule_distances,
-    primitive_radii,
-    sphere_distances,
-    torso_distance,
-)
 from toolkit.depth.radial import RadialConfig, radial_profile
 from toolkit.depth.stabilise import Stabiliser, StabiliserConfig
 from toolkit.errors import InputError
