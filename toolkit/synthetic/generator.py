@@ -204,7 +204,7 @@ def generate_scene(spec: SceneSpec, out: str | Path, observer: Observer | None =
                                    name="groundtruth/joints2d", skeleton=SKELETON_14)
         if spec.depth_camera is not None:
             from toolkit.synthetic.depth_sensor import DepthCameraSpec, render_depth_camera
-            dspec = DepthCameraSpec.from_table(spec.depth_camera, f"{spec.source}: depth_camera")
+            dspec = DepthCameraSpec.from_table(spec.depth_camera, spec.source)
             render_depth_camera(out, dspec, scene.body, scene.joints, scene.rngs["depth"], observer=obs, fps=spec.fps)
     except BaseException:
         writer.abort()
