@@ -115,7 +115,7 @@ def main(argv=None) -> int:
                 lo, hi = np.nanpercentile(d, [1, 99]) if np.isfinite(d).any() else (0.5, 4.5)
                 img = draw_skeleton(d, uv, r.observed, f"{inp.frames[r.index].name} {r.state_name}", scale=0.5,
                                     depth_range=(float(lo), float(hi) + 0.3))
-                atomic_write_png(args.images / f"{inp.frames[r.index].stem}.png", img)
+                atomic_write_png(args.images / f"skeleton_{r.index:03d}.png", img)  # frame order of the input
 
         t0 = time.perf_counter()
         try:
