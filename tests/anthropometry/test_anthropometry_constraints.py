@@ -235,3 +235,23 @@ def test_bad_input(checker, pose):
         AnthropometricConstraints(limits=bad)
     with pytest.raises(InputError, match="codes"):
         reason_names([7])
+
+
+def test_joint_rules_only_ignores_rules_of_other_joints():
+    """A pose breaking an unrelated rule blocks every candidate unless only the joint's rules are checked."""
+    import numpy as np
+
+    from toolkit.anthropometry import AnthropometricConstraints, BodyProportions
+    from toolkit.skeleton import SKELETON_14
+    cons = AnthropometricConstraints()
+    pose = BodyProportions.from_height(1.75).rest_pose()
+    wr = SKELETON_14.index("l_wrist")
+    el = SKELETON_14.index("l_elbow")
+    pose[wr] = pose[el] + (pose[wr] - pose[el]) * 1.2   # left forearm 20 % longer: asymmetric
+    head = SKELETON_14.index("head")
+    cand = pose[head] + np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0], [0.0, 0.0, 0.5]])
+    ok_all, _ = cons.valid_positions(pose, head, cand)
+    ok_joint, reasons = cons.valid_positions(pose, head, cand, joint_rules_only=True)
+    assert not ok_all.any()
+    assert ok_joint.tolist() == [True, True, False]   # 0.5 m up breaks the neck-head bone
+    assert reasons[2] != 0

@@ -292,13 +292,16 @@ class AnthropometricConstraints:
         return ~self._kind_masks(self._check_candidates(candidates, "candidates")).any(axis=1)
 
     def valid_positions(self, joints, joint_index: int | str,
-                        positions) -> tuple[np.ndarray, np.ndarray]:
+                        positions, *, joint_rules_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Check candidate positions of one joint with the rest of the pose fixed.
 
         Only the rules that involve ``joint_index`` are evaluated per candidate;
         the others are evaluated once on ``joints``.  The result equals
         :meth:`first_violation_kind` of the poses ``joints`` with that joint
-        replaced by each position.
+        replaced by each position.  With ``joint_rules_only`` the rules that do
+        not involve the joint are skipped (the source phrases every rule per
+        joint; a noisy pose breaking an unrelated rule then does not block the
+        joint's search).
 
         Parameters
         ----------
@@ -328,8 +331,11 @@ class AnthropometricConstraints:
         fixed = np.ones(sk.n_joints, bool)
         fixed[j] = False
         m0 = np.zeros(len(REASONS), bool)
-        m0[NON_FINITE] = not np.isfinite(base[fixed]).all()
-        m0[BELOW_GROUND] = bool((base[fixed, 2] < cc.floor[fixed]).any())
+        if joint_rules_only:
+            untouch = suntouch = np.zeros(0, int)
+        else:
+            m0[NON_FINITE] = not np.isfinite(base[fixed]).all()
+            m0[BELOW_GROUND] = bool((base[fixed, 2] < cc.floor[fixed]).any())
         if untouch.size:
             d0 = np.linalg.norm(base[cc.pair_b[untouch]] - base[cc.pair_a[untouch]], axis=-1)
             bad0 = (d0 < cc.pair_lo[untouch]) | (d0 > cc.pair_hi[untouch])
