@@ -76,9 +76,7 @@ def main(argv=None) -> int:
     try:
         ds = Dataset.open(args.dataset)
         rig, names = ds.rig, ds.camera_names
-        n = ds.n_frames if args.max_frames is None else min(args.max_frames, ds.n_frames)
-        if n < 1:
-            raise InputError("--max-frames", "a positive number of frames", str(args.max_frames))
+        n = ds.frames_to_process(args.max_frames)
         out = args.out
         out.mkdir(parents=True, exist_ok=True)
         novel = list(ds.novel_rig) if ds.has_groundtruth and (ds.root / "groundtruth/novel/calibration.toml").exists() \

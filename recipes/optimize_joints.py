@@ -66,9 +66,7 @@ def main(argv=None) -> int:
     try:
         ds = Dataset.open(args.dataset)
         rig, names = ds.rig, ds.camera_names
-        n = ds.n_frames if args.max_frames is None else min(args.max_frames, ds.n_frames)
-        if n < 1:
-            raise InputError("--max-frames", "a positive number of frames", str(args.max_frames))
+        n = ds.frames_to_process(args.max_frames)
         gt = ds.gt_joints3d() if ds.has_groundtruth else None
         if args.poses is not None:
             p3_file = args.poses / "poses3d.npz"

@@ -94,8 +94,6 @@ def main(argv=None) -> int:
     from toolkit.skeleton import SKELETON_14
 
     try:
-        if args.max_frames is not None and args.max_frames < 1:
-            raise InputError("--max-frames", "a positive number of frames", str(args.max_frames))
         ds = Dataset.open(args.dataset, check_sizes=not args.no_check_sizes)
         names = ds.camera_names
         query = QueryConfig(metric=args.metric, flow_weight=args.flow_weight)
@@ -119,7 +117,7 @@ def main(argv=None) -> int:
         plates = None
         if args.plates is not None:
             plates = {c: [read_png(args.plates / f"{c}.png", channels=3, dtype=np.uint8)] for c in names}
-        n = ds.n_frames if args.max_frames is None else min(args.max_frames, ds.n_frames)
+        n = ds.frames_to_process(args.max_frames)
         args.out.mkdir(parents=True, exist_ok=True)
         observer = None
         if not args.no_recording:

@@ -85,7 +85,7 @@ def main(argv=None) -> int:
         config = _config(args.config)
         ds = Dataset.open(args.dataset)
         names = ds.camera_names
-        n = ds.n_frames if args.max_frames is None else max(0, min(args.max_frames, ds.n_frames))
+        n = ds.frames_to_process(args.max_frames)
         if args.gt_joints:
             poses = PoseSource(ds.gt_rig, ds.gt_joints3d(), ds.gt_joints2d(), name="groundtruth")
         elif args.poses is not None:

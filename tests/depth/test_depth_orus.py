@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import make_sequence
+from tests.depth.conftest import make_sequence
 
 from toolkit.depth.cloud import ViewFrame, user_cloud
 from toolkit.depth.curvature import CONCAVE, CONVEX, PLANAR, curvature_centres

@@ -8,7 +8,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import REPO_ROOT
+from tests.depth.conftest import REPO_ROOT
 
 from toolkit.anthropometry.proportions import BodyProportions
 from toolkit.depth.cloud import ViewFrame

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import make_sequence, mpjpe
+from tests.depth.conftest import make_sequence, mpjpe
 
 from toolkit.depth.constraints import ConstraintConfig, constraint_violations
 from toolkit.depth.model import BodyDimensions

@@ -81,6 +81,18 @@ def _ik(X, chain, target, dims, pole):
     return Y
 
 
+def _reach(X, chain, tip, kind, dims, hand_pole):
+    """Move a limb chain's end to ``tip`` by IK, bending the way it bends now.
+
+    A straight limb has no bending direction; then ``hand_pole`` (arms) or
+    backwards-down (legs) is used.
+    """
+    pole = X[chain[1]] - 0.5 * (X[chain[0]] + X[chain[2]])
+    if np.linalg.norm(pole) < 1e-3:
+        pole = np.array(hand_pole, float) if kind == "hand" else np.array([0.0, 0.0, -1.0])
+    return _ik(X, chain, tip, dims, pole)
+
+
 def _unexplained_peaks(X, ctx):
     prof = ctx.profile
     out = []
@@ -114,10 +126,7 @@ def _limb_to_peak(X, ctx):
         if best is None:
             continue
         _, chain, tip, kind = best
-        pole = X[chain[1]] - 0.5 * (X[chain[0]] + X[chain[2]])
-        if np.linalg.norm(pole) < 1e-3:
-            pole = np.array([0.0, 1.0, 0.3]) if kind == "hand" else np.array([0.0, 0.0, -1.0])
-        cands.append(_ik(X, chain, tip, dims, pole))
+        cands.append(_reach(X, chain, tip, kind, dims, hand_pole=(0.0, 1.0, 0.3)))
     return cands
 
 
@@ -166,10 +175,7 @@ def _limb_to_data(X, ctx):
         if best is None:
             continue
         _, chain, tip, kind = best
-        pole = X[chain[1]] - 0.5 * (X[chain[0]] + X[chain[2]])
-        if np.linalg.norm(pole) < 1e-3:
-            pole = np.array([0.0, 0.3, 1.0]) if kind == "hand" else np.array([0.0, 0.0, -1.0])
-        cands.append(_ik(X, chain, tip, dims, pole))
+        cands.append(_reach(X, chain, tip, kind, dims, hand_pole=(0.0, 0.3, 1.0)))
     return cands
 
 

@@ -738,6 +738,20 @@ class Dataset:
         cam = self._novel_cam(camera)
         return self._read(self.layout.novel_parts(camera, self._index(i)), cam, 1, np.uint8)
 
+    def frames_to_process(self, max_frames: int | None = None) -> int:
+        """How many frames to process: all, or the first ``max_frames`` (the recipes' ``--max-frames``).
+
+        Raises
+        ------
+        InputError
+            If ``max_frames`` is given and below 1.
+        """
+        if max_frames is None:
+            return self.n_frames
+        if max_frames < 1:
+            raise InputError("--max-frames", "a positive number of frames", str(max_frames))
+        return min(int(max_frames), self.n_frames)
+
     # -- optional files
     def background(self, camera: str) -> np.ndarray | None:
         """The clean plate of ``camera`` (``background/<camera>.png``), (H, W, 3) uint8 RGB, or None."""

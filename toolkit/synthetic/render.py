@@ -194,6 +194,7 @@ class Raycaster:
     def __init__(self, surfaces: list[Surface] = ()):
         self.surfaces = list(surfaces)
         self._dirs: dict = {}
+        self._env_depth: dict = {}
 
     def _cam_dirs(self, camera: Camera) -> np.ndarray:
         key = (camera.K.tobytes(), camera.dist.tobytes(), camera.size)
@@ -222,33 +223,39 @@ class Raycaster:
         depth : ndarray of shape (H, W), float32
             Camera-frame z of the nearest surface in metres, NaN where nothing is hit.
         """
-        scene = o3d.t.geometry.RaycastingScene()
-        parts = []
-        for b in bodies:
-            scene.add_triangles(o3d.core.Tensor(b.vertices.astype(np.float32)),
-                                o3d.core.Tensor(b.triangles.astype(np.uint32)))
-            parts.append(b.triangle_parts)
-        for s in self.surfaces:
-            scene.add_triangles(o3d.core.Tensor(s.vertices.astype(np.float32)),
-                                o3d.core.Tensor(s.triangles.astype(np.uint32)))
         d_cam = self._cam_dirs(camera)
         h, w = d_cam.shape[:2]
         rays = np.empty((h, w, 6), np.float32)
         rays[..., :3] = camera.center
         rays[..., 3:] = d_cam @ camera.R.astype(np.float32)  # unnormalised: t_hit is camera z directly
-        ans = scene.cast_rays(o3d.core.Tensor(rays))
-        t = ans["t_hit"].numpy()
-        gid = ans["geometry_ids"].numpy().astype(np.int64)
-        pid = ans["primitive_ids"].numpy().astype(np.int64)
-        hit = np.isfinite(t)
-        depth = np.where(hit, t, np.nan).astype(np.float32)
-        h, w = t.shape
+        # the surroundings are static: their depth is cast once per camera
+        key = (camera.K.tobytes(), camera.dist.tobytes(), camera.cam_from_world.tobytes())
+        if key not in self._env_depth:
+            env = o3d.t.geometry.RaycastingScene()
+            for s in self.surfaces:
+                env.add_triangles(o3d.core.Tensor(s.vertices.astype(np.float32)),
+                                  o3d.core.Tensor(s.triangles.astype(np.uint32)))
+            self._env_depth[key] = env.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
+        env_t = self._env_depth[key]
         labels = np.zeros((h, w), np.uint8)
         subject = np.zeros((h, w), np.uint8)
-        for i, tp in enumerate(parts):
-            sel = hit & (gid == i)
-            labels[sel] = tp[pid[sel]]
-            subject[sel] = i + 1
+        t = env_t
+        if bodies:
+            scene = o3d.t.geometry.RaycastingScene()
+            for b in bodies:
+                scene.add_triangles(o3d.core.Tensor(b.vertices.astype(np.float32)),
+                                    o3d.core.Tensor(b.triangles.astype(np.uint32)))
+            ans = scene.cast_rays(o3d.core.Tensor(rays))
+            tb = ans["t_hit"].numpy()
+            gid = ans["geometry_ids"].numpy().astype(np.int64)
+            pid = ans["primitive_ids"].numpy().astype(np.int64)
+            front = np.isfinite(tb) & (tb <= env_t)  # inf where no surroundings are hit
+            for i, b in enumerate(bodies):
+                sel = front & (gid == i)
+                labels[sel] = b.triangle_parts[pid[sel]]
+                subject[sel] = i + 1
+            t = np.where(front, tb, env_t)
+        depth = np.where(np.isfinite(t), t, np.nan).astype(np.float32)
         return labels, subject, depth
 
 
