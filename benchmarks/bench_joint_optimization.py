@@ -39,6 +39,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
+import shutil  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
@@ -55,6 +56,7 @@ from toolkit.billboards import PositionScorer, detect_seams  # noqa: E402
 from toolkit.io import Dataset  # noqa: E402
 from toolkit.multiview import image_offsets  # noqa: E402
 from toolkit.optimize import OptimizeConfig, optimize_pose  # noqa: E402
+from toolkit.calibration import stage_rig  # noqa: E402
 from toolkit.synthetic import generate_scene, parse_spec  # noqa: E402
 
 #: RMS 3D displacement of the ground-truth start, metres (issue 5: "5 cm noise").
@@ -82,7 +84,9 @@ count = 0
 
 def scene(out: Path, cams: int, err: float, frames: int, seed: int) -> Path:
     root = out / f"broadcast_{cams}cams_{int(err)}px_{frames}f_seed{seed}"
-    if not (root / "calibration.toml").exists():
+    if not (root / "field_model.json").exists():  # missing, or cached before datasets had field models
+        shutil.rmtree(root, ignore_errors=True)
+        shutil.rmtree(out / (root.name + "_stage1"), ignore_errors=True)
         spec = parse_spec(SPEC.format(seed=seed + 17 * cams + int(err), frames=frames, cams=cams, err=err),
                           f"{root.name}.toml")
         generate_scene(spec, root, progress=False).close()
@@ -91,7 +95,7 @@ def scene(out: Path, cams: int, err: float, frames: int, seed: int) -> Path:
 
 def stage1(root: Path, out: Path) -> Path | None:
     s1 = out / (root.name + "_stage1")
-    if not (s1 / "poses3d.npz").exists():
+    if not (s1 / "poses3d.npz").exists() or not (s1 / "calibration.toml").exists():
         r = subprocess.run([sys.executable, str(ROOT / "recipes" / "pose_from_silhouettes.py"), str(root),
                             "--out", str(s1), "--no-recording", "--quiet"], capture_output=True, text=True)
         if r.returncode != 0:
@@ -156,7 +160,7 @@ def main(argv=None) -> int:
                     eval_ms.append(float(np.median(reps)))
                 starts = [("gt+5cm", gt[t] + rng.normal(0, GT_NOISE_M / np.sqrt(3), gt[t].shape), scorer)]
                 if have_s1:
-                    s1_scorer = PositionScorer(images, labels, ds.rig, image_offsets(s1_offsets[t]), seams)
+                    s1_scorer = PositionScorer(images, labels, stage_rig(ds, s1), image_offsets(s1_offsets[t]), seams)
                     starts.insert(0, ("stage1", s1_joints[t], s1_scorer))
                 for name, J0, scorer in starts:
                     res = optimize_pose(scorer, J0, cons, config)

@@ -26,6 +26,7 @@ labelling, and the labels after the closing; plus the median time per view.
 from __future__ import annotations
 
 import argparse
+import shutil
 import subprocess
 import sys
 import time
@@ -42,6 +43,7 @@ from toolkit.io.layout import load_npz  # noqa: E402
 from toolkit.multiview import image_offsets  # noqa: E402
 from toolkit.segmentation import SegmentationConfig, part_iou, segment_frame  # noqa: E402
 from toolkit.skeleton import SKELETON_14  # noqa: E402
+from toolkit.calibration import stage_rig  # noqa: E402
 from toolkit.synthetic import generate_scene, parse_spec  # noqa: E402
 from toolkit.template import Template, camera_with_offset, subject_height_px  # noqa: E402
 
@@ -64,10 +66,13 @@ def _spec(name, seed, layout, motion, n_cams, err, height):
 def prepare(cache: Path, scene) -> tuple[Path, Path]:
     """Generate the scene and run stage 1 once; returns (dataset, stage-1 output)."""
     ds, s1 = cache / "scenes" / scene[0], cache / "stage1" / scene[0]
-    if not (ds / "groundtruth").is_dir():
+    stale = scene[2] == "broadcast" and not (ds / "field_model.json").is_file()  # cached before field models
+    if stale or not (ds / "groundtruth").is_dir():
         print(f"generating {scene[0]} ...", flush=True)
+        shutil.rmtree(ds, ignore_errors=True)
+        shutil.rmtree(s1, ignore_errors=True)
         generate_scene(parse_spec(_spec(*scene)), ds, progress=False)
-    if not (s1 / "poses3d.npz").is_file():
+    if not (s1 / "poses3d.npz").is_file() or not (s1 / "calibration.toml").is_file():
         print(f"stage 1 on {scene[0]} ...", flush=True)
         subprocess.run([sys.executable, str(ROOT / "recipes" / "pose_from_silhouettes.py"), str(ds), "--out",
                         str(s1), "--quiet", "--no-recording"], check=True, stdout=subprocess.DEVNULL)
@@ -81,6 +86,7 @@ def views(ds: Dataset, s1: Path, source: str, every: int, noise: float, rng):
         p3 = load_npz(s1 / "poses3d.npz")["joints"]
         p2 = load_npz(s1 / "poses2d.npz")
         off = load_npz(s1 / "offsets.npz")["offsets"]
+        rig1 = stage_rig(ds, s1)  # the cameras stage 1 used (refined on the field lines where it could)
     for t in range(0, ds.n_frames, every):
         for i, c in enumerate(ds.camera_names):
             if source == "gt":
@@ -92,7 +98,7 @@ def views(ds: Dataset, s1: Path, source: str, every: int, noise: float, rng):
                 yield t, c, cam, J[t], x
             else:
                 # stage 1's offsets correct the detected joints; the image needs the opposite shift
-                cam = camera_with_offset(ds.rig[c], image_offsets(off[t, i]))
+                cam = camera_with_offset(rig1[c], image_offsets(off[t, i]))
                 x = p2[c][t] if c in p2 and np.isfinite(p2[c][t]).any() else None
                 yield t, c, cam, p3[t], x
 

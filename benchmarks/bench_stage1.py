@@ -9,9 +9,11 @@ Usage::
 Scenes are made by the scene generator (``toolkit.synthetic``): broadcast
 layout, three cameras at 1280x720, 8 px of calibration error, a different
 motion per seed; they are rendered once into ``--scenes`` and reused.  Each
-scene is evaluated in four configurations: its first two cameras or all
-three, each with the measured calibration (8 px error) or the true one
-(0 px).  Per configuration, against ground truth:
+scene is evaluated in six configurations: its first two cameras or all
+three, each with the true calibration (0 px), the measured one (8 px
+error), and the measured one refined on the pitch's field lines
+(``toolkit.calibration``, from the clean plates and the dataset's field
+model) before stage 1.  Per configuration, against ground truth:
 
 * silhouette IoU of the foreground extraction (background subtraction, the
   background learned from a clean plate: the empty scene rendered per camera);
@@ -38,6 +40,7 @@ import argparse
 import json
 import sys
 import time
+from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -45,24 +48,21 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from toolkit.calibration import calibration_error_px, refine_rig  # noqa: E402
 from toolkit.cameras import Rig  # noqa: E402
 from toolkit.foreground import mask_iou  # noqa: E402
-from toolkit.io import Dataset, atomic_write_png, read_png  # noqa: E402
+from toolkit.io import Dataset  # noqa: E402
 from toolkit.multiview import offsets_modulo_gauge  # noqa: E402
 from toolkit.silhouettes import SilhouetteDatabase, default_database  # noqa: E402
 from toolkit.silhouettes.pipeline import FRAME_OK, estimate_dataset  # noqa: E402
 from toolkit.skeleton import SKELETON_14  # noqa: E402
 from toolkit.synthetic import generate_scene, parse_spec  # noqa: E402
-from toolkit.synthetic.environment import make_environment  # noqa: E402
-from toolkit.synthetic.generator import build_scene, make_renderer  # noqa: E402
 
 #: Seeds and motions of the benchmark scenes.
 SCENES = ((1, "walk"), (2, "run"), (3, "kick"), (4, "wave"))
 FRAMES = 16
 QUICK_FRAMES = 6
 CALIBRATION_ERROR_PX = 8.0
-#: Sub-folder of a scene holding its clean plates (the empty scene per camera).
-PLATES = "plates"
 #: PCK threshold: fraction of the ground-truth silhouette's bounding-box height.
 PCK_FRACTION = 0.1
 #: Joints whose left/right labels can swap (all but head and neck).
@@ -70,7 +70,8 @@ LATERAL = np.array([i for i, n in enumerate(SKELETON_14.joint_names) if n[:2] in
 FLIP = SKELETON_14.flip_permutation
 PELVIS = [SKELETON_14.index("l_hip"), SKELETON_14.index("r_hip")]
 
-SPEC = """name = "stage1_seed{seed}"
+SPEC = """# scene format 2: field lines painted from the field model
+name = "stage1_seed{seed}"
 seed = {seed}
 frames = {frames}
 fps = 25
@@ -97,22 +98,8 @@ def scene(root: Path, seed: int, motion: str, frames: int) -> tuple[Dataset, dic
         print(f"generating {out} ...", flush=True)
         generate_scene(spec, out, progress=False).close()
     ds = Dataset.open(out)
-    plates = {}
-    for cam in ds.gt_rig:
-        path = out / PLATES / f"{cam.name}.png"
-        if not path.is_file():
-            plates_of_scene(spec, out / PLATES)
-        plates[cam.name] = [read_png(path, channels=3, dtype=np.uint8)]
+    plates = {cam.name: [ds.background(cam.name)] for cam in ds.gt_rig}  # the generator's clean plates
     return ds, plates
-
-
-def plates_of_scene(spec, folder: Path) -> None:
-    """Render the empty scene (no person) once per camera with the generator's renderer."""
-    scene = build_scene(spec)
-    renderer = make_renderer(spec, make_environment(spec.layout, scene.rngs["environment"]))
-    for cam in scene.rig:
-        atomic_write_png(folder / f"{cam.name}.png", np.clip(renderer.background_plate(cam) + 0.5, 0, 255)
-                         .astype(np.uint8))
 
 
 @dataclass
@@ -219,32 +206,44 @@ def main(argv=None) -> int:
     print(f"database: {db_path} ({len(db)} entries, loaded/built in {time.perf_counter() - t0:.1f} s)")
     scenes = SCENES[:1] if args.quick else SCENES
     frames = QUICK_FRAMES if args.quick else FRAMES
-    configs = [(2, 0.0), (2, CALIBRATION_ERROR_PX), (3, 0.0), (3, CALIBRATION_ERROR_PX)]
+    # (cameras, calibration error, refined on the field lines before stage 1)
+    configs = [(2, 0.0, False), (2, CALIBRATION_ERROR_PX, False), (2, CALIBRATION_ERROR_PX, True),
+               (3, 0.0, False), (3, CALIBRATION_ERROR_PX, False), (3, CALIBRATION_ERROR_PX, True)]
     tallies = {c: Tally() for c in configs}
+    calib_px: dict = defaultdict(list)
+    t_refine: list = []
     for seed, motion in scenes:
         ds, plates = scene(args.scenes, seed, motion, frames)
         measured, truth = ds.rig, ds.gt_rig
-        for n_cams, error in configs:
+        t1 = time.perf_counter()
+        refined, _ = refine_rig(measured, {c: p[0] for c, p in plates.items()}, ds.field_model())
+        t_refine.append((time.perf_counter() - t1) / len(measured))
+        J = ds.gt_joints3d()
+        for c in measured:
+            calib_px[c.name, False].append(calibration_error_px(c, truth[c.name], J))
+            calib_px[c.name, True].append(calibration_error_px(refined[c.name], truth[c.name], J))
+        for n_cams, error, lines in configs:
             names = measured.names[:n_cams]
             true_rig = Rig(tuple(truth[n] for n in names))
-            rig = true_rig if error == 0 else Rig(tuple(measured[n] for n in names))
-            evaluate(ds, db, rig, true_rig, plates, tallies[(n_cams, error)])
+            rig = true_rig if error == 0 else Rig(tuple((refined if lines else measured)[n] for n in names))
+            evaluate(ds, db, rig, true_rig, plates, tallies[(n_cams, error, lines)])
         ds.close()
 
-    header = ("cams", "calib px", "frames", "3D ok", "IoU", "PCK top1", "PCK best-k", "PCK chosen", "MPJPE mm",
+    header = ("cams", "calibration", "frames", "3D ok", "IoU", "PCK top1", "PCK best-k", "PCK chosen", "MPJPE mm",
               "MPJPE med", "root-rel mm", "inj. px", "offset err px", "mod gauge px", "swap 2D %", "swap 3D %",
               "fg ms", "query ms", "mview ms")
     rows = []
     figures = {}
-    for (n_cams, error), t in tallies.items():
-        row = (str(n_cams), f"{error:g}", str(t.frames), str(t.estimated), fmt(t.iou, digits=3),
+    for (n_cams, error, lines), t in tallies.items():
+        label = f"{error:g} px" + (" + lines" if lines else "")
+        row = (str(n_cams), label, str(t.frames), str(t.estimated), fmt(t.iou, digits=3),
                fmt(t.pck_top1, 100, 0), fmt(t.pck_bestk, 100, 0), fmt(t.pck_chosen, 100, 0), fmt(t.mpjpe, 1000, 0),
                fmt(t.mpjpe, 1000, 0, np.median), fmt(t.mpjpe_root, 1000, 0), fmt(t.injected), fmt(t.offset_raw),
                fmt(t.offset_gauge), fmt(t.swap2d, 100, 0), fmt(t.swap3d, 100, 0),
                fmt(np.asarray(t.t_foreground) / n_cams, 1000, 0), fmt(np.asarray(t.t_query) / n_cams, 1000, 1),
                fmt(t.t_multiview, 1000, 0))
         rows.append(row)
-        figures[f"{n_cams}cams_{error:g}px"] = dict(zip(header, row))
+        figures[f"{n_cams}cams_{error:g}px{'_lines' if lines else ''}"] = dict(zip(header, row))
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
     line = "  ".join(h.rjust(w) for h, w in zip(header, widths))
     print(f"\nstage 1 over {len(scenes)} broadcast scene(s) x {frames} frames "
@@ -253,6 +252,15 @@ def main(argv=None) -> int:
     print("-" * len(line))
     for r in rows:
         print("  ".join(v.rjust(w) for v, w in zip(r, widths)))
+    before = [v for (c, r), vals in calib_px.items() if not r for v in vals]
+    after = [v for (c, r), vals in calib_px.items() if r for v in vals]
+    print(f"\nfield-line refinement: calibration error at the joints {fmt(before, digits=2)} px -> "
+          f"{fmt(after, digits=2)} px (mean over cameras; worst {fmt(after, digits=2, stat=np.max)} px), "
+          f"{fmt(t_refine, 1000, 0)} ms per camera")
+    figures["field_line_refinement"] = {"calibration_px_before": fmt(before, digits=2),
+                                        "calibration_px_after": fmt(after, digits=2),
+                                        "calibration_px_after_worst": fmt(after, digits=2, stat=np.max),
+                                        "ms_per_camera": fmt(t_refine, 1000, 0)}
     print("\nIoU and PCK per view and frame; MPJPE per estimated frame (mean, median); offsets per view and frame")
     print("(injected = |true image shift|); swap 2D per view, swap 3D per frame; times per frame and camera")
     print("(foreground, query) or per frame (multi-view selection).")

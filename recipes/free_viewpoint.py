@@ -53,6 +53,8 @@ def main(argv=None) -> int:
     ap.add_argument("--no-baselines", action="store_true", help="do not render standard billboards / visual hull")
     ap.add_argument("--renderer", choices=("cpu", "open3d"), default="cpu",
                     help="CPU compositor (fast) or Open3D's off-screen renderer (same blend, ~1 s per view)")
+    ap.add_argument("--keep-calibration", action="store_true",
+                    help="do not refine the cameras on the dataset's field lines (field_model.json)")
     ap.add_argument("--no-recording", action="store_true", help="do not write recording.rrd")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
     args = ap.parse_args(argv)
@@ -63,6 +65,7 @@ def main(argv=None) -> int:
     from tqdm import tqdm
 
     from toolkit.foreground import BackgroundConfig, ForegroundConfig
+    from toolkit.calibration import cameras_for_run
     from toolkit.cameras import closest_point_to_rays
     from toolkit.io import Dataset, atomic_save_npz, atomic_write_png, atomic_write_text, write_video
     from toolkit.io.frames import frame_filename, read_png
@@ -75,7 +78,7 @@ def main(argv=None) -> int:
 
     try:
         ds = Dataset.open(args.dataset)
-        rig, names = ds.rig, ds.camera_names
+        names = ds.camera_names
         n = ds.frames_to_process(args.max_frames)
         out = args.out
         out.mkdir(parents=True, exist_ok=True)
@@ -83,6 +86,20 @@ def main(argv=None) -> int:
             else []
         if not novel:
             print("note: the dataset has no novel cameras; rendering the camera paths only (no image metrics)")
+        observer = None
+        if not args.no_recording:
+            from toolkit.viz import RerunObserver
+            observer = RerunObserver(application_id="free_viewpoint", path=out / "recording.rrd",
+                                     camera_names=names + [c.name for c in novel])
+            if novel:
+                observer.report("rig", rig=ds.novel_rig)
+            observer.report("skeleton", skeleton=SKELETON_14)
+        done = {t for t in range(n) if (out / "frames" / frame_filename(t, ".json")).exists()}
+        # frames finished by a run that predates calibration.toml used the measured cameras
+        rig = cameras_for_run(ds, out, refine=not (args.keep_calibration or (done and not (out / "calibration.toml")
+                                                                             .exists())), observer=observer)
+        if observer is not None:
+            observer.report("rig", rig=rig)
         plates = BackgroundPlates(ds.scene_toml) if ds.scene_toml is not None else None
         target = closest_point_to_rays(rig.centers, np.array([c.forward for c in rig]))[0]
         paths = {"orbit": orbit_path(target, n, radius_m=float(np.median(np.linalg.norm(rig.centers - target, axis=1))),
@@ -90,19 +107,9 @@ def main(argv=None) -> int:
                                      focal_px=float(rig[0].K[0, 0])),
                  "sweep": source_path(rig, max(n, 2), closed=True)[:n],
                  "birds_eye": [birds_eye(rig, target)] * n}
-        done = {t for t in range(n) if (out / "frames" / frame_filename(t, ".json")).exists()}
         todo = [t for t in range(n) if t not in done]
         if done:
             print(f"resuming: {len(done)} of {n} frames already finished")
-        observer = None
-        if not args.no_recording:
-            from toolkit.viz import RerunObserver
-            observer = RerunObserver(application_id="free_viewpoint", path=out / "recording.rrd",
-                                     camera_names=names + [c.name for c in novel])
-            observer.report("rig", rig=rig)
-            if novel:
-                observer.report("rig", rig=ds.novel_rig)
-            observer.report("skeleton", skeleton=SKELETON_14)
         config = FreeViewpointConfig(optimize=not args.no_optimize, baselines=not args.no_baselines)
         processor = FrameProcessor(rig, config, observer)
         if args.renderer == "open3d":
@@ -121,7 +128,7 @@ def main(argv=None) -> int:
         try:
             fg = ForegroundConfig(method="chroma") if args.foreground == "chroma" else \
                 ForegroundConfig(background=replace(BackgroundConfig(), method=args.foreground))
-            run = estimate_dataset(ds, db, foreground=fg, frames=todo, observer=observer) if todo else iter(())
+            run = estimate_dataset(ds, db, foreground=fg, frames=todo, rig=rig, observer=observer) if todo else iter(())
             for est, masks in tqdm(run, total=len(todo), desc="free viewpoint", unit="frame", disable=args.quiet):
                 t0 = time.perf_counter()
                 t = est.frame

@@ -58,6 +58,7 @@ def main(argv=None) -> int:
     import numpy as np
 
     from toolkit.anthropometry import AnthropometricConstraints
+    from toolkit.calibration import stage_rig
     from toolkit.billboards import PositionScorer, build_billboards, detect_seams
     from toolkit.io import Dataset, atomic_save_npz, atomic_write_text, frame_filename, mm_to_depth, read_png
     from toolkit.optimize import OptimizeConfig, optimize_pose
@@ -76,6 +77,7 @@ def main(argv=None) -> int:
             if "joints" not in p3:
                 raise InputError(str(args.poses / "poses3d.npz"), "an array 'joints' (T, 14, 3)", f"{list(p3)}")
             init = np.asarray(p3["joints"], float)
+            rig = stage_rig(ds, args.poses)  # the cameras stage 1 used (refined on field lines or measured)
             offs_file = args.poses / "offsets.npz"
             from toolkit.multiview import image_offsets
             offsets = image_offsets(np.load(offs_file)["offsets"]) if offs_file.exists() else \

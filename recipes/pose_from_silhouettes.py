@@ -67,6 +67,8 @@ def main(argv=None) -> int:
                          "(default: each camera's video)")
     ap.add_argument("--no-check-sizes", action="store_true",
                     help="accept videos whose size differs from the calibration (docs/dataset_layout.md)")
+    ap.add_argument("--keep-calibration", action="store_true",
+                    help="do not refine the cameras on the dataset's field lines (field_model.json)")
     ap.add_argument("--no-images", action="store_true", help="do not log the camera images (smaller recording)")
     ap.add_argument("--no-recording", action="store_true", help="do not write recording.rrd")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -79,6 +81,7 @@ def main(argv=None) -> int:
     from toolkit.foreground import BackgroundConfig, ForegroundConfig
     import numpy as np
 
+    from toolkit.calibration import cameras_for_run
     from toolkit.io import Dataset, atomic_write_text, read_png
     from toolkit.silhouettes import (
         QueryConfig,
@@ -124,15 +127,17 @@ def main(argv=None) -> int:
             from toolkit.viz import RerunObserver
             observer = RerunObserver(application_id="pose_from_silhouettes", path=args.out / "recording.rrd",
                                      camera_names=names)
-            observer.report("rig", rig=ds.rig)
             observer.report("skeleton", skeleton=SKELETON_14)
+        rig = cameras_for_run(ds, args.out, refine=not args.keep_calibration, observer=observer)
+        if observer is not None:
+            observer.report("rig", rig=rig)
         n_db = len(db)
         estimates = []
         t0 = time.perf_counter()
         stopped = ""
         try:
             run = estimate_dataset(ds, db, config, foreground=fg, frames=range(n), edits=edits, backgrounds=plates,
-                                   observer=observer, log_images=not args.no_images)
+                                   rig=rig, observer=observer, log_images=not args.no_images)
             for est, _ in tqdm(run, total=n, desc="stage 1", unit="frame", disable=args.quiet):
                 estimates.append(est)
                 if len(estimates) % CHECKPOINT_FRAMES == 0:
@@ -164,6 +169,7 @@ def main(argv=None) -> int:
     print(f"  2D poses:  {args.out / 'poses2d.npz'}  (one (T, 14, 2) array per camera, pixels)")
     print(f"  3D joints: {args.out / 'poses3d.npz'}  (joints (T, 14, 3) metres, names, state)")
     print(f"  offsets:   {args.out / 'offsets.npz'}  (offsets (T, cameras, 2) pixels)")
+    print(f"  cameras:   {args.out / 'calibration.toml'}  (the calibration used: refined on field lines or measured)")
     print(f"  edits:     {args.out / 'edits_template.toml'}  (copy the frames to correct into an edits file)")
     if not args.no_recording:
         print(f"  recording: {args.out / 'recording.rrd'}   (open with: rerun {args.out / 'recording.rrd'})")

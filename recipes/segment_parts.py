@@ -96,7 +96,8 @@ def main(argv=None) -> int:
                 if k not in d:
                     raise InputError(str(args.poses / f), f"an array '{k}'", f"arrays {sorted(d)}")
             from toolkit.multiview import image_offsets
-            poses = PoseSource(ds.rig, p3["joints"], {c: p2[c] for c in names if c in p2}, image_offsets(off["offsets"]),
+            from toolkit.calibration import stage_rig
+            poses = PoseSource(stage_rig(ds, args.poses), p3["joints"], {c: p2[c] for c in names if c in p2}, image_offsets(off["offsets"]),
                                name=str(args.poses))
         else:
             print("no --poses or --gt-joints: the template is a standing pose fitted to each silhouette's box")

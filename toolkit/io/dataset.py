@@ -326,6 +326,13 @@ class DatasetWriter:
                              f"shape {img.shape}, dtype {img.dtype}")
         return atomic_write_png(self.layout.background_dir / f"{camera}.png", img)
 
+    def write_field_model(self, model) -> Path:
+        """Write the ground's painted lines (a :class:`toolkit.calibration.FieldModel`) to ``field_model.json``."""
+        from toolkit.calibration.field import write_field_model
+
+        self._open_check("write_field_model")
+        return write_field_model(self.layout.field_model, model)
+
     def write_scene_toml(self, text: str) -> Path:
         """Write ``scene.toml`` (a copy of the scene spec)."""
         self._open_check("write_scene_toml")
@@ -760,6 +767,13 @@ class Dataset:
         if not path.is_file():
             return None
         return self._read(path, cam, 3, np.uint8)
+
+    def field_model(self):
+        """The ground's painted lines (``field_model.json``) as a :class:`toolkit.calibration.FieldModel`, or None."""
+        from toolkit.calibration.field import read_field_model
+
+        path = self.layout.field_model
+        return read_field_model(path) if path.is_file() else None
 
     @property
     def scene_toml(self) -> Path | None:

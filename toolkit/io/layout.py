@@ -60,6 +60,7 @@ class DatasetLayout:
     DEPTH = "depth"
     NOVEL = "novel"
     SCENE_TOML = "scene.toml"
+    FIELD_MODEL = "field_model.json"
     SCENE_RRD = "scene.rrd"
 
     def __post_init__(self):
@@ -84,6 +85,11 @@ class DatasetLayout:
     @property
     def scene_toml(self) -> Path:
         return self.root / self.SCENE_TOML
+
+    @property
+    def field_model(self) -> Path:
+        """``field_model.json``: optional painted lines of the ground (:mod:`toolkit.calibration.field`)."""
+        return self.root / self.FIELD_MODEL
 
     @property
     def scene_rrd(self) -> Path:

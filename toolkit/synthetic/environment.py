@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from toolkit.calibration.field import soccer_pitch
 from toolkit.errors import InputError
 
 
@@ -59,7 +60,11 @@ def _quad(name, corners, texture):
     return Surface(name, V, T, UV, texture)
 
 
-def _pitch(rng, half_x=60.0, half_y=40.0, res=4096):
+#: Half-size of the broadcast grass, metres (the field lines lie 5 m inside it).
+PITCH_HALF_X, PITCH_HALF_Y = 60.0, 40.0
+
+
+def _pitch(rng, half_x=PITCH_HALF_X, half_y=PITCH_HALF_Y, res=4096):
     w = res
     h = int(res * half_y / half_x)
     tex = _noise_texture(rng, (h, w), [0.20, 0.50, 0.18], 0.18, 1.2)
@@ -68,18 +73,14 @@ def _pitch(rng, half_x=60.0, half_y=40.0, res=4096):
     stripes = (np.floor(x / 5.0) % 2 == 0)[None, :, None]
     tex = np.where(stripes, tex * 1.12, tex * 0.92)
     img = np.clip(tex * 255, 0, 255).astype(np.uint8)
-    px = w / (2 * half_x)  # texels per metre
-
-    def P(xm, ym):
-        return int(round((xm + half_x) * px)), int(round((half_y - ym) * px))
+    px, py = w / (2 * half_x), h / (2 * half_y)  # texels per metre
 
     white = (235, 235, 235)
     t = max(1, int(round(0.12 * px)))
-    cv2.line(img, P(0, -half_y + 5), P(0, half_y - 5), white, t)
-    cv2.circle(img, P(0, 0), int(9.15 * px), white, t)
-    cv2.rectangle(img, P(-half_x + 5, half_y - 5), P(half_x - 5, -half_y + 5), white, t)
-    cv2.rectangle(img, P(-half_x + 5, 20), P(-half_x + 21.5, -20), white, t)
-    cv2.rectangle(img, P(half_x - 21.5, 20), P(half_x - 5, -20), white, t)
+    # the painted lines are those of the field model written into broadcast datasets
+    for line in soccer_pitch(2 * half_x - 10.0, 2 * half_y - 10.0).polylines:
+        uv = np.stack([(line[:, 0] + half_x) * px, (half_y - line[:, 1]) * py], axis=1) - 0.5  # texel centres
+        cv2.polylines(img, [np.round(uv * 16).astype(np.int32)], False, white, t, cv2.LINE_8, shift=4)
     corners = [[-half_x, -half_y, 0], [half_x, -half_y, 0], [half_x, half_y, 0], [-half_x, half_y, 0]]
     return _quad("ground", corners, img)
 
@@ -157,6 +158,19 @@ def make_environment(layout: str, rng: np.random.Generator | int | None = None) 
     if layout == "studio":
         walls = _ring_wall("walls", rng, 7.5, 0.0, 5.0, 48, _studio_wall, (120, 900))
         return [_floor(rng), walls]
+    raise InputError("layout", "'broadcast' or 'studio'", repr(layout))
+
+
+def field_model(layout: str):
+    """The painted lines of a layout's ground as a :class:`~toolkit.calibration.FieldModel`, or None.
+
+    The broadcast pitch paints :func:`toolkit.calibration.soccer_pitch` (110 x 70 m
+    inside 120 x 80 m of grass); the studio floor has no lines.
+    """
+    if layout == "broadcast":
+        return soccer_pitch(PITCH_HALF_X * 2 - 10.0, PITCH_HALF_Y * 2 - 10.0)
+    if layout == "studio":
+        return None
     raise InputError("layout", "'broadcast' or 'studio'", repr(layout))
 
 

@@ -29,7 +29,7 @@ from toolkit.motion import generate_motion, motion_from_bvh
 from toolkit.observe import Observer, as_observer
 from toolkit.skeleton import SKELETON_14
 from toolkit.synthetic.body import BodyMesh, BodyModel
-from toolkit.synthetic.environment import BACKGROUND_COLOUR, make_environment
+from toolkit.synthetic.environment import BACKGROUND_COLOUR, field_model, make_environment
 from toolkit.synthetic.render import Raycaster, RaycastRenderer, SceneRenderer
 from toolkit.synthetic.rigs import make_rig, novel_rig, perturb_rig
 from toolkit.synthetic.spec import SceneSpec
@@ -140,6 +140,8 @@ def generate_scene(spec: SceneSpec, out: str | Path, observer: Observer | None =
         if len(scene.novel):
             writer.write_novel_calibration(scene.novel)
         writer.write_scene_toml(spec.text)
+        if (lines := field_model(spec.layout)) is not None:  # a broadcast crew knows its pitch
+            writer.write_field_model(lines)
         joints2d = {cam.name: cam.project(scene.joints) for cam in scene.rig}
         writer.write_joints3d(scene.joints, SKELETON_14.joint_names)
         writer.write_joints2d(joints2d)

@@ -1,0 +1,167 @@
+"""Calibration refinement of a whole dataset, and the cameras a stage's output folder used.
+
+:func:`refine_dataset` corrects the dataset's measured cameras on its field
+model before stage 1; the recipes write the cameras they used to
+``OUT/calibration.toml`` (:data:`USED_CALIBRATION`), and later stages read
+them back with :func:`stage_rig` so that every stage works with the same
+cameras.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from toolkit.calibration.field import FieldModel
+from toolkit.calibration.refine import RefineConfig, Refinement, refine_rig
+from toolkit.cameras import Rig
+from toolkit.errors import InputError
+
+#: File in a stage's output folder holding the cameras it used (refined or measured).
+USED_CALIBRATION = "calibration.toml"
+#: Frames sampled evenly over a video to learn its background when there is no clean plate.
+BACKGROUND_SAMPLES = 25
+
+
+def background_image(dataset, camera: str, samples: int = BACKGROUND_SAMPLES) -> np.ndarray:
+    """An image of the empty scene: the clean plate, else the per-pixel median of sampled frames.
+
+    Parameters
+    ----------
+    dataset : toolkit.io.Dataset
+    camera : str
+    samples : int
+        Frames sampled evenly over the video for the median.
+
+    Returns
+    -------
+    ndarray of shape (H, W, 3) uint8
+    """
+    plate = dataset.background(camera)
+    if plate is not None:
+        return plate
+    idx = np.unique(np.linspace(0, dataset.n_frames - 1, min(samples, dataset.n_frames)).round().astype(int))
+    frames = []
+    for i in idx:
+        try:
+            frames.append(dataset.frame(camera, int(i)))
+        except Exception:  # noqa: BLE001 - a short video: use what decodes
+            break
+    if not frames:
+        raise InputError(str(dataset.video_path(camera)), "a decodable video", "no frame")
+    return np.median(np.stack(frames), axis=0).astype(np.uint8)
+
+
+def refine_dataset(dataset, config: RefineConfig = RefineConfig(), *, rig: Rig | None = None,
+                   field_model: FieldModel | None = None, images: Mapping[str, np.ndarray] | None = None,
+                   observer=None) -> tuple[Rig, dict[str, Refinement]]:
+    """Refine a dataset's measured cameras on its field model.
+
+    Parameters
+    ----------
+    dataset : toolkit.io.Dataset
+    config : RefineConfig
+    rig : Rig, optional
+        Cameras to refine (default ``dataset.rig``).
+    field_model : FieldModel, optional
+        Default: the dataset's ``field_model.json``.
+    images : mapping of str to ndarray, optional
+        Empty-scene images per camera (default: :func:`background_image`).
+    observer : Observer, optional
+
+    Returns
+    -------
+    rig : Rig
+        Refined cameras (measured ones where refinement was rejected).
+    results : dict of str to Refinement
+        Empty when the dataset has no field model.
+    """
+    rig = dataset.rig if rig is None else rig
+    field_model = dataset.field_model() if field_model is None else field_model
+    if field_model is None:
+        return rig, {}
+    if images is None:
+        images = {c.name: background_image(dataset, c.name) for c in rig}
+    return refine_rig(rig, images, field_model, config, observer=observer)
+
+
+def describe(results: Mapping[str, Refinement]) -> list[str]:
+    """One line per camera for the recipes' console output."""
+    out = []
+    for name, r in results.items():
+        if r.accepted:
+            out.append(f"  {name}: refined on {r.inliers_after} field-line points, rotation {r.rotation_deg:.3f} deg, "
+                       f"focal x{r.focal_scale:.4f}, line residual {r.rms_after_px:.2f} px")
+        else:
+            out.append(f"  {name}: measured calibration kept ({r.reason})")
+    return out
+
+
+def stage_rig(dataset, folder: str | os.PathLike | None) -> Rig:
+    """The cameras a stage's output ``folder`` used (``calibration.toml``), else the dataset's measured ones.
+
+    Raises
+    ------
+    InputError
+        If the folder's cameras are not the dataset's.
+    """
+    from toolkit.io import read_calibration
+
+    if folder is None:
+        return dataset.rig
+    path = Path(folder) / USED_CALIBRATION
+    if not path.is_file():
+        return dataset.rig
+    rig = read_calibration(path)
+    if rig.names != dataset.rig.names:
+        raise InputError(str(path), f"the dataset's cameras {dataset.rig.names}", f"{rig.names}")
+    return rig
+
+
+def cameras_for_run(dataset, out: str | os.PathLike, *, refine: bool = True,
+                    config: RefineConfig = RefineConfig(), observer=None, log=print) -> Rig:
+    """The cameras a recipe run works with, written to ``out/calibration.toml``.
+
+    A run that finds ``out/calibration.toml`` from an earlier (interrupted)
+    run of the same dataset reuses it, so resumed frames see the same
+    cameras.  Otherwise the dataset's measured cameras are refined on its
+    field model (when it has one and ``refine`` is true) and written there.
+
+    Parameters
+    ----------
+    dataset : toolkit.io.Dataset
+    out : path
+        The recipe's output folder (created if missing).
+    refine : bool
+        Refine on the field lines; False keeps the measured calibration.
+    config : RefineConfig
+    observer : Observer, optional
+    log : callable
+        Receives one line per camera (``print`` by default; ``None`` for silence).
+
+    Returns
+    -------
+    Rig
+    """
+    from toolkit.io import write_calibration
+
+    out = Path(out)
+    path = out / USED_CALIBRATION
+    log = log or (lambda *_: None)
+    if path.is_file():
+        rig = stage_rig(dataset, out)
+        log(f"cameras: reusing {path}")
+        return rig
+    rig, results = refine_dataset(dataset, config, observer=observer) if refine else (dataset.rig, {})
+    if results:
+        log("cameras refined on the field lines:")
+        for line in describe(results):
+            log(line)
+    out.mkdir(parents=True, exist_ok=True)
+    refined = ",".join(n for n, r in results.items() if r.accepted)
+    write_calibration(path, rig, metadata={"source": str(dataset.root / "calibration.toml"),
+                                           "refined_on_field_lines": refined})
+    return rig
