@@ -13,7 +13,9 @@ the ground-truth masks, so the numbers measure this stage alone.  Pose
 sources:
 
 ``gt``      ground-truth joints, true calibration;
-``stage1``  stage 1's 3D joints, 2D poses and offsets with the measured calibration;
+``stage1``  stage 1's 3D joints projected through stage 1's cameras (refined on the field
+            lines where the scene has them) with its offsets, as the pipeline does;
+``stage1_2d`` the same, but the template fitted to each view's own stage-1 2D pose;
 ``noisy``   ground-truth joints seen through the measured cameras plus exact offsets,
             2D joints perturbed by Gaussian noise of ``--noise`` x the subject's
             image height (a stand-in for a good stage 1).
@@ -82,7 +84,7 @@ def prepare(cache: Path, scene) -> tuple[Path, Path]:
 def views(ds: Dataset, s1: Path, source: str, every: int, noise: float, rng):
     """Yield (t, camera name, Camera, joints3d, joints2d) per evaluated view."""
     J = ds.gt_joints3d()
-    if source == "stage1":
+    if source in ("stage1", "stage1_2d"):
         p3 = load_npz(s1 / "poses3d.npz")["joints"]
         p2 = load_npz(s1 / "poses2d.npz")
         off = load_npz(s1 / "offsets.npz")["offsets"]
@@ -99,7 +101,9 @@ def views(ds: Dataset, s1: Path, source: str, every: int, noise: float, rng):
             else:
                 # stage 1's offsets correct the detected joints; the image needs the opposite shift
                 cam = camera_with_offset(rig1[c], image_offsets(off[t, i]))
-                x = p2[c][t] if c in p2 and np.isfinite(p2[c][t]).any() else None
+                # "stage1": the multi-view 3D joints projected (the pipeline's default); "stage1_2d": each
+                # view's own stage-1 2D pose (the source's per-view fit)
+                x = p2[c][t] if source == "stage1_2d" and c in p2 and np.isfinite(p2[c][t]).any() else None
                 yield t, c, cam, p3[t], x
 
 
@@ -147,7 +151,7 @@ def main(argv=None) -> int:
     ap.add_argument("--cache", type=Path, default=ROOT / "out" / "bench_segmentation")
     ap.add_argument("--every", type=int, default=4, help="evaluate every N-th frame")
     ap.add_argument("--noise", type=float, default=0.01, help="2D noise of the 'noisy' source, x image height")
-    ap.add_argument("--sources", default="gt,stage1,noisy")
+    ap.add_argument("--sources", default="gt,stage1,stage1_2d,noisy")
     ap.add_argument("--quick", action="store_true", help="one broadcast and one studio scene")
     ap.add_argument("--scenes", default=None, help="comma-separated scene names (default: all)")
     ap.add_argument("--sweep", action="store_true", help="colour space, components, radii, rules (noisy source)")

@@ -65,6 +65,9 @@ def main(argv=None) -> int:
     src.add_argument("--poses", type=Path, default=None, help="output folder of recipes/pose_from_silhouettes.py")
     src.add_argument("--gt-joints", action="store_true", help="use the ground-truth joints and calibration")
     ap.add_argument("--gt-masks", action="store_true", help="use the ground-truth silhouettes")
+    ap.add_argument("--template-pose", choices=("multiview", "per_view"), default="multiview",
+                    help="fit the template to the stage-1 3D joints projected (multiview, default) or to each "
+                         "view's stage-1 2D pose (per_view)")
     ap.add_argument("--config", type=Path, default=None, help="TOML file with a [segmentation] table")
     ap.add_argument("--max-frames", type=int, default=None, help="process only the first N frames")
     ap.add_argument("--no-recording", action="store_true", help="do not write recording.rrd")
@@ -97,7 +100,8 @@ def main(argv=None) -> int:
                     raise InputError(str(args.poses / f), f"an array '{k}'", f"arrays {sorted(d)}")
             from toolkit.multiview import image_offsets
             from toolkit.calibration import stage_rig
-            poses = PoseSource(stage_rig(ds, args.poses), p3["joints"], {c: p2[c] for c in names if c in p2}, image_offsets(off["offsets"]),
+            per_view = {c: p2[c] for c in names if c in p2} if args.template_pose == "per_view" else None
+            poses = PoseSource(stage_rig(ds, args.poses), p3["joints"], per_view, image_offsets(off["offsets"]),
                                name=str(args.poses))
         else:
             print("no --poses or --gt-joints: the template is a standing pose fitted to each silhouette's box")

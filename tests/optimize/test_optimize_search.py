@@ -86,3 +86,28 @@ def test_bad_input(scene, scorer):
         optimize_joint(scorer, scene.joints, 20)
     with pytest.raises(InputError):
         OptimizeConfig(min_step_m=0.1, initial_step_m=0.05)
+
+
+def test_joints_scored_in_too_few_views_keep_their_start(scene):
+    class OneViewScorer(PositionScorer):
+        """Each source camera sees only its own billboard; only the last (virtual) view sees both."""
+
+        def visibility(self, joints, part):
+            vis = super().visibility(joints, part)
+            vis[:-1] = False
+            vis[:len(self.rig), :] = np.eye(len(self.rig), dtype=bool)[:, :vis.shape[1]]
+            return vis
+
+    two = make_planar_scene(2, elevations_deg=(-20.0, 15.0))
+    J = two.joints.copy()
+    J[WRIST] += [0.03, -0.035, 0.0]
+    obs = RecordingObserver()
+    weak = OneViewScorer(two.images, two.labels, two.rig)
+    st = optimize_joint(weak, J, WRIST, observer=obs, frame=0)
+    assert st.status == "few_views" and np.array_equal(st.position, J[WRIST])
+    assert "1 view" in st.reason and any("fewer than 2" in d["text"] for d in obs.of_kind("text"))
+    # min_views = 1 searches anyway; the full scorer (both cameras see both billboards) searches by default
+    assert optimize_joint(weak, J, WRIST, config=OptimizeConfig(min_views=1)).status == "moved"
+    assert optimize_joint(PositionScorer(two.images, two.labels, two.rig), J, WRIST).status == "moved"
+    with pytest.raises(InputError, match="min_views"):
+        OptimizeConfig(min_views=0)

@@ -87,12 +87,12 @@ def test_segment_parts_with_ground_truth_joints(dataset, tmp_path, capsys):
 
 
 def test_segment_parts_with_stage1_outputs(dataset, tmp_path, capsys):
-    # a stage-1 output folder holding the true joints, with the offsets that make the measured
-    # cameras project them where the true cameras do (what a perfect stage 1 would write)
+    # a stage-1 output folder holding the true joints and the offsets a perfect stage 1 would write:
+    # added to the detected (true) 2D joints they give where the measured cameras project the joints
     ds = Dataset.open(dataset)
     J = ds.gt_joints3d()
     names = ds.camera_names
-    offsets = np.stack([[np.mean(ds.gt_rig[c].project(J[t]) - ds.rig[c].project(J[t]), 0) for c in names]
+    offsets = np.stack([[np.mean(ds.rig[c].project(J[t]) - ds.gt_rig[c].project(J[t]), 0) for c in names]
                         for t in range(ds.n_frames)])
     s1 = tmp_path / "stage1"
     atomic_save_npz(s1 / "poses3d.npz", joints=J)
@@ -103,6 +103,11 @@ def test_segment_parts_with_stage1_outputs(dataset, tmp_path, capsys):
                     "--no-recording"]) == 0
     assert _mean_iou(ds, out) >= GT_MEAN_IOU_BOUND
     assert not (out / "recording.rrd").exists()
+    # the source's per-view fit: the template fitted to each view's own 2D pose (here the true one)
+    out2 = tmp_path / "parts_s1_per_view"
+    assert _main()([str(dataset), "--out", str(out2), "--poses", str(s1), "--gt-masks", "--quiet",
+                    "--no-recording", "--template-pose", "per_view"]) == 0
+    assert _mean_iou(ds, out2) >= GT_MEAN_IOU_BOUND
 
 
 def test_bad_inputs_are_clear_errors(dataset, tmp_path, capsys):

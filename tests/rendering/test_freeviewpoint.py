@@ -33,3 +33,14 @@ def test_frame_without_any_silhouette(studio_frame):
                        _estimate(True, f["joints"]))
     assert res.status == STATUS_NO_VIEWS
     assert sum("left out" in d["text"] for d in obs.of_kind("text")) == 3
+
+
+def test_template_pose_option_is_checked():
+    import pytest
+
+    from toolkit.errors import InputError
+    from toolkit.rendering.freeviewpoint import TEMPLATE_POSES, FreeViewpointConfig
+
+    assert FreeViewpointConfig().template_pose == "multiview" and "per_view" in TEMPLATE_POSES
+    with pytest.raises(InputError, match="template_pose"):
+        FreeViewpointConfig(template_pose="nearest")

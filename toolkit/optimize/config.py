@@ -43,6 +43,14 @@ class OptimizeConfig:
     tie_tol : float
         Candidates scoring within this of the best count as equally good; the
         one nearest the current position wins (the score is flat along a bone).
+    min_views : int
+        A joint is searched only when its bones are scored in at least this
+        many evaluated views (a view scores a bone when two of its billboards
+        are seen there, not edge-on).  With two cameras far apart each
+        camera sees the other's billboards edge-on and only the virtual view
+        midway between them scores: one synthetic viewpoint whose maxima lie
+        5-14 cm from the truth (``docs/stage3_billboards.md``), so such joints
+        keep their start.  1 searches them anyway.
     """
 
     initial_step_m: float = 0.048
@@ -53,11 +61,14 @@ class OptimizeConfig:
     min_improvement: float = 1e-3
     min_gain: float = MIN_GAIN
     tie_tol: float = 0.005
+    min_views: int = 2
 
     def __post_init__(self):
         if not 0 < self.min_step_m <= self.initial_step_m:
             raise InputError("OptimizeConfig.initial_step_m/min_step_m", "0 < min_step_m <= initial_step_m",
                              f"{self.initial_step_m}, {self.min_step_m}")
+        if self.min_views < 1:
+            raise InputError("OptimizeConfig.min_views", "an integer >= 1", repr(self.min_views))
         if self.grid_radius < 1 or self.keep_best < 1 or self.max_sweeps < 1:
             raise InputError("OptimizeConfig", "grid_radius, keep_best and max_sweeps >= 1",
                              f"{self.grid_radius}, {self.keep_best}, {self.max_sweeps}")

@@ -30,7 +30,7 @@ from toolkit.optimize.config import OptimizeConfig
 from toolkit.optimize.rules import joint_rule_reasons
 
 #: Status values of :class:`JointStep`.
-STATUSES = ("moved", "kept", "all_invalid", "unscorable")
+STATUSES = ("moved", "kept", "all_invalid", "unscorable", "few_views")
 
 
 @dataclass(frozen=True)
@@ -155,6 +155,12 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
                "empty segments or edge-on billboards")
         obs.report("text", name="optimize/kept", text=why, frame=frame)
         return JointStep(joint, x0, start, start, scorer.n_evaluations - n0, 0, "unscorable", why)
+    n_views = int(np.any([(v.sum(axis=1) >= 2) for v in vis.values()], axis=0).sum()) if vis else 0
+    if n_views < config.min_views:
+        why = (f"{name}: kept: its bones are scored in {n_views} view(s), fewer than {config.min_views} "
+               "(the cameras see each other's billboards edge-on)")
+        obs.report("text", name="optimize/kept", text=why, frame=frame)
+        return JointStep(joint, x0, start, start, scorer.n_evaluations - n0, 0, "few_views", why)
     start_score = start if start_valid[0] else 0.0
     offs = _offsets(config.grid_radius)
     seen: dict[tuple, float] = {}
