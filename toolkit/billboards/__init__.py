@@ -8,10 +8,10 @@ from toolkit.billboards.model import Billboard, BillboardFan, BillboardModel
 from toolkit.billboards.score import (PartScore, PositionScorer, View, evaluated_views, midway_camera,
                                       pair_weight)
 from toolkit.billboards.seams import SeamMap, detect_seams, membership_of
-from toolkit.billboards.warp import RenderInfo, Warp, render_view, warp_billboard
+from toolkit.billboards.warp import RenderInfo, Warp, render_view, warp_billboard, warp_texture
 
 __all__ = ["Billboard", "BillboardFan", "BillboardModel", "BillboardConfig", "ScoreConfig", "PAIR_ANGLE_SIGMA",
            "SEAM_DEPTH_M", "RGB_DIAGONAL", "BillboardFrame", "billboard_frame", "segment_extent",
            "build_billboard", "build_billboards", "segment_outline", "PartScore", "PositionScorer", "View",
            "evaluated_views", "midway_camera", "pair_weight", "SeamMap", "detect_seams", "membership_of",
-           "RenderInfo", "Warp", "render_view", "warp_billboard"]
+           "RenderInfo", "Warp", "render_view", "warp_billboard", "warp_texture"]

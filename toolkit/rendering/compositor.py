@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from toolkit.billboards.model import Billboard, BillboardModel
-from toolkit.billboards.warp import _warp_plane, warp_billboard
+from toolkit.billboards.warp import warp_billboard, warp_texture
 from toolkit.cameras import Camera
 from toolkit.observe import Observer
 from toolkit.rendering.blend import RenderResult, composite
@@ -63,7 +63,7 @@ class CpuCompositor:
         if rgba is None:
             rgba = billboard.rgba()  # uint8: 8-bit alpha is plenty for the binary blend
             self._rgba[id(billboard)] = rgba
-        w = _warp_plane(rgba, billboard.view_from_texture(camera, offset), camera, None, camera.size)
+        w = warp_texture(rgba, billboard.view_from_texture(camera, offset), camera, None, camera.size)
         if w is None:
             return None
         return w.rgb.astype(np.float32), w.alpha.astype(np.float32) * np.float32(1 / 255), \
