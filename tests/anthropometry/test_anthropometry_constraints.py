@@ -255,3 +255,17 @@ def test_joint_rules_only_ignores_rules_of_other_joints():
     assert not ok_all.any()
     assert ok_joint.tolist() == [True, True, False]   # 0.5 m up breaks the neck-head bone
     assert reasons[2] != 0
+
+
+def test_excess_measures_how_far_outside_the_rules(checker, pose):
+    assert checker.excess(pose) == 0.0
+    a, b = pose.copy(), pose.copy()
+    a[[J["l_elbow"], J["l_wrist"]], 2] -= 0.15
+    b[[J["l_elbow"], J["l_wrist"]], 2] -= 0.40
+    ea, eb = checker.excess(a), checker.excess(b)
+    bone = [x for x in checker.violations(a) if x.kind == "bone_length"][0]
+    assert ea >= (bone.value - bone.hi) / bone.hi > 0
+    assert eb > ea
+    c = pose.copy()
+    c[J["head"], 0] = np.nan
+    assert checker.excess(c) >= 1.0

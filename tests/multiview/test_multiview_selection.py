@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from multiview_scenes import broadcast_rig, walking_poses
 
+from toolkit.anthropometry import AnthropometricConstraints
 from toolkit.errors import InputError
 from toolkit.multiview import (
     MultiViewConfig,
@@ -351,3 +352,28 @@ def test_bad_arguments_raise(rng):
 def test_bad_config_raises(field, value):
     with pytest.raises(InputError, match=field):
         MultiViewConfig(**{field: value})
+
+
+def test_implausible_skeleton_loses_to_a_plausible_one(rng):
+    # view 1 offers the truth and a candidate whose rays meet view 0's just as well, but with the
+    # left wrist slid 0.8 m along camera 0's ray: a forearm over a metre long
+    rig = broadcast_rig(2, rng)
+    X = walking_poses(rng, 10)[4]
+    wrist = SKELETON_14.index("l_wrist")
+    bad = X.copy()
+    ray = bad[wrist] - rig[0].center
+    bad[wrist] += 0.8 * ray / np.linalg.norm(ray)
+    noise = lambda: rng.normal(0, 0.5, (14, 2))  # noqa: E731
+    v0 = project(rig, X)[0] + noise()
+    cand = np.full((2, 2, 14, 2), np.nan)
+    cand[0, 0] = v0
+    cand[1, 0] = project(rig, bad)[1] + noise()
+    cand[1, 1] = project(rig, X)[1] + noise()
+    base = MultiViewConfig(flips=(), optimise_offsets=False)
+    from dataclasses import replace
+    pure = select_multiview(cand, rig, replace(base, plausible_cost_ratio=1.0))
+    assert AnthropometricConstraints().excess(pure.joints3d) > 0.25  # the ray cost alone takes the wrong one
+    assert pure.choice[1] == 0
+    sel = select_multiview(cand, rig, base)
+    assert sel.choice[1] == 1 and mpjpe(sel.joints3d, X) < 0.02
+    assert AnthropometricConstraints().excess(sel.joints3d) == pytest.approx(0.0, abs=0.05)

@@ -442,6 +442,37 @@ class AnthropometricConstraints:
             observer.report("text", name="anthropometry/violations", text=text)
         return out
 
+    def excess(self, joints) -> float:
+        """How far one pose is outside the rules: the sum of its violations' relative excesses.
+
+        A bone or joint distance ``d`` outside ``[lo, hi]`` adds ``(lo - d) / lo`` or
+        ``(d - hi) / hi``; a symmetric pair adds its difference beyond the
+        tolerance; a joint below the floor adds its depth in metres; a
+        non-finite joint adds 1.  0 for a valid pose.
+
+        Parameters
+        ----------
+        joints : array_like of shape (n_joints, 3)
+            Metres, world frame, z up.
+
+        Returns
+        -------
+        float
+        """
+        total = 0.0
+        for v in self.violations(joints):
+            if v.kind == "non_finite":
+                total += 1.0
+            elif v.kind == "below_ground":
+                total += float(v.lo - v.value)
+            elif v.kind == "asymmetric":
+                total += float(v.value - v.hi) if np.isfinite(v.value) else 1.0
+            elif v.value < v.lo:
+                total += float((v.lo - v.value) / max(v.lo, 1e-9))
+            else:
+                total += float((v.value - v.hi) / max(v.hi, 1e-9))
+        return total
+
     def is_valid(self, joints) -> bool:
         """Whether one pose ``(n_joints, 3)`` keeps every enabled rule."""
         p = np.asarray(joints, dtype=float)

@@ -34,6 +34,13 @@ KEYPOINT_SIGMA_PX = 2.0
 #: of ray distance; an 8 px calibration error at broadcast distances costs a few centimetres,
 #: so the right combination is always among the first few; 16 leaves a wide margin.
 REFINE_TOP = 16
+#: A plausible combination (3D skeleton within :data:`PLAUSIBLE_EXCESS` of the anthropometric
+#: rules) is preferred to an implausible cheaper one when it costs at most this many times as much.
+PLAUSIBLE_COST_RATIO = 3.0
+#: Summed relative excess over the anthropometric rules still counted as plausible
+#: (:meth:`toolkit.anthropometry.AnthropometricConstraints.excess`; noisy 2D candidates
+#: break a limit by a few per cent).
+PLAUSIBLE_EXCESS = 0.25
 #: Refinement stops at the first combination (best first) whose cost without offsets exceeds
 #: this multiple of the best refined cost.  On the Pose2Sim demo the offsets lower the right
 #: combination's mean ray distance from 30 to 15 mm and wrong ones (a view flipped) by 4-5 %,
@@ -112,7 +119,15 @@ class MultiViewConfig:
     min_view_joints : int
         A view takes part only with at least this many joints shared with another view.
     constraints : AnthropometricConstraints or None
-        Checked on the 3D result and reported (never enforced); ``None`` skips the check.
+        Checked on the 3D result and reported (never a hard rejection); ``None``
+        skips the check and the plausibility preference.
+    plausible_cost_ratio : float
+        When the cheapest refined combination's skeleton is implausible, a
+        plausible one costing at most this many times as much is chosen instead
+        (1 or less: pure ray cost, as in the source).
+    plausible_excess : float
+        Largest summed relative excess over the anthropometric rules counted as
+        plausible (:meth:`~toolkit.anthropometry.AnthropometricConstraints.excess`).
     """
 
     flips: tuple[str, ...] = ("all",)
@@ -135,6 +150,8 @@ class MultiViewConfig:
     robust_ray_px: float = ROBUST_RAY_PX
     min_view_joints: int = 3
     constraints: AnthropometricConstraints | None = AnthropometricConstraints()
+    plausible_cost_ratio: float = PLAUSIBLE_COST_RATIO
+    plausible_excess: float = PLAUSIBLE_EXCESS
 
     def __post_init__(self):
         flips = tuple(self.flips)
@@ -150,6 +167,10 @@ class MultiViewConfig:
         object.__setattr__(self, "up", tuple(float(x) for x in up))
         if self.residual not in RESIDUALS:
             raise InputError("MultiViewConfig.residual", f"one of {list(RESIDUALS)}", repr(self.residual))
+        if not (np.isfinite(self.plausible_cost_ratio) and np.isfinite(self.plausible_excess)
+                and self.plausible_excess >= 0):
+            raise InputError("MultiViewConfig.plausible_cost_ratio/plausible_excess", "finite values, excess >= 0",
+                             f"{self.plausible_cost_ratio}, {self.plausible_excess}")
         if not self.refine_ratio >= 1:
             raise InputError("MultiViewConfig.refine_ratio", "a value >= 1 (inf: no early stop)",
                              repr(self.refine_ratio))

@@ -244,6 +244,32 @@ def _enumerate(ext: np.ndarray, ext_w: np.ndarray, max_combinations: int) -> np.
     return np.array(list(itertools.product(*lists)), dtype=int).reshape(-1, len(lists))
 
 
+def _prefer_plausible(order, costs, fits, cfg: MultiViewConfig) -> list:
+    """The combinations to choose from: ``order``, or only its plausible ones when the cheapest is not plausible.
+
+    A combination is plausible when its 3D skeleton is within
+    ``cfg.plausible_excess`` of the anthropometric rules
+    (:meth:`~toolkit.anthropometry.AnthropometricConstraints.excess`); when the
+    cheapest is not, the plausible ones whose cost is at most
+    ``cfg.plausible_cost_ratio`` times the best cost are kept (in cost order),
+    if there are any.  Two views far apart can
+    make a wrong candidate's rays meet as well as the right one's, with a
+    forearm a metre long: the ray cost alone cannot see that.
+    """
+    if cfg.constraints is None or cfg.plausible_cost_ratio <= 1 or not order:
+        return order
+
+    def plausible(i):
+        J = fits[i].joints3d
+        return bool(np.isfinite(J).all()) and cfg.constraints.excess(J) <= cfg.plausible_excess
+
+    if plausible(order[0]):
+        return order
+    limit = costs[order[0]] * cfg.plausible_cost_ratio
+    front = [i for i in order[1:] if costs[i] <= limit and plausible(i)]
+    return front or order
+
+
 def _tie_break(order, costs, combos, k, previous_joints3d, fits, cfg: MultiViewConfig, skeleton: Skeleton):
     """Among the combinations tied with the best, the preferred one (see the module docstring)."""
     best = order[0]
@@ -483,6 +509,7 @@ def select_multiview(candidates: np.ndarray, rig: Rig, config: MultiViewConfig |
         costs[i] = f.cost
         refined[i] = True
     order = sorted(fits, key=lambda i: costs[i])
+    order = _prefer_plausible(order, costs, fits, cfg)
     best = _tie_break(order, costs, combos, k, previous_joints3d, fits, cfg, skeleton)
     fit = fits[best]
     pts, w = combo_arrays(best)
