@@ -127,6 +127,7 @@ def test_free_viewpoint_end_to_end_and_resume(dataset, tmp_path, capsys):
     assert rc == 0
     printed = capsys.readouterr().out
     assert "resuming: 1 of 2" in printed and "(1 this run" in printed
+    assert "cameras: reusing" in printed and (out / "calibration.toml").is_file()
     assert novel0.stat().st_mtime_ns == before
     assert (out / "frames" / "000001.json").exists()
 

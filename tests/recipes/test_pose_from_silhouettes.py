@@ -98,8 +98,14 @@ def test_recipe_end_to_end(tiny_dataset, small_db_path, tmp_path, capsys):
     assert rc == 0
     printed = capsys.readouterr().out
     assert str(out / "poses3d.npz") in printed and "recording.rrd" in printed
-    for name in ("poses2d.npz", "poses3d.npz", "offsets.npz", "recording.rrd", "edits_template.toml"):
+    for name in ("poses2d.npz", "poses3d.npz", "offsets.npz", "recording.rrd", "edits_template.toml",
+                 "calibration.toml"):
         assert (out / name).is_file() and (out / name).stat().st_size > 0
+    # no field model in this dataset: the cameras used are the measured ones, written for later stages
+    from toolkit.io import read_calibration
+    used = read_calibration(out / "calibration.toml")
+    assert used.names == tiny_dataset.rig.names
+    assert all(np.allclose(a.cam_from_world, b.cam_from_world) for a, b in zip(used, tiny_dataset.rig))
     with np.load(out / "poses3d.npz") as z:
         joints, names, state = z["joints"], list(z["names"]), z["state"]
     assert joints.shape == (N_FRAMES, 14, 3) and names == list(SKELETON_14.joint_names)
