@@ -180,10 +180,10 @@ def _visible(camera: Camera, pts: np.ndarray, margin: float) -> tuple[np.ndarray
     return uv, ok
 
 
-def _pair(uv: np.ndarray, tree: cKDTree, lines: LinePoints, gate: float):
+def _pair(uv: np.ndarray, tree: cKDTree, gate: float):
+    """Nearest detected line point of each projected model point within ``gate`` pixels: (found, index)."""
     d, j = tree.query(uv, distance_upper_bound=gate)
-    ok = np.isfinite(d)
-    return ok, j
+    return np.isfinite(d), j
 
 
 def _point_to_line(uv, lines: LinePoints, j):
@@ -194,7 +194,7 @@ def _inlier_stats(camera, pts, tree, lines, config) -> tuple[float, int]:
     uv, vis = _visible(camera, pts, config.margin_px)
     if not vis.any() or len(lines) == 0:
         return float("nan"), 0
-    ok, j = _pair(uv[vis], tree, lines, config.inlier_px * 2)
+    ok, j = _pair(uv[vis], tree, config.inlier_px * 2)
     r = np.abs(_point_to_line(uv[vis][ok], lines, j[ok]))
     r = r[r <= config.inlier_px]
     return (float(np.sqrt(np.mean(r ** 2))) if r.size else float("nan")), int(r.size)
@@ -240,11 +240,12 @@ def refine_camera(camera: Camera, image: np.ndarray, field_model: FieldModel,
     f0 = float(camera.K[0, 0])
     n_par = 4 if config.refine_focal else 3
     prior_sd = np.array([config.prior_rotation_px / f0] * 3 + [config.prior_focal])[:n_par]
-    where = dict(camera=camera.name) | ({"frame": frame} if frame is not None else {"static": True})
+    when = {"frame": frame} if frame is not None else {"static": True}
+    where = dict(camera=camera.name) | when
 
     def reject(reason, rms_b=float("nan"), inl_b=0, n_paired=0):
         obs.report("text", name=f"calibration/{camera.name}/summary", text=f"{camera.name}: kept the measured "
-                   f"camera: {reason}", level="WARN", **({"frame": frame} if frame is not None else {"static": True}))
+                   f"camera: {reason}", level="WARN", **when)
         return Refinement(camera, False, reason, np.zeros(3), 1.0, len(lines), n_paired, rms_b, rms_b, inl_b, inl_b,
                           np.zeros(n_par))
 
@@ -267,7 +268,7 @@ def refine_camera(camera: Camera, image: np.ndarray, field_model: FieldModel,
     for gate in config.gates_px:
         cam = cam_of(theta)
         uv, vis = _visible(cam, pts, config.margin_px)
-        ok, j = _pair(uv[vis], tree, lines, gate)
+        ok, j = _pair(uv[vis], tree, gate)
         P, J = pts[vis][ok], j[ok]
         paired = int(P.shape[0])
         if paired < config.min_points:
@@ -290,8 +291,7 @@ def refine_camera(camera: Camera, image: np.ndarray, field_model: FieldModel,
         sv = np.linalg.svd(Jd, compute_uv=False)
     refined = cam_of(theta)
     rms_a, inl_a = _inlier_stats(refined, pts, tree, lines, config)
-    obs.report("series", name=f"calibration/{camera.name}/rms_px", values=np.array(history), **(
-        {"frame": frame} if frame is not None else {"static": True}))
+    obs.report("series", name=f"calibration/{camera.name}/rms_px", values=np.array(history), **when)
     obs.report("points2d", name="calibration/lines", points=lines.points,
                colors=np.tile(np.array([[255, 60, 60]], np.uint8), (len(lines), 1)), **where)
     for name, cam, col in (("calibration/model_before", camera, (255, 200, 0)),
@@ -310,8 +310,7 @@ def refine_camera(camera: Camera, image: np.ndarray, field_model: FieldModel,
         return reject(f"residual {rms_a:.2f} px above {config.max_rms_px} px ({summary})", rms_b, inl_b, paired)
     if inl_a < inl_b:
         return reject(f"fewer inliers than the measured camera ({summary})", rms_b, inl_b, paired)
-    obs.report("text", name=f"calibration/{camera.name}/summary", text=summary,
-               **({"frame": frame} if frame is not None else {"static": True}))
+    obs.report("text", name=f"calibration/{camera.name}/summary", text=summary, **when)
     return Refinement(refined, True, "", theta[:3].copy(), float(np.exp(theta[3])) if n_par == 4 else 1.0,
                       len(lines), paired, rms_b, rms_a, inl_b, inl_a, sv)
 
