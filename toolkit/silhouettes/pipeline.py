@@ -43,6 +43,7 @@ from toolkit.silhouettes.descriptor import (
     silhouette_grid,
 )
 from toolkit.silhouettes.edits import JointEdit
+from toolkit.silhouettes.pooling import pool_pose
 from toolkit.silhouettes.query import Candidates, QueryConfig, query_database
 from toolkit.skeleton import SKELETON_14
 
@@ -383,27 +384,13 @@ class SilhouettePoseEstimator:
     def _pool(self, pool, boxes, poses, offsets, joints, cost, frame):
         """Replace each view's chosen pose by the weighted mean of the database entries that agree with it,
         then triangulate again (one candidate per view, offsets from the selection); see :class:`Stage1Config`."""
-        flip = SKELETON_14.flip_permutation
         pooled = poses.copy()
         counts = np.zeros(self.n_views, int)
         for v in range(self.n_views):
             if pool[v] is None or not np.isfinite(poses[v]).all():
                 continue
-            px, err = pool[v]
             radius = self.config.pool_radius * float(boxes[v, 3] - boxes[v, 1])
-            members, weights = [], []
-            for c, e in zip(px, err):
-                if not np.isfinite(c).all():
-                    continue
-                for cc in (c, c[flip]):  # an entry of the other facing direction pools with its labels swapped
-                    if np.linalg.norm(cc - poses[v], axis=1).mean() < radius:
-                        members.append(cc)
-                        weights.append(1.0 / (float(e) + 1e-3))
-                        break
-            counts[v] = len(members)
-            if len(members) >= 2:
-                w = np.asarray(weights)
-                pooled[v] = np.tensordot(w / w.sum(), np.asarray(members), axes=1)
+            pooled[v], counts[v] = pool_pose(poses[v], pool[v][0], pool[v][1], radius)
         if not (counts >= 2).any():
             return poses, offsets, joints, cost
         cfg = replace(self.config.multiview, flips=())
