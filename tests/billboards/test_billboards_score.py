@@ -61,10 +61,23 @@ def test_views_and_pair_weight(planar_scene):
     assert len(views) == len(rig) + len(rig) * (len(rig) - 1) // 2
     assert [v.virtual for v in views] == [False] * len(rig) + [True] * 3
     mid = midway_camera(rig[0], rig[1])
-    assert np.allclose(mid.center, 0.5 * (rig[0].center + rig[1].center))
+    # on the arc between both cameras around the point they look at, aimed at that point
+    from toolkit.cameras import closest_point_to_rays
+    x = closest_point_to_rays(rig.centers[:2], np.array([rig[0].forward, rig[1].forward]))[0]
+    d = [np.linalg.norm(c.center - x) for c in (rig[0], rig[1], mid)]
+    assert d[2] == pytest.approx(0.5 * (d[0] + d[1]))
+    to = [(c.center - x) / np.linalg.norm(c.center - x) for c in (rig[0], rig[1], mid)]
+    assert np.arccos(to[2] @ to[0]) == pytest.approx(np.arccos(to[2] @ to[1]), abs=1e-9)
+    assert mid.forward @ (x - mid.center) / d[2] == pytest.approx(1.0)
     a0 = np.arccos(np.clip(mid.forward @ rig[0].forward, -1, 1))
     a1 = np.arccos(np.clip(mid.forward @ rig[1].forward, -1, 1))
-    assert abs(a0 - a1) < 1e-9
+    assert abs(a0 - a1) < 1e-6
+    # two cameras 100 degrees apart: the midway view still sees their common target in its image
+    from toolkit.cameras import Camera
+    A = Camera.look_at("a", [30.0, 0.0, 10.0], [0.0, 0.0, 1.0], fov_x_deg=8.0)
+    B = Camera.look_at("b", [30.0 * np.cos(1.745), 30.0 * np.sin(1.745), 10.0], [0.0, 0.0, 1.0], fov_x_deg=8.0)
+    m = midway_camera(A, B)
+    assert m.in_image(m.project(np.array([0.0, 0.0, 1.0]))[None], margin=100)[0]
     assert pair_weight(0.0, PAIR_ANGLE_SIGMA) == 1.0
     assert np.isclose(pair_weight(PAIR_ANGLE_SIGMA, PAIR_ANGLE_SIGMA), np.exp(-0.5))
 

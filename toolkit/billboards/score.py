@@ -56,15 +56,41 @@ class View:
     virtual: bool
 
 
-def midway_camera(a: Camera, b: Camera, name: str | None = None) -> Camera:
-    """A virtual pinhole camera midway between two cameras.
+def midway_camera(a: Camera, b: Camera, name: str | None = None, target=None) -> Camera:
+    """A virtual pinhole camera midway between two cameras, looking at what both look at.
 
-    Centre at the midpoint, orientation the rotation halfway between both
-    (spherical interpolation), intrinsics the mean of both, size of ``a``.
+    The target is the point closest to both optical axes (``target`` when
+    given, e.g. the subject).  The centre lies on the arc between the two
+    cameras around the target: the target plus the mean of both cameras'
+    distances along the bisector of the two directions to them, so the
+    subject keeps about the same image size.  The orientation is the rotation
+    halfway between both (spherical interpolation), turned by the smallest
+    rotation that points its optical axis at the target; intrinsics are the
+    mean of both (no distortion), the size that of ``a``.  (The chord midpoint
+    of two cameras 90-100° apart is much closer to the subject and, with the
+    interpolated orientation alone, does not see it.)
     """
+    from toolkit.cameras import closest_point_to_rays
+
     rots = Rotation.from_matrix(np.stack([a.R, b.R]))
     R = Slerp([0.0, 1.0], rots)([0.5]).as_matrix()[0]
-    c = 0.5 * (a.center + b.center)
+    if target is None:
+        target = closest_point_to_rays(np.stack([a.center, b.center]), np.stack([a.forward, b.forward]))[0]
+    x = np.asarray(target, float)
+    da, db = a.center - x, b.center - x
+    ra, rb = np.linalg.norm(da), np.linalg.norm(db)
+    u = da / max(ra, 1e-12) + db / max(rb, 1e-12)
+    if not np.all(np.isfinite(x)) or np.linalg.norm(u) < 1e-6:  # parallel axes or opposite cameras
+        c = 0.5 * (a.center + b.center)
+    else:
+        c = x + 0.5 * (ra + rb) * u / np.linalg.norm(u)
+        f = R[2]  # optical axis of the interpolated rotation (world)
+        want = (x - c) / np.linalg.norm(x - c)
+        axis = np.cross(f, want)
+        ang = np.arctan2(np.linalg.norm(axis), float(f @ want))
+        if np.linalg.norm(axis) > 1e-12:
+            turn = Rotation.from_rotvec(axis / np.linalg.norm(axis) * ang).as_matrix()
+            R = R @ turn.T  # camera axes (rows of R) rotated by ``turn`` in the world
     T = np.eye(4)
     T[:3, :3] = R
     T[:3, 3] = -R @ c
