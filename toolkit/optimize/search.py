@@ -111,7 +111,7 @@ _REASON_COLORS = np.array([[0, 200, 0], [128, 128, 128], [139, 69, 19], [255, 0,
 def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
                    constraints: AnthropometricConstraints | None = None,
                    config: OptimizeConfig = OptimizeConfig(), *, observer: Observer | None = None,
-                   frame: int | None = None) -> JointStep:
+                   frame: int | None = None, anchor: np.ndarray | None = None) -> JointStep:
     """Adaptive grid search of one joint with the rest of the pose fixed.
 
     Parameters
@@ -130,6 +130,10 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
         rejected ones (``points3d`` coloured by reason) and a ``text`` with the
         rejection counts per reason, or why the joint was kept.
     frame : int, optional
+    anchor : ndarray of shape (3,), optional
+        Where the joint started the whole optimisation (the stage-1 estimate);
+        with ``config.prior_weight > 0`` candidates are compared on their score
+        minus ``prior_weight * (|x - anchor| / prior_sigma_m)^2``.
 
     Returns
     -------
@@ -162,6 +166,13 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
         obs.report("text", name="optimize/kept", text=why, frame=frame)
         return JointStep(joint, x0, start, start, scorer.n_evaluations - n0, 0, "few_views", why)
     start_score = start if start_valid[0] else 0.0
+    use_prior = anchor is not None and config.prior_weight > 0
+
+    def penalty(p):
+        if not use_prior:
+            return 0.0
+        return config.prior_weight * float(np.sum((np.asarray(p) - anchor) ** 2, axis=-1)) / config.prior_sigma_m ** 2
+
     offs = _offsets(config.grid_radius)
     seen: dict[tuple, float] = {}
     rej_pos, rej_code = [], []
@@ -186,7 +197,7 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
                     seen[k] = 0.0
                     rej_pos.append(p)
                     rej_code.append(int(code))
-        ranked = sorted(seen.items(), key=lambda kv: -kv[1])
+        ranked = sorted(seen.items(), key=lambda kv: -(kv[1] - penalty(pos_of[kv[0]])))
         centres = [pos_of[k] for k, _ in ranked[:config.keep_best]]
         if step <= config.min_step_m * (1 + 1e-9):
             break
@@ -213,12 +224,13 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
         why = f"{name}: kept: every candidate breaks a constraint"
         obs.report("text", name="optimize/kept", text=why, frame=frame)
         return JointStep(joint, x0, 0.0, 0.0, n_eval, n_rej, "all_invalid", why)
-    S_valid = np.where(valid_mask, S, -np.inf)
+    pen = np.array([penalty(p) for p in P]) if use_prior else np.zeros(len(P))
+    S_valid = np.where(valid_mask, S - pen, -np.inf)
     # the score is flat along a bone: among candidates within tie_tol of the best, take the
     # one nearest the start, so that unobservable directions keep the previous estimate
     near = np.flatnonzero(S_valid >= S_valid.max() - config.tie_tol)
     b = int(near[np.argmin(np.linalg.norm(P[near] - x0, axis=1))])
-    if S_valid[b] > start_score + config.min_gain or not start_valid[0]:
+    if S_valid[b] > start_score - penalty(x0) + config.min_gain or not start_valid[0]:
         return JointStep(joint, P[b].copy(), float(S[b]), start_score, n_eval, n_rej, "moved")
     return JointStep(joint, x0, start_score, start_score, n_eval, n_rej, "kept",
                      f"{name}: no candidate scores higher")
@@ -258,6 +270,7 @@ def optimize_pose(scorer: PositionScorer, joints: np.ndarray,
     order = list(range(sk.n_joints)) if joint_order is None else [int(j) for j in joint_order]
     obs = as_observer(observer)
     n0 = scorer.n_evaluations
+    anchors = J.copy()
     first = np.array([scorer.joint_score(J, j) for j in range(sk.n_joints)])
     rows = [first]
     steps = []
@@ -265,7 +278,8 @@ def optimize_pose(scorer: PositionScorer, joints: np.ndarray,
     n_sweeps = 0
     for sweep in range(config.max_sweeps):
         for j in order:
-            st = optimize_joint(scorer, J, j, constraints, config, observer=observer, frame=frame)
+            st = optimize_joint(scorer, J, j, constraints, config, observer=observer, frame=frame,
+                                anchor=anchors[j])
             J[j] = st.position
             steps.append(st)
         n_sweeps += 1
