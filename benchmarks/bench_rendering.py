@@ -29,6 +29,7 @@ import argparse
 import importlib.util
 import json
 import re
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -50,7 +51,9 @@ def scene(seed: int, frames: int, cache: Path) -> Path:
     from toolkit.synthetic.spec import parse_spec
 
     out = cache / f"broadcast_s{seed}_f{frames}"
-    if not (out / "groundtruth" / "novel").exists():
+    if not (out / "field_model.json").exists():  # missing, or cached before datasets had field models
+        shutil.rmtree(out, ignore_errors=True)
+        shutil.rmtree(cache / f"fvv_s{seed}", ignore_errors=True)
         text = (REPO / "datasets_synthetic" / "default.toml").read_text()
         text = re.sub(r"(?m)^seed = .*$", f"seed = {seed}", text)
         text = re.sub(r"(?m)^frames = .*$", f"frames = {frames}", text)
