@@ -166,12 +166,11 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
         obs.report("text", name="optimize/kept", text=why, frame=frame)
         return JointStep(joint, x0, start, start, scorer.n_evaluations - n0, 0, "few_views", why)
     start_score = start if start_valid[0] else 0.0
-    use_prior = anchor is not None and config.prior_weight > 0
+    prior_w = config.prior_weight / config.prior_sigma_m ** 2 if anchor is not None else 0.0
 
     def penalty(p):
-        if not use_prior:
-            return 0.0
-        return config.prior_weight * float(np.sum((np.asarray(p) - anchor) ** 2, axis=-1)) / config.prior_sigma_m ** 2
+        """Prior cost of position(s) ``p`` (..., 3): 0 without an anchor or weight."""
+        return prior_w * np.sum((np.asarray(p) - (0.0 if anchor is None else anchor)) ** 2, axis=-1)
 
     offs = _offsets(config.grid_radius)
     seen: dict[tuple, float] = {}
@@ -224,8 +223,7 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
         why = f"{name}: kept: every candidate breaks a constraint"
         obs.report("text", name="optimize/kept", text=why, frame=frame)
         return JointStep(joint, x0, 0.0, 0.0, n_eval, n_rej, "all_invalid", why)
-    pen = np.array([penalty(p) for p in P]) if use_prior else np.zeros(len(P))
-    S_valid = np.where(valid_mask, S - pen, -np.inf)
+    S_valid = np.where(valid_mask, S - penalty(P), -np.inf)
     # the score is flat along a bone: among candidates within tie_tol of the best, take the
     # one nearest the start, so that unobservable directions keep the previous estimate
     near = np.flatnonzero(S_valid >= S_valid.max() - config.tie_tol)

@@ -393,9 +393,7 @@ class SilhouettePoseEstimator:
             pooled[v], counts[v] = pool_pose(poses[v], pool[v][0], pool[v][1], radius)
         if not (counts >= 2).any():
             return poses, offsets, joints, cost
-        cfg = replace(self.config.multiview, flips=())
-        res = select_multiview(pooled[:, None], self.rig, cfg, initial_offsets=np.nan_to_num(offsets),
-                               previous_joints3d=self.tracker.joints3d, observer=self.observer, frame=frame)
+        res = self._retriangulate(pooled, frame)
         self.observer.report("text", name=f"{REPORT_PREFIX}/pooling", frame=frame,
                              text=f"frame {frame}: pooled " + ", ".join(
                                  f"{c.name} {n}" for c, n in zip(self.rig, counts)) + " database entries per view"
@@ -403,11 +401,22 @@ class SilhouettePoseEstimator:
         if not res.success:
             return poses, offsets, joints, cost
         used = res.views_used
-        offsets = np.where(used[:, None], res.offsets, np.nan)
-        self.tracker.offsets = np.where(used[:, None], res.offsets, self.tracker.offsets)
-        if np.isfinite(res.joints3d).all():
-            self.tracker.joints3d = res.joints3d
-        return np.where(used[:, None, None], pooled, np.nan), offsets, res.joints3d, float(res.cost)
+        return (np.where(used[:, None, None], pooled, np.nan), np.where(used[:, None], res.offsets, np.nan),
+                res.joints3d, float(res.cost))
+
+    def _retriangulate(self, poses, frame) -> MultiViewSelection:
+        """Triangulate fixed 2D poses (one candidate per view, no flips) from the tracker's offsets;
+        on success the tracker carries the new offsets and pose forward (corrected or pooled poses)."""
+        cfg = replace(self.config.multiview, flips=())
+        init = self.tracker.offsets
+        sel = select_multiview(poses[:, None], self.rig, cfg, initial_offsets=init,
+                               previous_joints3d=self.tracker.joints3d, observer=self.observer, frame=frame)
+        if sel.success:
+            used = sel.views_used
+            self.tracker.offsets = np.where(used[:, None], sel.offsets, 0.0 if init is None else init)
+            if np.isfinite(sel.joints3d).all():
+                self.tracker.joints3d = sel.joints3d
+        return sel
 
     def _apply_edits(self, edits, masks, poses, offsets, joints, cost, fstate, sel, frame):
         n_views = self.n_views
@@ -432,22 +441,13 @@ class SilhouettePoseEstimator:
             entry = DatabaseEntry.from_silhouette(np.asarray(mask, bool), poses[v], motion=USER_MOTION, frame=frame,
                                                   source=f"{cam_name} frame {frame}")
             added.append(self.database.add(entry))
-        # re-triangulate with the corrected poses (one candidate per view, no flips)
         have = np.isfinite(poses).all(-1).sum(-1) >= 1
         if have.sum() >= 2:
-            cfg = replace(self.config.multiview, flips=())
-            init = self.tracker.offsets
-            sel = select_multiview(poses[:, None], self.rig, cfg, initial_offsets=init,
-                                   previous_joints3d=self.tracker.joints3d, observer=self.observer, frame=frame)
+            sel = self._retriangulate(poses, frame)
             if sel.success:
-                used = sel.views_used
-                offsets = np.where(used[:, None], sel.offsets, np.nan)
+                offsets = np.where(sel.views_used[:, None], sel.offsets, np.nan)
                 joints, cost = sel.joints3d, float(sel.cost)
                 fstate = FRAME_OK
-                self.tracker.offsets = np.where(used[:, None], sel.offsets,
-                                                0.0 if init is None else init)
-                if np.isfinite(joints).all():
-                    self.tracker.joints3d = joints
         self.observer.report("text", name=f"{REPORT_PREFIX}/edits", frame=frame,
                              text=f"frame {frame}: corrected {[names[v] for v in np.flatnonzero(edited)]}; "
                                   f"{len(added)} pose(s) added to the database ({len(self.database)} entries)")
