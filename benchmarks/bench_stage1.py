@@ -48,7 +48,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from toolkit.calibration import calibration_error_px, refine_rig  # noqa: E402
+from toolkit.calibration import calibration_error_px, refine_dataset  # noqa: E402
 from toolkit.cameras import Rig  # noqa: E402
 from toolkit.foreground import mask_iou  # noqa: E402
 from toolkit.io import Dataset  # noqa: E402
@@ -216,7 +216,7 @@ def main(argv=None) -> int:
         ds, plates = scene(args.scenes, seed, motion, frames)
         measured, truth = ds.rig, ds.gt_rig
         t1 = time.perf_counter()
-        refined, _ = refine_rig(measured, {c: p[0] for c, p in plates.items()}, ds.field_model())
+        refined, _ = refine_dataset(ds)  # on the clean plates and the field model, as the recipes do
         t_refine.append((time.perf_counter() - t1) / len(measured))
         J = ds.gt_joints3d()
         for c in measured:

@@ -95,9 +95,7 @@ def main(argv=None) -> int:
                 observer.report("rig", rig=ds.novel_rig)
             observer.report("skeleton", skeleton=SKELETON_14)
         done = {t for t in range(n) if (out / "frames" / frame_filename(t, ".json")).exists()}
-        # frames finished by a run that predates calibration.toml used the measured cameras
-        rig = cameras_for_run(ds, out, refine=not (args.keep_calibration or (done and not (out / "calibration.toml")
-                                                                             .exists())), observer=observer)
+        rig = cameras_for_run(ds, out, refine=not args.keep_calibration, resumed=bool(done), observer=observer)
         if observer is not None:
             observer.report("rig", rig=rig)
         plates = BackgroundPlates(ds.scene_toml) if ds.scene_toml is not None else None

@@ -90,3 +90,11 @@ def test_stage_rig_rejects_cameras_of_another_dataset(tiny_dataset, tmp_path):  
     write_calibration(tmp_path / USED_CALIBRATION, Rig((ds.rig[0].replace(name="zzz"),)))
     with pytest.raises(InputError, match="cameras"):
         stage_rig(ds, tmp_path)
+
+
+def test_a_run_resumed_without_calibration_keeps_the_measured_cameras(tiny_dataset, tmp_path):  # noqa: F811
+    ds = Dataset.open(tiny_dataset)
+    lines = []
+    rig = cameras_for_run(ds, tmp_path / "old", resumed=True, log=lines.append)
+    assert all(np.allclose(a.cam_from_world, b.cam_from_world) for a, b in zip(rig, ds.rig))
+    assert "measured calibration" in lines[0] and (tmp_path / "old" / USED_CALIBRATION).is_file()

@@ -130,7 +130,7 @@ def test_refinement_removes_most_of_an_8px_calibration_error(scene, seed):
     assert r.inliers_after > r.inliers_before
     assert np.allclose(r.camera.center, measured.center)
     # the recording gets the detected lines, the model before and after, the residual curve and a summary
-    names = {d["name"] for d in obs.reports and [d for _, d in obs.reports]}
+    names = {d["name"] for _, d in obs.reports}
     assert {"calibration/lines", "calibration/model_before", "calibration/model_after",
             "calibration/cam/rms_px", "calibration/cam/summary"} <= names
 

@@ -121,7 +121,7 @@ def stage_rig(dataset, folder: str | os.PathLike | None) -> Rig:
     return rig
 
 
-def cameras_for_run(dataset, out: str | os.PathLike, *, refine: bool = True,
+def cameras_for_run(dataset, out: str | os.PathLike, *, refine: bool = True, resumed: bool = False,
                     config: RefineConfig = RefineConfig(), observer=None, log=print) -> Rig:
     """The cameras a recipe run works with, written to ``out/calibration.toml``.
 
@@ -137,6 +137,10 @@ def cameras_for_run(dataset, out: str | os.PathLike, *, refine: bool = True,
         The recipe's output folder (created if missing).
     refine : bool
         Refine on the field lines; False keeps the measured calibration.
+    resumed : bool
+        ``out`` already holds results of an earlier run.  Without a
+        ``calibration.toml`` that run predates it and used the measured
+        cameras, so they are kept (and written) for the frames still to do.
     config : RefineConfig
     observer : Observer, optional
     log : callable
@@ -155,6 +159,9 @@ def cameras_for_run(dataset, out: str | os.PathLike, *, refine: bool = True,
         rig = stage_rig(dataset, out)
         log(f"cameras: reusing {path}")
         return rig
+    if resumed and refine:
+        log(f"cameras: {out} holds results made with the measured calibration; keeping it")
+        refine = False
     rig, results = refine_dataset(dataset, config, observer=observer) if refine else (dataset.rig, {})
     if results:
         log("cameras refined on the field lines:")

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from toolkit.calibration.refine import apply_correction, calibration_error_px
 from toolkit.cameras import Camera, Rig
 from toolkit.errors import InputError
 
@@ -169,20 +170,11 @@ def perturb_rig(rig: Rig, target_px: float, points: np.ndarray,
         axis /= np.linalg.norm(axis)
         fscale = 1.0 + rng.uniform(-0.005, 0.005)
 
-        def make(angle):
-            import cv2
-            dR, _ = cv2.Rodrigues(axis * angle)
-            T = cam.cam_from_world.copy()
-            R = dR @ cam.R
-            T[:3, :3] = R
-            T[:3, 3] = -R @ cam.center
-            K = cam.K.copy()
-            K[0, 0] *= fscale
-            K[1, 1] *= fscale
-            return cam.replace(cam_from_world=T, K=K)
+        def make(angle):  # the same model the field-line refinement fits back
+            return apply_correction(cam, axis * angle, np.log(fscale))
 
         def err(c):
-            return float(np.nanmean(np.linalg.norm(c.project(pts) - cam.project(pts), axis=1)))
+            return calibration_error_px(c, cam, pts)
 
         angle = target_px / cam.K[0, 0]
         for _ in range(4):  # secant-like rescaling: error is nearly linear in the angle
