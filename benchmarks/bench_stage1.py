@@ -53,7 +53,7 @@ from toolkit.cameras import Rig  # noqa: E402
 from toolkit.foreground import mask_iou  # noqa: E402
 from toolkit.io import Dataset  # noqa: E402
 from toolkit.multiview import offsets_modulo_gauge  # noqa: E402
-from toolkit.silhouettes import SilhouetteDatabase, default_database  # noqa: E402
+from toolkit.silhouettes import SilhouetteDatabase, Stage1Config, default_database  # noqa: E402
 from toolkit.silhouettes.pipeline import FRAME_OK, estimate_dataset  # noqa: E402
 from toolkit.skeleton import SKELETON_14  # noqa: E402
 from toolkit.synthetic import generate_scene, parse_spec  # noqa: E402
@@ -140,9 +140,10 @@ def flip_is_visible(truth2d: np.ndarray, height: float) -> bool:
     return bool(np.linalg.norm(truth2d[LATERAL] - truth2d[FLIP][LATERAL], axis=-1).mean() > PCK_FRACTION * height)
 
 
-def evaluate(ds: Dataset, db: SilhouetteDatabase, rig: Rig, true_rig: Rig, plates: dict, tally: Tally) -> None:
+def evaluate(ds: Dataset, db: SilhouetteDatabase, rig: Rig, true_rig: Rig, plates: dict, tally: Tally,
+             config: Stage1Config | None = None) -> None:
     J = ds.gt_joints3d()
-    for est, masks in estimate_dataset(ds, db, rig=rig, backgrounds=plates, log_images=False):
+    for est, masks in estimate_dataset(ds, db, config, rig=rig, backgrounds=plates, log_images=False):
         t = est.frame
         tally.frames += 1
         tally.t_foreground.append(est.timings["foreground"])
@@ -216,7 +217,7 @@ def main(argv=None) -> int:
         ds, plates = scene(args.scenes, seed, motion, frames)
         measured, truth = ds.rig, ds.gt_rig
         t1 = time.perf_counter()
-        refined, _ = refine_dataset(ds)  # on the clean plates and the field model, as the recipes do
+        refined, results = refine_dataset(ds)  # on the clean plates and the field model, as the recipes do
         t_refine.append((time.perf_counter() - t1) / len(measured))
         J = ds.gt_joints3d()
         for c in measured:
@@ -226,7 +227,12 @@ def main(argv=None) -> int:
             names = measured.names[:n_cams]
             true_rig = Rig(tuple(truth[n] for n in names))
             rig = true_rig if error == 0 else Rig(tuple((refined if lines else measured)[n] for n in names))
-            evaluate(ds, db, rig, true_rig, plates, tallies[(n_cams, error, lines)])
+            # as the recipes do: cameras refined on the field lines get the tight offset prior (the
+            # exact cameras too: their refinement is accepted with a negligible correction)
+            config = Stage1Config()
+            if error == 0 or lines:
+                config = config.with_refined_cameras(n for n in names if results[n].accepted)
+            evaluate(ds, db, rig, true_rig, plates, tallies[(n_cams, error, lines)], config)
         ds.close()
 
     header = ("cams", "calibration", "frames", "3D ok", "IoU", "PCK top1", "PCK best-k", "PCK chosen", "MPJPE mm",

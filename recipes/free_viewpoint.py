@@ -65,14 +65,14 @@ def main(argv=None) -> int:
     from tqdm import tqdm
 
     from toolkit.foreground import BackgroundConfig, ForegroundConfig
-    from toolkit.calibration import cameras_for_run
+    from toolkit.calibration import cameras_for_run, refined_cameras
     from toolkit.cameras import closest_point_to_rays
     from toolkit.io import Dataset, atomic_save_npz, atomic_write_png, atomic_write_text, write_video
     from toolkit.io.frames import frame_filename, read_png
     from toolkit.rendering import CpuCompositor, bbox_scores, birds_eye, orbit_path, source_path
     from toolkit.rendering.evaluation import BackgroundPlates, pose_errors, summarise
     from toolkit.rendering.freeviewpoint import METHODS, FrameProcessor, FreeViewpointConfig, render_methods
-    from toolkit.silhouettes import default_database
+    from toolkit.silhouettes import Stage1Config, default_database
     from toolkit.silhouettes.pipeline import estimate_dataset
     from toolkit.skeleton import SKELETON_14
 
@@ -126,7 +126,9 @@ def main(argv=None) -> int:
         try:
             fg = ForegroundConfig(method="chroma") if args.foreground == "chroma" else \
                 ForegroundConfig(background=replace(BackgroundConfig(), method=args.foreground))
-            run = estimate_dataset(ds, db, foreground=fg, frames=todo, rig=rig, observer=observer) if todo else iter(())
+            s1config = Stage1Config().with_refined_cameras(refined_cameras(out))  # tight offset prior where refined
+            run = estimate_dataset(ds, db, s1config, foreground=fg, frames=todo, rig=rig,
+                                   observer=observer) if todo else iter(())
             for est, masks in tqdm(run, total=len(todo), desc="free viewpoint", unit="frame", disable=args.quiet):
                 t0 = time.perf_counter()
                 t = est.frame

@@ -81,7 +81,7 @@ def main(argv=None) -> int:
     from toolkit.foreground import BackgroundConfig, ForegroundConfig
     import numpy as np
 
-    from toolkit.calibration import cameras_for_run
+    from toolkit.calibration import cameras_for_run, refined_cameras
     from toolkit.io import Dataset, atomic_write_text, read_png
     from toolkit.silhouettes import (
         QueryConfig,
@@ -129,6 +129,7 @@ def main(argv=None) -> int:
                                      camera_names=names)
             observer.report("skeleton", skeleton=SKELETON_14)
         rig = cameras_for_run(ds, args.out, refine=not args.keep_calibration, observer=observer)
+        config = config.with_refined_cameras(refined_cameras(args.out))  # tight offset prior where refined
         if observer is not None:
             observer.report("rig", rig=rig)
         n_db = len(db)

@@ -12,6 +12,7 @@ from toolkit.calibration import (
     calibration_error_px,
     cameras_for_run,
     refine_dataset,
+    refined_cameras,
     stage_rig,
 )
 from toolkit.errors import InputError
@@ -98,3 +99,29 @@ def test_a_run_resumed_without_calibration_keeps_the_measured_cameras(tiny_datas
     rig = cameras_for_run(ds, tmp_path / "old", resumed=True, log=lines.append)
     assert all(np.allclose(a.cam_from_world, b.cam_from_world) for a, b in zip(rig, ds.rig))
     assert "measured calibration" in lines[0] and (tmp_path / "old" / USED_CALIBRATION).is_file()
+
+
+def test_refined_cameras_read_back_from_the_run(tiny_dataset, tmp_path):  # noqa: F811
+    ds = Dataset.open(tiny_dataset)
+    _, results = refine_dataset(ds)
+    cameras_for_run(ds, tmp_path / "run", log=None)
+    assert refined_cameras(tmp_path / "run") == tuple(n for n, r in results.items() if r.accepted)
+    cameras_for_run(ds, tmp_path / "kept", refine=False, log=None)
+    assert refined_cameras(tmp_path / "kept") == ()
+    assert refined_cameras(tmp_path / "nothing-here") == () and refined_cameras(None) == ()
+    # stage 1 gives those cameras the tight offset prior
+    from toolkit.multiview import REFINED_OFFSET_PRIOR_PX
+    from toolkit.silhouettes import Stage1Config
+    cfg = Stage1Config().with_refined_cameras(refined_cameras(tmp_path / "run"))
+    for n in ds.camera_names:
+        want = REFINED_OFFSET_PRIOR_PX if n in refined_cameras(tmp_path / "run") else Stage1Config().multiview.offset_prior_px
+        assert cfg.multiview.offset_prior_of(n) == want
+
+
+def test_refined_cameras_malformed_metadata(tmp_path):
+    (tmp_path / USED_CALIBRATION).write_text("[metadata]\nrefined_on_field_lines = 3\n")
+    with pytest.raises(InputError, match="refined_on_field_lines"):
+        refined_cameras(tmp_path)
+    (tmp_path / USED_CALIBRATION).write_text("[metadata\n")
+    with pytest.raises(InputError, match="calibration.toml"):
+        refined_cameras(tmp_path)

@@ -377,3 +377,27 @@ def test_implausible_skeleton_loses_to_a_plausible_one(rng):
     sel = select_multiview(cand, rig, base)
     assert sel.choice[1] == 1 and mpjpe(sel.joints3d, X) < 0.02
     assert AnthropometricConstraints().excess(sel.joints3d) == pytest.approx(0.0, abs=0.05)
+
+
+def test_per_camera_offset_prior(rng):
+    """A camera given a tight prior (refined on field lines) keeps a small offset; the others absorb the error."""
+    rig = broadcast_rig(3, rng)
+    X = walking_poses(rng, 2)[0]
+    true = np.array([[0.0, 0.0], [6.0, -5.0], [0.0, 0.0]])
+    # camera 0's 2D joints are noisy and biased: a free offset would absorb the bias
+    obs = project(rig, X) - true[:, None]
+    obs[0] += np.array([2.5, -2.0]) + rng.normal(0, 0.3, (14, 2))
+    loose = select_multiview(obs[:, None], rig)
+    cfg = MultiViewConfig().with_offset_priors([rig[0].name], 0.5)
+    assert cfg.offset_prior_of(rig[0].name) == 0.5 and cfg.offset_prior_of(rig[1].name) == MultiViewConfig().offset_prior_px
+    tight = select_multiview(obs[:, None], rig, cfg)
+    assert np.linalg.norm(tight.offsets[0]) < 0.5 * np.linalg.norm(loose.offsets[0])
+    # adding another camera keeps the first one's prior
+    both = cfg.with_offset_priors([rig[2].name])
+    assert dict(both.camera_offset_prior_px) == {rig[0].name: 0.5, rig[2].name: 1.5}
+
+
+@pytest.mark.parametrize("value", [(("cam00", 0.0),), (("cam00",),), "cam00"])
+def test_bad_per_camera_offset_prior_raises(value):
+    with pytest.raises(InputError, match="camera_offset_prior_px"):
+        MultiViewConfig(camera_offset_prior_px=value)

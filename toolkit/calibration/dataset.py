@@ -100,6 +100,35 @@ def describe(results: Mapping[str, Refinement]) -> list[str]:
     return out
 
 
+def refined_cameras(folder: str | os.PathLike | None) -> tuple[str, ...]:
+    """Names of the cameras a stage's output ``folder`` refined on field lines (``calibration.toml``).
+
+    Empty when the folder has no ``calibration.toml`` or kept the measured
+    calibration.
+
+    Raises
+    ------
+    InputError
+        If ``calibration.toml`` is not valid TOML or its ``[metadata]`` table is malformed.
+    """
+    import tomllib
+
+    if folder is None:
+        return ()
+    path = Path(folder) / USED_CALIBRATION
+    if not path.is_file():
+        return ()
+    try:
+        meta = tomllib.loads(path.read_text(encoding="utf-8")).get("metadata", {})
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
+        raise InputError(str(path), "a TOML calibration file", f"unreadable: {e}") from None
+    names = meta.get("refined_on_field_lines", "") if isinstance(meta, dict) else None
+    if not isinstance(names, str):
+        raise InputError(f"{path}: [metadata] refined_on_field_lines", "a comma-separated string of camera names",
+                         repr(names))
+    return tuple(n for n in names.split(",") if n)
+
+
 def stage_rig(dataset, folder: str | os.PathLike | None) -> Rig:
     """The cameras a stage's output ``folder`` used (``calibration.toml``), else the dataset's measured ones.
 

@@ -8,6 +8,7 @@ from toolkit.multiview.config import (
     KEYPOINT_SIGMA_PX,
     MAX_OFFSET_PX,
     OFFSET_PRIOR_PX,
+    REFINED_OFFSET_PRIOR_PX,
     REFINE_TOP,
     RESIDUALS,
     SOURCE_K,
@@ -34,7 +35,7 @@ from toolkit.multiview.selection import (
 from toolkit.multiview.sequence import MultiViewTracker, select_sequence, stack_selections
 
 __all__ = [
-    "FLIP_MODES", "KEYPOINT_SIGMA_PX", "MAX_OFFSET_PX", "OFFSET_PRIOR_PX", "REFINE_TOP", "RESIDUALS",
+    "FLIP_MODES", "KEYPOINT_SIGMA_PX", "MAX_OFFSET_PX", "OFFSET_PRIOR_PX", "REFINED_OFFSET_PRIOR_PX", "REFINE_TOP", "RESIDUALS",
     "SOURCE_K", "SOURCE_MAX_OFFSET_PX", "MultiViewConfig",
     "MIN_JOINT_CONFIDENCE", "MIN_VIEW_CONFIDENCE", "keypoints_to_candidates",
     "OffsetFit", "fit_offsets", "gauge_basis", "image_offsets", "mean_ray_distance", "offsets_modulo_gauge", "triangulate_views",

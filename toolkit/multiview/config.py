@@ -6,7 +6,7 @@ after it; the others are engineering choices, each with its reason.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -27,6 +27,12 @@ MAX_OFFSET_PX = 2 * SOURCE_MAX_OFFSET_PX
 #: the body shifts every view's joints almost uniformly, so the offsets are determined only
 #: up to that shift) by picking the smallest offsets that explain the data.
 OFFSET_PRIOR_PX = SOURCE_MAX_OFFSET_PX
+#: Prior standard deviation of the offset of a camera refined on the field lines, pixels.
+#: The refinement leaves 0.6 px mean and 1.25 px worst calibration error at the joints
+#: (docs/calibration_refinement.md); with the 8 px prior the offsets absorbed the silhouette
+#: database's 2D joint errors instead (1-3 px on cameras with no error left), which shifted
+#: stage 1's body and, applied by stage 3, every billboard (docs/stage1_multiview.md).
+REFINED_OFFSET_PRIOR_PX = 1.5
 #: Standard deviation of a 2D joint, pixels, used to weigh the offset prior against the data.
 KEYPOINT_SIGMA_PX = 2.0
 #: Combinations refined by Levenberg-Marquardt, best first by their cost without offset
@@ -92,6 +98,10 @@ class MultiViewConfig:
         Smooth bound on each offset component, pixels.
     offset_prior_px : float
         Standard deviation of the zero-mean offset prior, pixels (``inf``: no prior).
+    camera_offset_prior_px : tuple of (str, float)
+        Per-camera overrides of ``offset_prior_px`` by camera name, e.g. the
+        cameras refined on the field lines (:data:`REFINED_OFFSET_PRIOR_PX`,
+        :meth:`with_offset_priors`).
     keypoint_sigma_px : float
         Standard deviation of a 2D joint, pixels.
     reference_view : int or None
@@ -135,6 +145,7 @@ class MultiViewConfig:
     residual: str = "reprojection"
     max_offset_px: float = MAX_OFFSET_PX
     offset_prior_px: float = OFFSET_PRIOR_PX
+    camera_offset_prior_px: tuple[tuple[str, float], ...] = ()
     keypoint_sigma_px: float = KEYPOINT_SIGMA_PX
     reference_view: int | None = None
     refine_top: int = REFINE_TOP
@@ -182,6 +193,16 @@ class MultiViewConfig:
         if not self.offset_prior_px > 0:
             raise InputError("MultiViewConfig.offset_prior_px", "a value > 0 (inf: no prior)",
                              repr(self.offset_prior_px))
+        try:
+            pri = tuple((str(n), float(v)) for n, v in self.camera_offset_prior_px)
+        except (TypeError, ValueError):
+            raise InputError("MultiViewConfig.camera_offset_prior_px", "pairs (camera name, pixels)",
+                             repr(self.camera_offset_prior_px)) from None
+        for n, v in pri:
+            if not v > 0:
+                raise InputError(f"MultiViewConfig.camera_offset_prior_px[{n!r}]", "a value > 0 (inf: no prior)",
+                                 repr(v))
+        object.__setattr__(self, "camera_offset_prior_px", pri)
         if not (np.isfinite(self.tie_relative) and self.tie_relative >= 0):
             raise InputError("MultiViewConfig.tie_relative", "a finite value >= 0", repr(self.tie_relative))
         for name in ("refine_top", "max_combinations", "min_view_joints"):
@@ -192,3 +213,13 @@ class MultiViewConfig:
                                                 or self.reference_view < 0):
             raise InputError("MultiViewConfig.reference_view", "None or a view index >= 0",
                              repr(self.reference_view))
+
+    def offset_prior_of(self, camera: str) -> float:
+        """Offset prior standard deviation of one camera, pixels."""
+        return dict(self.camera_offset_prior_px).get(camera, self.offset_prior_px)
+
+    def with_offset_priors(self, cameras, prior_px: float = REFINED_OFFSET_PRIOR_PX) -> "MultiViewConfig":
+        """This configuration with the offset prior of ``cameras`` (names) set to ``prior_px``."""
+        pri = dict(self.camera_offset_prior_px)
+        pri.update({str(c): float(prior_px) for c in cameras})
+        return replace(self, camera_offset_prior_px=tuple(sorted(pri.items())))

@@ -240,8 +240,8 @@ def fit_offsets(points2d: np.ndarray, rig: Rig, config: MultiViewConfig | None =
     # pixel footprint per view (metres per pixel at the body), for the ray residual's prior
     _, _, _, X0 = evaluate(init[None])
     X0 = X0[0][np.isfinite(X0[0]).all(-1)]
-    prior_scale = cfg.keypoint_sigma_px / cfg.offset_prior_px if np.isfinite(cfg.offset_prior_px) else 0.0
-    prior_w = prior_scale * np.ones(len(act))
+    sig = np.array([cfg.offset_prior_of(rig[int(i)].name) for i in act], float)
+    prior_w = np.where(np.isfinite(sig), cfg.keypoint_sigma_px / sig, 0.0)
     if cfg.residual == "ray":
         foot = np.array([np.median(cam.depth_of(X0)) / np.sqrt(cam.K[0, 0] * cam.K[1, 1]) if len(X0) else 1.0
                          for cam in rig])

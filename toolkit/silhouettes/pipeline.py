@@ -120,6 +120,18 @@ class Stage1Config:
             raise InputError("Stage1Config.pool_radius", "a positive fraction of the box height",
                              repr(self.pool_radius))
 
+    def with_refined_cameras(self, cameras) -> "Stage1Config":
+        """This configuration with the tight offset prior for ``cameras`` (names) refined on field lines.
+
+        A refined camera is good to about a pixel, so its stage-1 offset gets the
+        prior :data:`~toolkit.multiview.REFINED_OFFSET_PRIOR_PX` instead of the
+        source's 8 px (:meth:`~toolkit.multiview.MultiViewConfig.with_offset_priors`).
+        """
+        cams = list(cameras)
+        if not cams:
+            return self
+        return replace(self, multiview=self.multiview.with_offset_priors(cams))
+
 
 @dataclass(frozen=True, eq=False)
 class FrameEstimate:
