@@ -169,7 +169,8 @@ def main(argv=None) -> int:
             fv = importlib.util.module_from_spec(spec)
             spec.loader.exec_module(fv)
             out = args.cache / f"fvv_s{seed}"
-            fv.main([str(root), "--out", str(out), "--max-frames", str(args.end_to_end), "--quiet", "--no-recording"])
+            fv.main([str(root), "--out", str(out), "--max-frames", str(args.end_to_end), "--quiet", "--no-recording",
+                     "--replace-stale"])
             r["end_to_end"] = json.loads((out / "metrics.json").read_text())
             if args.pictures is not None:
                 from toolkit.io.frames import read_png

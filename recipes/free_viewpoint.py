@@ -20,6 +20,8 @@ of the dataset and of three camera paths.  Writes into OUT:
   metrics.json           PSNR / SSIM per method in the subject's box, pose error, timings (with ground truth)
   recording.rrd          every intermediate of this run, with a blueprint
   frames/NNNNNN.json     per-frame results; a frame with one is finished and skipped when the run resumes
+  run.json               the dataset fingerprint and options of this run: results of another dataset or
+                         other options are never resumed (refused, or moved aside with --replace-stale)
 
 Stop it at any time (Ctrl-C) and run the same command again: finished frames
 are kept.  See docs/stage4_rendering.md.
@@ -56,6 +58,9 @@ def main(argv=None) -> int:
     ap.add_argument("--keep-calibration", action="store_true",
                     help="do not refine the cameras on the dataset's field lines (field_model.json)")
     ap.add_argument("--no-recording", action="store_true", help="do not write recording.rrd")
+    ap.add_argument("--replace-stale", action="store_true",
+                    help="if OUT holds results of another dataset or other options, move it to OUT.stale-N "
+                         "and start afresh (default: refuse)")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
     args = ap.parse_args(argv)
 
@@ -69,6 +74,7 @@ def main(argv=None) -> int:
     from toolkit.cameras import closest_point_to_rays
     from toolkit.io import Dataset, atomic_save_npz, atomic_write_png, atomic_write_text, write_video
     from toolkit.io.frames import frame_filename, read_png
+    from toolkit.io.runs import dataset_fingerprint, start_run
     from toolkit.rendering import CpuCompositor, bbox_scores, birds_eye, orbit_path, source_path
     from toolkit.rendering.evaluation import BackgroundPlates, pose_errors, summarise
     from toolkit.rendering.freeviewpoint import METHODS, FrameProcessor, FreeViewpointConfig, render_methods
@@ -81,7 +87,11 @@ def main(argv=None) -> int:
         names = ds.camera_names
         n = ds.frames_to_process(args.max_frames)
         out = args.out
-        out.mkdir(parents=True, exist_ok=True)
+        # results of another dataset or other options must not be resumed (run.json)
+        start_run(out, {"recipe": "free_viewpoint", "dataset": dataset_fingerprint(ds.root),
+                        "db": None if args.db is None else str(args.db.resolve()), "foreground": args.foreground,
+                        "optimize": not args.no_optimize, "keep_calibration": args.keep_calibration},
+                  replace_stale=args.replace_stale)
         novel = list(ds.novel_rig) if ds.has_groundtruth and (ds.root / "groundtruth/novel/calibration.toml").exists() \
             else []
         if not novel:

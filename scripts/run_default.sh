@@ -9,7 +9,7 @@ bash scripts/setup.sh
 OUT="${OUT:-out}"
 PY=.venv/bin/python
 $PY recipes/make_scene.py datasets_synthetic/default.toml --out "$OUT/default_scene"
-$PY recipes/free_viewpoint.py "$OUT/default_scene" --out "$OUT/default_fvv"
+$PY recipes/free_viewpoint.py "$OUT/default_scene" --out "$OUT/default_fvv" --replace-stale
 echo
 echo "Done. Open the recordings with:"
 echo "  .venv/bin/rerun $OUT/default_scene/scene.rrd     (the scene and its ground truth)"

@@ -123,13 +123,27 @@ def test_free_viewpoint_end_to_end_and_resume(dataset, tmp_path, capsys):
     before = novel0.stat().st_mtime_ns
     (out / "frames" / "000001.json").unlink()
     rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",
-                      "--no-recording", "--no-baselines", "--no-optimize"])
+                      "--no-recording", "--no-baselines"])
     assert rc == 0
     printed = capsys.readouterr().out
     assert "resuming: 1 of 2" in printed and "(1 this run" in printed
     assert "cameras: reusing" in printed and (out / "calibration.toml").is_file()
     assert novel0.stat().st_mtime_ns == before
     assert (out / "frames" / "000001.json").exists()
+
+    # other options (or another dataset): the finished frames are not resumed ...
+    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",
+                      "--no-recording", "--no-baselines", "--no-optimize", "--max-frames", "1"])
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert str(out) in err and "optimize" in err and "--replace-stale" in err
+    assert (out / "frames" / "000001.json").exists()
+    # ... unless asked: then they are moved aside, not deleted
+    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",
+                      "--no-recording", "--no-baselines", "--no-optimize", "--max-frames", "1", "--replace-stale"])
+    assert rc == 0
+    assert (tmp_path / (out.name + ".stale-1") / "frames" / "000001.json").exists()
+    assert (out / "frames" / "000000.json").exists() and not (out / "frames" / "000001.json").exists()
 
 
 def test_bad_dataset_is_a_clear_error(tmp_path, capsys):

@@ -1,0 +1,58 @@
+"""Run identities of resumable output folders (``toolkit.io.runs``)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from toolkit.errors import InputError
+from toolkit.io.runs import RUN_FILE, dataset_fingerprint, file_fingerprint, start_run
+
+
+def _dataset(root, video=b"frames"):
+    (root / "videos").mkdir(parents=True)
+    (root / "calibration.toml").write_text("[cam00]\n")
+    (root / "videos" / "cam00.mp4").write_bytes(video)
+    return root
+
+
+def test_dataset_fingerprint_follows_the_content(tmp_path):
+    a = dataset_fingerprint(_dataset(tmp_path / "a"))
+    assert a == dataset_fingerprint(_dataset(tmp_path / "b"))  # same files elsewhere
+    assert a != dataset_fingerprint(_dataset(tmp_path / "c", b"other frames"))
+    big = tmp_path / "big.bin"
+    big.write_bytes(bytes(9 << 20))
+    f0 = file_fingerprint(big)
+    with open(big, "r+b") as f:  # a change near the end of a large file is seen
+        f.seek((9 << 20) - 10)
+        f.write(b"x")
+    assert file_fingerprint(big) != f0
+
+
+def test_start_run_resumes_only_the_same_run(tmp_path):
+    out = tmp_path / "out"
+    ident = {"dataset": "abc", "optimize": True}
+    assert start_run(out, ident, log=None) is False
+    assert json.loads((out / RUN_FILE).read_text()) == ident
+    (out / "frames").mkdir()
+    (out / "frames" / "000000.json").write_text("{}")
+    assert start_run(out, dict(ident), log=None) is True
+    with pytest.raises(InputError, match="optimize") as e:
+        start_run(out, {"dataset": "abc", "optimize": False}, log=None)
+    assert "--replace-stale" in str(e.value)
+    lines = []
+    assert start_run(out, {"dataset": "abc", "optimize": False}, replace_stale=True, log=lines.append) is False
+    assert (tmp_path / "out.stale-1" / "frames" / "000000.json").exists()  # moved aside, not lost
+    assert not (out / "frames").exists() and "out.stale-1" in lines[0]
+
+
+def test_start_run_refuses_a_foreign_folder(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    with pytest.raises(InputError, match="without a run.json"):
+        start_run(out, {"dataset": "abc"}, log=None)
+    (out / RUN_FILE).write_text("{not json")
+    with pytest.raises(InputError, match="run.json"):
+        start_run(out, {"dataset": "abc"}, log=None)

@@ -1,0 +1,115 @@
+"""Which dataset and options a resumable output folder was made from (``OUT/run.json``).
+
+A recipe that resumes (skips frames whose results exist) must not mix the
+results of two different inputs: after the dataset was regenerated, or with
+other options, the old frames are stale.  :func:`start_run` compares the
+identity of this run (a fingerprint of the dataset's files and the options
+that change the results) with the one stored in the folder and refuses to
+resume a different run, or, when asked, moves the stale folder aside (never
+deleting finished work) and starts afresh.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+
+from toolkit.errors import InputError
+from toolkit.io.atomic import atomic_write_text
+
+#: The identity file of a run folder.
+RUN_FILE = "run.json"
+#: Bytes hashed at each end of a large file (whole files below twice this).
+_HASH_EDGE = 4 << 20
+
+
+def file_fingerprint(path: str | os.PathLike) -> str:
+    """SHA-256 of a file's size and content (first and last 4 MiB of large files), hex."""
+    p = Path(path)
+    size = p.stat().st_size
+    h = hashlib.sha256(str(size).encode())
+    with open(p, "rb") as f:
+        if size <= 2 * _HASH_EDGE:
+            h.update(f.read())
+        else:
+            h.update(f.read(_HASH_EDGE))
+            f.seek(size - _HASH_EDGE)
+            h.update(f.read(_HASH_EDGE))
+    return h.hexdigest()
+
+
+def dataset_fingerprint(root: str | os.PathLike) -> str:
+    """Fingerprint of a dataset folder: its calibration and videos (names, sizes, content), hex.
+
+    Parameters
+    ----------
+    root : path
+        Dataset folder (``docs/dataset_layout.md``).
+    """
+    root = Path(root)
+    files = [root / "calibration.toml", *sorted((root / "videos").glob("*"))]
+    h = hashlib.sha256()
+    for f in files:
+        if f.is_file():
+            h.update(f.relative_to(root).as_posix().encode())
+            h.update(file_fingerprint(f).encode())
+    return h.hexdigest()
+
+
+def start_run(out: str | os.PathLike, identity: dict, *, replace_stale: bool = False, log=print) -> bool:
+    """Check (or record) which inputs a resumable output folder belongs to.
+
+    Parameters
+    ----------
+    out : path
+        The recipe's output folder.
+    identity : dict
+        JSON-serialisable description of the run: the dataset fingerprint and the
+        options that change the results.
+    replace_stale : bool
+        When ``out`` holds results of another run, rename it to
+        ``<out>.stale-<k>`` and start afresh instead of raising.
+    log : callable or None
+
+    Returns
+    -------
+    bool
+        True when ``out`` holds earlier results of this same run (resume).
+
+    Raises
+    ------
+    InputError
+        ``out`` holds results of another dataset or other options (and not
+        ``replace_stale``), or its ``run.json`` is unreadable.
+    """
+    out = Path(out)
+    log = log or (lambda *_: None)
+    ident = json.loads(json.dumps(identity, sort_keys=True))
+    path = out / RUN_FILE
+    stale = ""
+    if path.is_file():
+        try:
+            old = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+            raise InputError(str(path), "the JSON identity of an earlier run", f"unreadable: {e}") from None
+        if old == ident:
+            return True
+        diff = sorted(k for k in set(old) | set(ident) if old.get(k) != ident.get(k))
+        stale = f"results of another run (differs in: {', '.join(diff)})"
+    elif out.is_dir() and any(out.iterdir()):
+        stale = f"results without a {RUN_FILE} (made before runs were identified, or by another recipe)"
+    if stale:
+        if not replace_stale:
+            raise InputError(str(out), "an empty folder or the results of this same run to resume",
+                             f"{stale}; use another --out, remove it, or pass --replace-stale to move it aside")
+        k = 1
+        while out.with_name(f"{out.name}.stale-{k}").exists():
+            k += 1
+        aside = out.with_name(f"{out.name}.stale-{k}")
+        out.rename(aside)
+        log(f"{out}: {stale}; moved to {aside}")
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(path, json.dumps(ident, indent=2, sort_keys=True) + "\n")
+    return False
