@@ -227,8 +227,8 @@ def main(argv=None) -> int:
             names = measured.names[:n_cams]
             true_rig = Rig(tuple(truth[n] for n in names))
             rig = true_rig if error == 0 else Rig(tuple((refined if lines else measured)[n] for n in names))
-            # as the recipes do: cameras refined on the field lines get the tight offset prior (the
-            # exact cameras too: their refinement is accepted with a negligible correction)
+            # as the recipes do: cameras whose field-line refinement was accepted on this scene get
+            # the tight offset prior (for the 0 px rows, standing in for refining exact cameras)
             config = Stage1Config()
             if error == 0 or lines:
                 config = config.with_refined_cameras(n for n in names if results[n].accepted)

@@ -111,18 +111,14 @@ def refined_cameras(folder: str | os.PathLike | None) -> tuple[str, ...]:
     InputError
         If ``calibration.toml`` is not valid TOML or its ``[metadata]`` table is malformed.
     """
-    import tomllib
+    from toolkit.io import read_calibration_metadata
 
     if folder is None:
         return ()
     path = Path(folder) / USED_CALIBRATION
     if not path.is_file():
         return ()
-    try:
-        meta = tomllib.loads(path.read_text(encoding="utf-8")).get("metadata", {})
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
-        raise InputError(str(path), "a TOML calibration file", f"unreadable: {e}") from None
-    names = meta.get("refined_on_field_lines", "") if isinstance(meta, dict) else None
+    names = read_calibration_metadata(path).get("refined_on_field_lines", "")
     if not isinstance(names, str):
         raise InputError(f"{path}: [metadata] refined_on_field_lines", "a comma-separated string of camera names",
                          repr(names))

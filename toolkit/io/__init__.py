@@ -15,6 +15,7 @@ from toolkit.io.atomic import (
 from toolkit.io.calibration import (
     calibration_toml_text,
     read_calibration,
+    read_calibration_metadata,
     read_calibration_toml,
     read_calibration_yaml,
     write_calibration,
@@ -42,6 +43,7 @@ __all__ = [
     "temp_path",
     "calibration_toml_text",
     "read_calibration",
+    "read_calibration_metadata",
     "read_calibration_toml",
     "read_calibration_yaml",
     "write_calibration",

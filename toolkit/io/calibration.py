@@ -239,6 +239,33 @@ def _rig(path: Path, cameras: list[Camera]) -> Rig:
 
 
 # ------------------------------------------------------------------ TOML
+def _load_toml(path: Path) -> dict:
+    """The parsed TOML document at ``path``, or an InputError naming the file."""
+    _require_file(path)
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except tomllib.TOMLDecodeError as e:
+        raise InputError(str(path), "a valid TOML file", f"a syntax error: {e}") from None
+    except UnicodeDecodeError as e:
+        raise InputError(str(path), "a UTF-8 TOML file", f"undecodable bytes: {e}") from None
+
+
+def read_calibration_metadata(path: str | os.PathLike) -> dict:
+    """The ``[metadata]`` table of a TOML calibration file (empty when it has none).
+
+    Raises
+    ------
+    InputError
+        Missing file, TOML syntax error, or a ``metadata`` entry that is not a table.
+    """
+    path = Path(path)
+    meta = _load_toml(path).get(METADATA_TABLE, {})
+    if not isinstance(meta, dict):
+        raise InputError(f"{path}: {METADATA_TABLE}", "a [metadata] table", repr(meta))
+    return meta
+
+
 def read_calibration_toml(path: str | os.PathLike) -> Rig:
     """Read a Pose2Sim / anipose TOML calibration (see the module docstring).
 
@@ -259,14 +286,7 @@ def read_calibration_toml(path: str | os.PathLike) -> Rig:
         a top-level value that is not a table, or no camera at all.
     """
     path = Path(path)
-    _require_file(path)
-    try:
-        with open(path, "rb") as f:
-            doc = tomllib.load(f)
-    except tomllib.TOMLDecodeError as e:
-        raise InputError(str(path), "a valid TOML file", f"a syntax error: {e}") from None
-    except UnicodeDecodeError as e:
-        raise InputError(str(path), "a UTF-8 TOML file", f"undecodable bytes: {e}") from None
+    doc = _load_toml(path)
     cameras = []
     for key, table in doc.items():
         if key == METADATA_TABLE:
