@@ -216,3 +216,21 @@ def test_pooling_averages_agreeing_entries_and_does_not_hurt(walk_scene, walk_db
         Stage1Config(pool_k=-1)
     with pytest.raises(InputError, match="pool_radius"):
         Stage1Config(pool_radius=0.0)
+
+
+def test_pooled_retriangulation_reports_beside_the_selection(walk_scene, walk_db):
+    """The second triangulation of a frame (pooled poses) reports under its own prefix: no entity of a
+    frame is written twice, and both the selection's and the pooled 3D joints are in the recording."""
+    from toolkit.silhouettes import Stage1Config
+    from toolkit.silhouettes.pipeline import RETRIANGULATED_PREFIX
+
+    obs = RecordingObserver()
+    est = SilhouettePoseEstimator(walk_scene.rig, walk_db, Stage1Config(pool_k=6), observer=obs)
+    e = est.step(walk_scene.masks[0], 0)
+    assert any("pooled" in d["text"] for d in obs.of_kind("text"))
+    keys = [(k, d.get("name"), d.get("camera")) for k, d in obs.reports if d.get("frame") == 0]
+    repeated = {k for k in keys if keys.count(k) > 1}
+    assert not repeated, f"reported twice in frame 0: {sorted(repeated, key=str)[:5]}"
+    j3 = {d["name"]: d["joints"] for d in obs.of_kind("joints3d")}
+    assert "multiview/joints3d" in j3 and f"{RETRIANGULATED_PREFIX}/joints3d" in j3
+    np.testing.assert_allclose(j3[f"{RETRIANGULATED_PREFIX}/joints3d"], e.joints3d)

@@ -325,8 +325,8 @@ def _permuted(fit: OffsetFit, perm: np.ndarray) -> OffsetFit:
 
 # ----------------------------------------------------------------- reporting
 def _report(obs: Observer, rig: Rig, candidates, sel: MultiViewSelection, ray_origins, ray_ends,
-            frame, skeleton: Skeleton):
-    P = REPORT_PREFIX
+            frame, skeleton: Skeleton, prefix: str = REPORT_PREFIX):
+    P = prefix
     extra = {} if frame is None else {"frame": frame}
     for v, cam in enumerate(rig):
         for i in range(candidates.shape[1]):
@@ -406,7 +406,8 @@ def _robust_masks(fit: OffsetFit, w: np.ndarray, cfg: MultiViewConfig):
 def select_multiview(candidates: np.ndarray, rig: Rig, config: MultiViewConfig | None = None, *,
                      weights: np.ndarray | None = None, initial_offsets: np.ndarray | None = None,
                      previous_joints3d: np.ndarray | None = None, observer: Observer | None = None,
-                     frame: int | None = None, skeleton: Skeleton = SKELETON_14) -> MultiViewSelection:
+                     frame: int | None = None, skeleton: Skeleton = SKELETON_14,
+                     report_prefix: str = REPORT_PREFIX) -> MultiViewSelection:
     """Choose one 2D pose per view and triangulate it with per-view offsets.
 
     Parameters
@@ -430,6 +431,10 @@ def select_multiview(candidates: np.ndarray, rig: Rig, config: MultiViewConfig |
         Passed on with every report.
     skeleton : Skeleton
         Joint names and left/right pairs (default the 14-joint skeleton).
+    report_prefix : str
+        First part of the report names (default ``"multiview"``); a second
+        triangulation of the same frame (pooled or corrected poses) uses its own
+        prefix so that it does not overwrite the selection's reports.
 
     Returns
     -------
@@ -469,7 +474,7 @@ def select_multiview(candidates: np.ndarray, rig: Rig, config: MultiViewConfig |
     order = [i for i in order if np.isfinite(costs[i])]
     if not order:
         sel = _empty(n_views, n_joints, combos, costs, refined, "no joint is seen by two views")
-        _report(obs, rig, cand, sel, None, None, frame, skeleton)
+        _report(obs, rig, cand, sel, None, None, frame, skeleton, report_prefix)
         return sel
 
     fits: dict[int, OffsetFit] = {}
@@ -540,7 +545,7 @@ def select_multiview(candidates: np.ndarray, rig: Rig, config: MultiViewConfig |
         reprojection_errors=np.where(w > 0, fit.reprojection_errors, np.nan),
         cost=float(fit.cost), combinations=combos, combination_costs=costs, refined=refined, best=int(best),
         views_used=used, violations=violations, success=bool(fit.success), message=message)
-    _report(obs, rig, cand, sel, *_ray_segments(rig, sel, w), frame, skeleton)
+    _report(obs, rig, cand, sel, *_ray_segments(rig, sel, w), frame, skeleton, report_prefix)
     return sel
 
 

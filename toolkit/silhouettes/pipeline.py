@@ -60,6 +60,9 @@ FRAME_STATES = {
 }
 #: Prefix of the names of this stage's reports.
 REPORT_PREFIX = "silhouettes"
+#: Report prefix of the second triangulation of a frame (pooled or corrected 2D poses), beside the
+#: selection's ``multiview/...`` reports.
+RETRIANGULATED_PREFIX = "multiview/retriangulated"
 #: Database entries pooled per view after the selection (:class:`Stage1Config`).
 POOL_K = 6
 #: Largest mean joint distance of a pooled entry to the chosen pose, x box height.
@@ -422,7 +425,8 @@ class SilhouettePoseEstimator:
         cfg = replace(self.config.multiview, flips=())
         init = self.tracker.offsets
         sel = select_multiview(poses[:, None], self.rig, cfg, initial_offsets=init,
-                               previous_joints3d=self.tracker.joints3d, observer=self.observer, frame=frame)
+                               previous_joints3d=self.tracker.joints3d, observer=self.observer, frame=frame,
+                               report_prefix=RETRIANGULATED_PREFIX)
         if sel.success:
             used = sel.views_used
             self.tracker.offsets = np.where(used[:, None], sel.offsets, 0.0 if init is None else init)
