@@ -18,7 +18,8 @@ of the dataset and of three camera paths.  Writes into OUT:
   baselines/<method>/<camera>/NNNNNN.png   standard billboards and visual hull, same views
   paths/<path>/NNNNNN.png, paths/<path>.mp4   orbit, sweep through the sources, bird's-eye
   metrics.json           PSNR / SSIM per method in the subject's box, pose error, timings (with ground truth)
-  recording.rrd          every intermediate of this run, with a blueprint
+  recording.rrd          every intermediate of this run, with a blueprint; a resumed run writes
+                         recording.resume-<k>.rrd beside it (same recording id: rerun OUT/recording*.rrd)
   frames/NNNNNN.json     per-frame results; a frame with one is finished and skipped when the run resumes
   run.json               the dataset fingerprint and options of this run: results of another dataset or
                          other options are never resumed (refused, or moved aside with --replace-stale)
@@ -74,7 +75,7 @@ def main(argv=None) -> int:
     from toolkit.cameras import closest_point_to_rays
     from toolkit.io import Dataset, atomic_save_npz, atomic_write_png, atomic_write_text, write_video
     from toolkit.io.frames import frame_filename, read_png
-    from toolkit.io.runs import dataset_fingerprint, start_run
+    from toolkit.io.runs import dataset_fingerprint, run_recording, start_run
     from toolkit.rendering import CpuCompositor, bbox_scores, birds_eye, orbit_path, source_path
     from toolkit.rendering.evaluation import BackgroundPlates, pose_errors, summarise
     from toolkit.rendering.freeviewpoint import METHODS, FrameProcessor, FreeViewpointConfig, render_methods
@@ -88,7 +89,7 @@ def main(argv=None) -> int:
         n = ds.frames_to_process(args.max_frames)
         out = args.out
         # results of another dataset or other options must not be resumed (run.json)
-        start_run(out, {"recipe": "free_viewpoint", "dataset": dataset_fingerprint(ds.root),
+        resumed = start_run(out, {"recipe": "free_viewpoint", "dataset": dataset_fingerprint(ds.root),
                         "db": None if args.db is None else str(args.db.resolve()), "foreground": args.foreground,
                         "optimize": not args.no_optimize, "keep_calibration": args.keep_calibration},
                   replace_stale=args.replace_stale)
@@ -99,7 +100,9 @@ def main(argv=None) -> int:
         observer = None
         if not args.no_recording:
             from toolkit.viz import RerunObserver
-            observer = RerunObserver(application_id="free_viewpoint", path=out / "recording.rrd",
+            # a resumed run writes its own part beside the earlier one(s), same recording id
+            rec_path, rec_id = run_recording(out, resumed)
+            observer = RerunObserver(application_id="free_viewpoint", path=rec_path, recording_id=rec_id,
                                      camera_names=names + [c.name for c in novel])
             if novel:
                 observer.report("rig", rig=ds.novel_rig)
@@ -207,7 +210,12 @@ def main(argv=None) -> int:
                 print(f"  {m:12s} PSNR {s['psnr']:.2f} dB  SSIM {s['ssim']:.3f}  ({s['n']} views)")
         e, e1 = metrics["pose"]["mpjpe_m"], metrics["pose_stage1"]["mpjpe_m"]
         print(f"  pose error {e * 100:.1f} cm (stage 1: {e1 * 100:.1f} cm)")
-    print(f"outputs in {out}; recording: rerun {out / 'recording.rrd'}")
+    if args.no_recording:
+        print(f"outputs in {out}")
+    elif rec_path.name == "recording.rrd":
+        print(f"outputs in {out}; recording: rerun {rec_path}")
+    else:  # the parts of a resumed run share one recording id: the viewer merges them
+        print(f"outputs in {out}; this run's recording: {rec_path.name}; all of it: rerun {out}/recording*.rrd")
     return 1 if stopped else 0
 
 

@@ -7,7 +7,7 @@ import json
 import pytest
 
 from toolkit.errors import InputError
-from toolkit.io.runs import RUN_FILE, dataset_fingerprint, file_fingerprint, start_run
+from toolkit.io.runs import RUN_FILE, dataset_fingerprint, file_fingerprint, run_recording, start_run
 
 
 def _dataset(root, video=b"frames"):
@@ -56,3 +56,23 @@ def test_start_run_refuses_a_foreign_folder(tmp_path):
     (out / RUN_FILE).write_text("{not json")
     with pytest.raises(InputError, match="run.json"):
         start_run(out, {"dataset": "abc"}, log=None)
+
+
+def test_run_recording_never_overwrites_an_earlier_part(tmp_path):
+    out = tmp_path / "out"
+    assert start_run(out, {"recipe": "r", "x": 1}, log=None) is False
+    first, rid = run_recording(out, resumed=False)
+    assert first == out / "recording.rrd"
+    first.write_bytes(b"rrd")
+    assert start_run(out, {"recipe": "r", "x": 1}, log=None) is True
+    second, rid2 = run_recording(out, resumed=True)
+    assert second == out / "recording.resume-1.rrd" and rid2 == rid  # one recording for the viewer
+    second.write_bytes(b"rrd")
+    third, rid3 = run_recording(out, resumed=True)
+    assert third == out / "recording.resume-2.rrd" and rid3 == rid
+    # a resumed run whose first part was never written starts at recording.rrd
+    other = tmp_path / "other"
+    start_run(other, {"recipe": "r", "x": 1}, log=None)
+    path, rid_other = run_recording(other, resumed=True)
+    assert path == other / "recording.rrd" and rid_other != rid  # another folder: another recording
+

@@ -10,6 +10,9 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +27,8 @@ from toolkit.silhouettes import BuildConfig, build_database
 from toolkit.skeleton import SKELETON_14
 from toolkit.synthetic.body import BodyModel
 from toolkit.synthetic.render import Raycaster
+
+RERUN = Path(sys.executable).with_name("rerun")
 
 REPO = Path(__file__).resolve().parents[2]
 N_FRAMES = 2
@@ -118,18 +123,31 @@ def test_free_viewpoint_end_to_end_and_resume(dataset, tmp_path, capsys):
     assert m["pose"]["mpjpe_m"] < MPJPE_BOUND_M
     capsys.readouterr()
 
-    # an interrupted run: one frame lost its result; the rerun redoes that frame only
+    # an interrupted run: one frame lost its result; the rerun redoes that frame only, and its recording
+    # goes beside the first one (same recording id) instead of overwriting it
     novel0 = out / "novel" / "novel_0" / "000000.png"
     before = novel0.stat().st_mtime_ns
+    first_rec = (out / "recording.rrd").stat()
     (out / "frames" / "000001.json").unlink()
     rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",
-                      "--no-recording", "--no-baselines"])
+                      "--no-baselines"])
     assert rc == 0
     printed = capsys.readouterr().out
     assert "resuming: 1 of 2" in printed and "(1 this run" in printed
     assert "cameras: reusing" in printed and (out / "calibration.toml").is_file()
     assert novel0.stat().st_mtime_ns == before
     assert (out / "frames" / "000001.json").exists()
+    second = out / "recording.resume-1.rrd"
+    assert second.stat().st_size > 0 and "recording*.rrd" in printed
+    after = (out / "recording.rrd").stat()
+    assert (after.st_size, after.st_mtime_ns) == (first_rec.st_size, first_rec.st_mtime_ns)
+    if RERUN.exists():  # both parts are one recording for the viewer: same application and recording id
+        ids = []
+        for f in (out / "recording.rrd", second):
+            p = subprocess.run([str(RERUN), "rrd", "print", str(f)], capture_output=True, text=True)
+            assert p.returncode == 0, p.stderr
+            ids.append(re.search(r'"free_viewpoint",\s*"([0-9a-f-]+)"', p.stdout).group(1))
+        assert ids[0] == ids[1]
 
     # other options (or another dataset): the finished frames are not resumed ...
     rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",

@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import uuid
 from pathlib import Path
 
 from toolkit.errors import InputError
@@ -113,3 +114,41 @@ def start_run(out: str | os.PathLike, identity: dict, *, replace_stale: bool = F
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(path, json.dumps(ident, indent=2, sort_keys=True) + "\n")
     return False
+
+
+#: File name of a run's recording; a resumed run writes ``recording.resume-<k>.rrd`` beside it.
+RECORDING_FILE = "recording.rrd"
+
+
+def run_recording(out: str | os.PathLike, resumed: bool) -> tuple[Path, str]:
+    """Where this run of a resumable recipe writes its recording, and the recording id to use.
+
+    A first run writes ``OUT/recording.rrd``.  A resumed run must not overwrite
+    it (it holds the finished frames' intermediates): it writes the next free
+    ``OUT/recording.resume-<k>.rrd``.  Every part gets the same recording id,
+    derived from the run's identity (``run.json``) and folder, so that the
+    viewer opens ``rerun OUT/recording*.rrd`` as one recording.
+
+    Parameters
+    ----------
+    out : path
+        The run's output folder (after :func:`start_run`).
+    resumed : bool
+        True when :func:`start_run` found earlier results of this run.
+
+    Returns
+    -------
+    path : Path
+    recording_id : str
+    """
+    out = Path(out)
+    ident = out / RUN_FILE
+    seed = (ident.read_text(encoding="utf-8") if ident.is_file() else "") + "|" + str(out.resolve())
+    rec_id = str(uuid.uuid5(uuid.NAMESPACE_URL, "toolkit-run:" + seed))
+    path = out / RECORDING_FILE
+    if resumed and path.exists():
+        k = 1
+        while (out / f"recording.resume-{k}.rrd").exists():
+            k += 1
+        path = out / f"recording.resume-{k}.rrd"
+    return path, rec_id

@@ -247,6 +247,10 @@ class RerunObserver:
     camera_names : sequence of str, optional
         Send :func:`toolkit.viz.blueprint.make_blueprint` for these cameras now.
     config : RerunConfig, optional
+    recording_id : str or uuid.UUID, optional
+        Recording id of a newly created stream (default: a random one).  Files
+        written with the same application and recording id open as one
+        recording in the viewer (e.g. the parts of a resumed run).
 
     Raises
     ------
@@ -261,12 +265,13 @@ class RerunObserver:
     """
 
     def __init__(self, recording: rr.RecordingStream | None = None, *, application_id: str = "toolkit",
-                 path: str | Path | None = None, camera_names=None, config: RerunConfig | None = None):
+                 path: str | Path | None = None, camera_names=None, config: RerunConfig | None = None,
+                 recording_id: str | uuid.UUID | None = None):
         self.config = config if config is not None else RerunConfig()
         self.path = _check_writable(path) if path is not None else None
         self._owns_stream = recording is None
         self.recording = recording if recording is not None else rr.RecordingStream(
-            application_id, recording_id=uuid.uuid4())
+            application_id, recording_id=recording_id if recording_id is not None else uuid.uuid4())
         if self.path is not None:
             try:
                 self.recording.save(self.path)
