@@ -1,0 +1,186 @@
+"""Walking and running (:mod:`toolkit.motion.library`): a gait plan of steps along a line or a circle."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.interpolate import PchipInterpolator
+
+from toolkit.motion.kinematics import LEFT, RIGHT
+from toolkit.motion.planning import _bump, _Ctx, _heading_vectors, _heel_off, _Plan, _smooth
+
+#: Step frequency (steps per second) range of walking; mean about 1.8 Hz
+#: (typical adult cadence 100-115 steps/min).
+WALK_CADENCE_HZ = (1.65, 1.95)
+#: Step frequency range of running; mean about 2.8 Hz (160-180 steps/min).
+RUN_CADENCE_HZ = (2.6, 3.0)
+#: A walk or run goes along a straight line only if it stays within this
+#: distance of the origin; otherwise it follows a circle, metres.
+LINE_HALF_LENGTH_M = 3.0
+#: Normalised horizontal speed of the ankle at the start of swing (Hermite
+#: slope; 0 = starts at rest, 1 = starts at the mean swing speed).
+SWING_START_SLOPE = 0.8
+
+
+def _gait(ctx: _Ctx, running: bool) -> _Plan:
+    p, t, T = ctx.p, ctx.t, ctx.T
+    H = p.height
+    if running:
+        cadence = ctx.uniform("cadence_hz", *RUN_CADENCE_HZ)
+        step = H * ctx.uniform("step_length_ratio", 0.50, 0.62)
+        duty = ctx.uniform("duty_factor", 0.33, 0.38)
+        heel_off_at = duty * ctx.uniform("heel_off_fraction", 0.45, 0.6)
+        ahead = ctx.uniform("contact_ahead_ratio", 0.25, 0.32)
+        knee_stance = ctx.deg("stance_knee_deg", 30.0, 45.0)
+        knee_swing = ctx.deg("swing_knee_deg", 95.0, 120.0)
+        alpha_max = ctx.deg("toe_off_angle_deg", 30.0, 40.0)
+        lift = ctx.uniform("swing_lift_m", 0.25, 0.38) * H / 1.75
+        drop = ctx.uniform("pelvis_drop_m", 0.03, 0.06)
+        bob = -ctx.uniform("pelvis_bob_m", 0.02, 0.035)
+        sway = ctx.uniform("pelvis_sway_m", 0.005, 0.015)
+        lean0 = ctx.deg("lean_deg", 6.0, 12.0)
+        arm_swing = ctx.deg("arm_swing_deg", 25.0, 40.0)
+        elbow0 = ctx.deg("elbow_deg", 75.0, 100.0)
+        arm_rot = ctx.deg("arm_internal_rotation_deg", 10.0, 30.0)
+    else:
+        cadence = ctx.uniform("cadence_hz", *WALK_CADENCE_HZ)
+        step = H * ctx.uniform("step_length_ratio", 0.37, 0.45)
+        duty = ctx.uniform("duty_factor", 0.58, 0.62)
+        heel_off_at = ctx.uniform("heel_off_phase", 0.30, 0.36)
+        ahead = ctx.uniform("contact_ahead_ratio", 0.35, 0.42)
+        knee_stance = ctx.deg("stance_knee_deg", 10.0, 18.0)
+        knee_swing = ctx.deg("swing_knee_deg", 55.0, 68.0)
+        alpha_max = ctx.deg("toe_off_angle_deg", 30.0, 40.0)
+        lift = ctx.uniform("swing_lift_m", 0.10, 0.16) * H / 1.75
+        drop = ctx.uniform("pelvis_drop_m", 0.01, 0.03)
+        bob = ctx.uniform("pelvis_bob_m", 0.012, 0.022)
+        sway = ctx.uniform("pelvis_sway_m", 0.015, 0.03)
+        lean0 = ctx.deg("lean_deg", 1.0, 5.0)
+        arm_swing = ctx.deg("arm_swing_deg", 12.0, 25.0)
+        elbow0 = ctx.deg("elbow_deg", 10.0, 25.0)
+        arm_rot = ctx.deg("arm_internal_rotation_deg", 0.0, 10.0)
+    pelvis_rot = ctx.deg("pelvis_rotation_deg", 3.0, 6.0)
+    thorax_rot = ctx.deg("thorax_rotation_deg", 2.0, 5.0)
+    pelvis_roll = ctx.deg("pelvis_roll_deg", 2.0, 5.0)
+    half_width = p.hip_half_width * ctx.uniform("step_width_ratio", 0.8, 1.2)
+    phase0 = ctx.uniform("phase", 0.0, 1.0)
+    f = cadence / 2.0                      # strides per second
+    speed = step * cadence
+    # the ankle lands ``ahead * step`` in front of the pelvis; the pelvis passes
+    # over it ``mid`` of a stride after contact
+    mid = ahead * step / (2 * step)
+    ctx.params["speed_m_s"] = speed
+
+    # path: a line through the origin when it fits, else a circle around it
+    travel = speed * max(ctx.duration, 1e-9)
+    offset = ctx.uniform("path_offset_m", -0.3, 0.3)
+    heading0 = ctx.uniform("heading", 0.0, 2 * np.pi)
+    line = travel / 2 + abs(offset) + 0.2 <= LINE_HALF_LENGTH_M and ctx.uniform("line_or_circle", 0, 1) < 0.6
+    if line:
+        ctx.params["path"] = "line"
+        line_dir = np.array([-np.sin(heading0), np.cos(heading0)])
+        line_left = np.array([-line_dir[1], line_dir[0]])   # left of the direction of travel
+        line_start = -line_dir * travel / 2 + line_left * offset
+
+        def path(s):
+            pos = line_start[None] + s[:, None] * line_dir[None]
+            return pos, np.full(len(s), heading0)
+    else:
+        ctx.params["path"] = "circle"
+        radius = ctx.uniform("circle_radius_m", 2.0, 2.8 if not running else 3.2)
+        ccw = ctx.choice("circle_direction", ("ccw", "cw")) == "ccw"
+        sign = 1.0 if ccw else -1.0
+        centre = np.array([offset, 0.0])
+        theta0 = heading0
+
+        def path(s):
+            th = theta0 + sign * s / radius
+            pos = centre[None] + radius * np.column_stack([np.cos(th), np.sin(th)])
+            # tangent direction (-sin, cos) * sign -> heading angle
+            head = th + (0.0 if ccw else np.pi)
+            return pos, head
+
+    s_t = speed * t
+    P, psi = path(s_t)
+    fwd, right = _heading_vectors(psi)
+    phase = f * t + phase0
+
+    plan = _Plan(T)
+    ah = p.ankle_height
+    dx_max, dz_max = _heel_off(ctx, alpha_max)
+    for side, off, lat in ((LEFT, 0.0, -1.0), (RIGHT, 0.5, 1.0)):
+        u = phase - off
+        k = np.floor(u).astype(int)
+        local = u - k
+        ks = np.arange(k.min() - 1, k.max() + 3)
+        t_fp = (ks + mid + off - phase0) / f
+        Pf, psif = path(speed * t_fp)
+        fwd_f, right_f = _heading_vectors(psif)
+        jitter = np.clip(ctx.rng.normal(0.0, 0.008, (len(ks), 2)), -0.02, 0.02)
+        fp = Pf + lat * half_width * right_f[:, :2] + jitter
+        i = k - ks[0]
+        here, nxt = fp[i], fp[i + 1]
+        fdir = fwd_f[i, :2]
+        target = np.zeros((T, 3))
+        flat = local < heel_off_at
+        heel = (local >= heel_off_at) & (local < duty)
+        swing = local >= duty
+        target[:, :2] = here
+        target[:, 2] = ah
+        al = alpha_max * _smooth((local - heel_off_at) / (duty - heel_off_at))
+        dx, dz = _heel_off(ctx, al)
+        target[heel, :2] = here[heel] + dx[heel, None] * fdir[heel]
+        target[heel, 2] = ah + dz[heel]
+        tau = (local - duty) / (1 - duty)
+        lift_off = here + dx_max * fdir
+        # horizontal swing: leaves with some speed, lands with none
+        tc = np.clip(tau, 0, 1)
+        prog = 3 * tc ** 2 - 2 * tc ** 3 + SWING_START_SLOPE * (tc ** 3 - 2 * tc ** 2 + tc)
+        sw_xy = lift_off + (nxt - lift_off) * prog[:, None]
+        sw_z = ah + dz_max * (1 - _smooth(2 * tau)) + lift * _bump(tau)
+        target[swing, :2] = sw_xy[swing]
+        target[swing, 2] = sw_z[swing]
+        plan.ankle[:, side] = target
+        plan.planted[:, side] = flat
+        # the pelvis height respects flat feet and the landing half of swing;
+        # push-off and early swing are pulled toward the hip instead (the heel
+        # then rises further, as in a real push-off)
+        plan.in_reach[:, side] = flat | (swing & (tau > 0.5))
+        # knee flexion schedule over the cycle (loading, push-off, swing peak, landing)
+        if running:
+            keys_u = [0.0, 0.5 * duty, duty, duty + 0.35 * (1 - duty), duty + 0.85 * (1 - duty), 1.0]
+            keys_k = [np.deg2rad(15), knee_stance, np.deg2rad(25), knee_swing, np.deg2rad(20),
+                      np.deg2rad(15)]
+        else:
+            keys_u = [0.0, 0.12, heel_off_at, duty, duty + 0.3 * (1 - duty),
+                      duty + 0.85 * (1 - duty), 1.0]
+            keys_k = [np.deg2rad(5), knee_stance, np.deg2rad(5), np.deg2rad(35), knee_swing,
+                      np.deg2rad(5), np.deg2rad(5)]
+        plan.min_knee[:, side] = PchipInterpolator(keys_u, keys_k)(local)
+    # pelvis and trunk
+    w = 2 * np.pi
+    left_dir = -right[:, :2]
+    plan.pelvis_xy = P + (sway * np.cos(w * (phase - mid)))[:, None] * left_dir
+    plan.pelvis_z = ctx.standing_height(0.0) - drop + bob * np.cos(2 * w * (phase - mid))
+    plan.yaw = psi - pelvis_rot * np.cos(w * phase)
+    plan.roll = pelvis_roll * np.cos(w * (phase - mid))
+    plan.pitch[:] = np.deg2rad(3.0)
+    plan.lean = lean0 + 0.25 * lean0 * np.cos(2 * w * (phase - mid))
+    plan.twist = (pelvis_rot + thorax_rot) * np.cos(w * phase)
+    plan.head_pitch = -0.6 * plan.lean
+    swing_arm = arm_swing * np.cos(w * (phase - 0.05))
+    plan.shoulder[:, LEFT, 0] = -swing_arm + (np.deg2rad(5.0) if running else 0.0)
+    plan.shoulder[:, RIGHT, 0] = swing_arm + (np.deg2rad(5.0) if running else 0.0)
+    plan.shoulder[:, :, 1] = np.deg2rad(8.0)
+    plan.shoulder[:, :, 2] = arm_rot
+    plan.elbow[:, LEFT] = elbow0 + 0.4 * np.maximum(-swing_arm, 0)
+    plan.elbow[:, RIGHT] = elbow0 + 0.4 * np.maximum(swing_arm, 0)
+    return plan
+
+
+def _walk(ctx):
+    return _gait(ctx, running=False)
+
+
+def _run(ctx):
+    return _gait(ctx, running=True)
+
