@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import uuid
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -44,190 +43,28 @@ from toolkit.viz.blueprint import (
     image_path,
     make_blueprint,
 )
+from toolkit.viz.fields import (
+    _array,
+    _camera_name,
+    _check_writable,
+    _colors,
+    _field,
+    _image_uint8,
+    _pack_atlas,
+    _side_color,
+)
+from toolkit.viz.style import (
+    GENERIC_TEXT_CHARS,
+    MASK_COLOR,
+    PART_COLORS,
+    QUAD_COLOR,
+    SKELETON_COLORS,
+    STATIC_KINDS,
+    RerunConfig,
+)
 
 #: Name of the sequence timeline that frames are logged on.
 FRAME_TIMELINE = "frame"
-
-#: Keypoint colours (RGB) by body side, so left/right swaps are visible at a glance.
-LEFT_COLOR = (60, 180, 75)
-RIGHT_COLOR = (230, 25, 75)
-CENTRE_COLOR = (255, 225, 25)
-#: Bone colours of successive registered skeletons.
-SKELETON_COLORS = ((0, 130, 200), (245, 130, 48), (145, 30, 180), (70, 240, 240))
-#: Part-label colours; label id ``1 + i`` gets ``PART_COLORS[i % len]``
-#: (for SKELETON_14: head, torso, l_upper_arm, l_forearm, r_upper_arm,
-#: r_forearm, l_thigh, l_shank, r_thigh, r_shank).
-PART_COLORS = ((255, 225, 25), (0, 130, 200), (60, 180, 75), (170, 255, 195), (230, 25, 75),
-               (250, 190, 212), (128, 128, 0), (210, 245, 60), (128, 0, 0), (255, 215, 180))
-#: Foreground colour of binary masks.
-MASK_COLOR = (255, 0, 255)
-#: Colour of untextured quads without ``colors``.
-QUAD_COLOR = (180, 180, 180)
-#: Report kinds logged static unless the report says ``static=False``.
-STATIC_KINDS = frozenset({"rig", "skeleton"})
-#: Longest field text of a generic (unknown-kind) report line.
-GENERIC_TEXT_CHARS = 200
-
-
-@dataclass(frozen=True)
-class RerunConfig:
-    """How reports are drawn and stored.
-
-    Parameters
-    ----------
-    compress_images : bool
-        JPEG-encode 8-bit RGB / grey images of at least ``compress_min_pixels``.
-    jpeg_quality : int
-        JPEG quality, 1..100.
-    compress_min_pixels : int
-        Images smaller than this (``H * W``) are stored raw.
-    depth_png : bool
-        Store depth maps of at least ``compress_min_pixels`` as 16-bit PNG
-        (lossless at ``1 / depth_png_units_per_metre``; beyond 65535 units
-        becomes "no depth").
-    depth_png_units_per_metre : float
-        Depth units per metre of the PNG (1000 = millimetres).
-    joint_radius_m : float
-        Radius of 3D joints, metres.
-    keypoint_radius_px : float
-        Radius of 2D keypoints and points, pixels.
-    point_radius_m : float
-        Default radius of 3D points, metres.
-    ray_radius_m : float
-        Radius of rays and 3D lines, metres.
-    overlay_opacity : float
-        Opacity of masks and part-label images over the camera image.
-    image_plane_distance_m : float or None
-        Depth at which the viewer draws camera frusta and images (None: rerun's choice).
-    auto_blueprint : bool
-        Send the default blueprint on the first ``rig`` report if none was sent.
-    """
-
-    compress_images: bool = True
-    jpeg_quality: int = 90
-    compress_min_pixels: int = 64 * 64
-    depth_png: bool = True
-    depth_png_units_per_metre: float = 1000.0
-    joint_radius_m: float = 0.02
-    keypoint_radius_px: float = 3.0
-    point_radius_m: float = 0.005
-    ray_radius_m: float = 0.002
-    overlay_opacity: float = 0.5
-    image_plane_distance_m: float | None = 0.5
-    auto_blueprint: bool = True
-
-    def __post_init__(self):
-        if not 1 <= int(self.jpeg_quality) <= 100:
-            raise InputError("RerunConfig.jpeg_quality", "an int in 1..100", f"{self.jpeg_quality}")
-        if self.depth_png_units_per_metre <= 0:
-            raise InputError("RerunConfig.depth_png_units_per_metre", "> 0",
-                             f"{self.depth_png_units_per_metre}")
-        if not 0.0 <= self.overlay_opacity <= 1.0:
-            raise InputError("RerunConfig.overlay_opacity", "a value in [0, 1]", f"{self.overlay_opacity}")
-
-
-def _check_writable(path: str | Path) -> Path:
-    """Make sure ``path`` can be written, creating missing parent directories.
-
-    Raises :class:`InputError` naming the path otherwise.
-    """
-    p = Path(path).expanduser()
-    where = f"RerunObserver: path {str(p)!r}"
-    if p.is_dir():
-        raise InputError(where, "a file path for the .rrd recording", "an existing directory")
-    try:
-        p.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise InputError(where, f"a creatable directory {str(p.parent)!r}",
-                         f"{type(e).__name__}: {e}") from None
-    existed = p.exists()
-    try:
-        with open(p, "ab"):
-            pass
-    except OSError as e:
-        raise InputError(where, "a writable file", f"{type(e).__name__}: {e}") from None
-    if not existed:
-        p.unlink()
-    return p
-
-
-def _side_color(joint_name: str) -> tuple[int, int, int]:
-    if joint_name.startswith("l_"):
-        return LEFT_COLOR
-    if joint_name.startswith("r_"):
-        return RIGHT_COLOR
-    return CENTRE_COLOR
-
-
-def _camera_name(kind: str, data: Mapping[str, Any]) -> str:
-    cam = data.get("camera")
-    if cam is None:
-        raise InputError(f"report {kind!r}: camera", "a camera name", "nothing")
-    name = getattr(cam, "name", cam)
-    if not isinstance(name, str) or not name:
-        raise InputError(f"report {kind!r}: camera", "a non-empty camera name", f"{cam!r}")
-    return name
-
-
-def _field(kind: str, data: Mapping[str, Any], key: str) -> Any:
-    if key not in data or data[key] is None:
-        raise InputError(f"report {kind!r}: {key}", "a value", "nothing")
-    return data[key]
-
-
-def _array(kind: str, data: Mapping[str, Any], key: str, shape: tuple, dtype=np.float64) -> np.ndarray:
-    arr = np.asarray(_field(kind, data, key))
-    check_shape(f"report {kind!r}: {key}", arr, shape)
-    try:
-        return arr.astype(dtype, copy=False)
-    except (TypeError, ValueError):
-        raise InputError(f"report {kind!r}: {key}", f"values convertible to {np.dtype(dtype)}",
-                         f"dtype {arr.dtype}") from None
-
-
-def _colors(kind: str, data: Mapping[str, Any], key: str, n: int) -> np.ndarray | None:
-    """Optional uint8 colours, (3,) / (4,) for all or (n, 3|4) per item."""
-    if data.get(key) is None:
-        return None
-    c = np.asarray(data[key])
-    if c.ndim == 1 and c.shape[0] in (3, 4):
-        c = np.broadcast_to(c, (n, c.shape[0]))
-    if c.ndim != 2 or c.shape[0] != n or c.shape[1] not in (3, 4):
-        raise InputError(f"report {kind!r}: {key}", f"(3,) or ({n}, 3) colours", f"shape {c.shape}")
-    if np.issubdtype(c.dtype, np.floating):
-        c = np.clip(np.round(c * 255.0), 0, 255)
-    return c.astype(np.uint8)
-
-
-def _image_uint8(kind: str, key: str, img: np.ndarray) -> np.ndarray:
-    """uint8 image from uint8 or float in [0, 1] (scaled by 255)."""
-    if img.dtype == np.uint8:
-        return img
-    if img.dtype == bool:
-        return img.astype(np.uint8) * 255
-    if np.issubdtype(img.dtype, np.floating):
-        return np.clip(np.round(np.nan_to_num(img) * 255.0), 0, 255).astype(np.uint8)
-    raise InputError(f"report {kind!r}: {key}", "uint8 or float in [0, 1]", f"dtype {img.dtype}")
-
-
-def _pack_atlas(textures: list[np.ndarray], max_width: int = 4096) -> tuple[np.ndarray, list[tuple]]:
-    """Shelf-pack RGB textures into one atlas.
-
-    Returns the atlas (H, W, 3) and per texture its (x0, y0, w, h) pixel rectangle.
-    """
-    rects, x, y, row_h, width = [], 0, 0, 0, 0
-    for t in textures:
-        h, w = t.shape[:2]
-        if x > 0 and x + w > max_width:
-            x, y, row_h = 0, y + row_h, 0
-        rects.append((x, y, w, h))
-        x += w
-        row_h = max(row_h, h)
-        width = max(width, x)
-    atlas = np.zeros((y + row_h, width, 3), np.uint8)
-    for t, (x0, y0, w, h) in zip(textures, rects):
-        atlas[y0:y0 + h, x0:x0 + w] = t[..., :3]
-    return atlas, rects
 
 
 class RerunObserver:
