@@ -18,8 +18,8 @@ from toolkit.motion.bvh import (
     motion_from_bvh,
     parse_bvh,
     read_bvh,
-    write_bvh,
 )
+from toolkit.motion.bvh_write import write_bvh
 from toolkit.motion.kinematics import bone_lengths14, sequence_bone_lengths
 from toolkit.motion.library import MOTIONS, generate_motion
 from toolkit.skeleton import SKELETON_14

@@ -7,8 +7,8 @@ from toolkit.motion.bvh import (
     motion_from_bvh,
     parse_bvh,
     read_bvh,
-    write_bvh,
 )
+from toolkit.motion.bvh_write import write_bvh
 from toolkit.motion.kinematics import (
     KNEE_MIN_FLEXION,
     Pose14,
