@@ -97,8 +97,9 @@ def main(argv=None) -> int:
             else []
         if not novel:
             print("note: the dataset has no novel cameras; rendering the camera paths only (no image metrics)")
-        observer = None
-        if not args.no_recording:
+        done = {t for t in range(n) if (out / "frames" / frame_filename(t, ".json")).exists()}
+        observer = rec_path = None
+        if not args.no_recording and len(done) < n:  # nothing left to do: no new recording part
             from toolkit.viz import RerunObserver
             # a resumed run writes its own part beside the earlier one(s), same recording id
             rec_path, rec_id = run_recording(out, resumed)
@@ -107,7 +108,6 @@ def main(argv=None) -> int:
             if novel:
                 observer.report("rig", rig=ds.novel_rig)
             observer.report("skeleton", skeleton=SKELETON_14)
-        done = {t for t in range(n) if (out / "frames" / frame_filename(t, ".json")).exists()}
         rig = cameras_for_run(ds, out, refine=not args.keep_calibration, resumed=bool(done), observer=observer)
         if observer is not None:
             observer.report("rig", rig=rig)
@@ -210,8 +210,9 @@ def main(argv=None) -> int:
                 print(f"  {m:12s} PSNR {s['psnr']:.2f} dB  SSIM {s['ssim']:.3f}  ({s['n']} views)")
         e, e1 = metrics["pose"]["mpjpe_m"], metrics["pose_stage1"]["mpjpe_m"]
         print(f"  pose error {e * 100:.1f} cm (stage 1: {e1 * 100:.1f} cm)")
-    if args.no_recording:
-        print(f"outputs in {out}")
+    if rec_path is None:
+        print(f"outputs in {out}" + ("" if args.no_recording else "; every frame was already finished, the "
+                                     f"recording(s) are those of earlier runs: rerun {out}/recording*.rrd"))
     elif rec_path.name == "recording.rrd":
         print(f"outputs in {out}; recording: rerun {rec_path}")
     else:  # the parts of a resumed run share one recording id: the viewer merges them

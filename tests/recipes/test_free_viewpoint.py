@@ -148,6 +148,11 @@ def test_free_viewpoint_end_to_end_and_resume(dataset, tmp_path, capsys):
             assert p.returncode == 0, p.stderr
             ids.append(re.search(r'"free_viewpoint",\s*"([0-9a-f-]+)"', p.stdout).group(1))
         assert ids[0] == ids[1]
+    # nothing left to do: no new recording part
+    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",
+                      "--no-baselines"])
+    assert rc == 0 and "already finished" in capsys.readouterr().out
+    assert not (out / "recording.resume-2.rrd").exists()
 
     # other options (or another dataset): the finished frames are not resumed ...
     rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",
