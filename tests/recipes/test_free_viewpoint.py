@@ -174,3 +174,6 @@ def test_bad_dataset_is_a_clear_error(tmp_path, capsys):
     rc = recipe.main([str(tmp_path / "missing"), "--out", str(tmp_path / "o"), "--quiet"])
     assert rc == 2
     assert "error:" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:
+        recipe.main([str(tmp_path / "missing"), "--out", str(tmp_path / "o"), "--jpeg-quality", "0"])
+    assert e.value.code == 2 and "--jpeg-quality" in capsys.readouterr().err
