@@ -94,10 +94,10 @@ def main(argv=None) -> int:
         n = ds.frames_to_process(args.max_frames)
         out = args.out
         # results of another dataset or other options must not be resumed (run.json)
-        resumed = start_run(out, {"recipe": "free_viewpoint", "dataset": dataset_fingerprint(ds.root),
-                        "db": None if args.db is None else str(args.db.resolve()), "foreground": args.foreground,
-                        "optimize": not args.no_optimize, "keep_calibration": args.keep_calibration},
-                  replace_stale=args.replace_stale)
+        identity = {"recipe": "free_viewpoint", "dataset": dataset_fingerprint(ds.root),
+                    "db": None if args.db is None else str(args.db.resolve()), "foreground": args.foreground,
+                    "optimize": not args.no_optimize, "keep_calibration": args.keep_calibration}
+        resumed = start_run(out, identity, replace_stale=args.replace_stale)
         novel = list(ds.novel_rig) if ds.has_groundtruth and (ds.root / "groundtruth/novel/calibration.toml").exists() \
             else []
         if not novel:
