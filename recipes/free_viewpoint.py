@@ -173,7 +173,8 @@ def main(argv=None) -> int:
                     atomic_write_png(out / "paths" / p / frame_filename(t), img)
                 record = {"frame": t, "status": res.status, "joints": res.joints.tolist(),
                           "joints_stage1": res.joints_stage1.tolist(), "offsets": res.offsets.tolist(),
-                          "scores": scores, "timings": {**res.timings, "total": time.perf_counter() - t0}}
+                          "scores": scores, "timings": {**res.timings, "total": time.perf_counter() - t0},
+                          "optimize": res.optimize}
                 atomic_write_text(out / "frames" / frame_filename(t, ".json"), json.dumps(record, allow_nan=True))
         except KeyboardInterrupt:
             stopped = "interrupted"
@@ -189,6 +190,10 @@ def main(argv=None) -> int:
             joints[r["frame"]], stage1[r["frame"]], status[r["frame"]] = r["joints"], r["joints_stage1"], r["status"]
         atomic_save_npz(out / "poses3d.npz", joints=joints, names=np.array(SKELETON_14.joint_names),
                         joints_stage1=stage1, status=status)
+        outcome: dict = {}  # how the stage-3 search ended, joints summed over frames
+        for r in records:
+            for k, v in r.get("optimize", {}).items():
+                outcome[k] = outcome.get(k, 0) + v
         finished = len(records) == n
         if finished:
             for p in PATHS:
@@ -201,7 +206,7 @@ def main(argv=None) -> int:
                        "seconds_per_frame": {k: float(np.mean([r["timings"].get(k, np.nan) for r in records]))
                                              for k in ("total", "segmentation", "optimize", "billboards",
                                                        "standard_billboards", "visual_hull")} if records else {},
-                       "novel_cameras": [c.name for c in novel]}
+                       "novel_cameras": [c.name for c in novel], "optimize": outcome}
             atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=2, allow_nan=True))
         ds.close()
     except InputError as e:
@@ -217,6 +222,11 @@ def main(argv=None) -> int:
                 print(f"  {m:12s} PSNR {s['psnr']:.2f} dB  SSIM {s['ssim']:.3f}  ({s['n']} views)")
         e, e1 = metrics["pose"]["mpjpe_m"], metrics["pose_stage1"]["mpjpe_m"]
         print(f"  pose error {e * 100:.1f} cm (stage 1: {e1 * 100:.1f} cm)")
+    if outcome:  # e.g. two cameras far apart: every joint "few_views", stage 3 changed nothing
+        total = sum(outcome.values())
+        print("  stage 3 joints: " + ", ".join(f"{k} {100 * v / total:.0f} %" for k, v in
+                                                sorted(outcome.items(), key=lambda kv: -kv[1]))
+              + " (docs/stage3_billboards.md: what each means)")
     if rec_path is None:
         print(f"outputs in {out}" + ("" if args.no_recording else "; every frame was already finished, the "
                                      f"recording(s) are those of earlier runs: rerun {out}/recording*.rrd"))

@@ -63,6 +63,8 @@ def test_recipe_end_to_end(dataset, tmp_path, capsys):
     m = json.loads((out / "metrics.json").read_text())
     assert 0.02 < m["mpjpe_before_m"] < 0.08
     assert abs(m["mpjpe_after_m"] - m["mpjpe_before_m"]) < MAX_CHANGE_M
+    assert sum(m["joint_outcomes"].values()) == 14 and "joints " in text  # how the search ended per joint
+    assert m["joint_outcomes"].get("moved", 0) == int(np.sum(np.any(z["joints"][0] != z["initial"][0], axis=1)))
     # every moved joint obeys the rules it takes part in
     cons = AnthropometricConstraints()
     J0, J1 = z["initial"][0], z["joints"][0]

@@ -66,6 +66,10 @@ def test_pose_sweeps_converge_and_respect_constraints(scene, scorer):
     assert np.array_equal(res.joints[SKELETON_14.index("r_knee")], J[SKELETON_14.index("r_knee")])
     assert any(d["name"] == "optimize/score/l_wrist" for d in obs.of_kind("series"))
     assert obs.of_kind("joints3d")
+    # the per-joint summary: the wrist moved, the knee could not be scored, the rest was not searched
+    out = res.outcomes()
+    assert out[WRIST] == "moved" and out[SKELETON_14.index("r_knee")] == "unscorable"
+    assert res.outcome_counts() == {"moved": 1, "unscorable": 1, "not searched": 12}
 
 
 def test_rejected_candidates_score_zero(scene, scorer):

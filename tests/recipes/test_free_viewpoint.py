@@ -121,6 +121,8 @@ def test_free_viewpoint_end_to_end_and_resume(dataset, tmp_path, capsys):
     assert m["methods"]["articulated"]["psnr"] > NOVEL_PSNR_DB
     assert m["methods"]["articulated"]["psnr"] > m["methods"]["standard"]["psnr"] + ARTICULATED_MARGIN_DB
     assert m["pose"]["mpjpe_m"] < MPJPE_BOUND_M
+    assert sum(m["optimize"].values()) == 14 * N_FRAMES  # how stage 3 ended for every joint of every frame
+    assert "stage 3 joints:" in capsys.readouterr().out
     capsys.readouterr()
 
     # an interrupted run: one frame lost its result; the rerun redoes that frame only, and its recording

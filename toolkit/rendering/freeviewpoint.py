@@ -97,6 +97,9 @@ class FrameResult:
     hull : VisualHull or None
     timings : dict of str -> float
         Seconds per stage.
+    optimize : dict of str -> int
+        How the stage-3 search ended for the joints (:meth:`PoseResult.outcome_counts`:
+        ``moved``, ``kept``, ``few_views``, ...); empty when it did not run.
     """
 
     frame: int
@@ -109,6 +112,7 @@ class FrameResult:
     standard: BillboardModel | None = None
     hull: VisualHull | None = None
     timings: dict = field(default_factory=dict)
+    optimize: dict = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -188,11 +192,13 @@ class FrameProcessor:
             return FrameResult(frame, STATUS_NO_VIEWS, J1, np.full_like(J1, np.nan), off, labels, timings=timings)
         imgs = {c: images.get(c, np.zeros(self.rig[c].size[::-1] + (3,), np.uint8)) for c in names}
         J = J1
+        outcome: dict = {}
         if self.config.optimize and len(used) >= 2:
             t0 = time.perf_counter()
             scorer = PositionScorer(imgs, labels, self.rig, off, seams)
-            J = optimize_pose(scorer, J1, self.constraints, self.config.optimize_config, observer=obs,
-                              frame=frame).joints
+            found = optimize_pose(scorer, J1, self.constraints, self.config.optimize_config, observer=obs,
+                                  frame=frame)
+            J, outcome = found.joints, found.outcome_counts(SKELETON_14.n_joints)
             timings["optimize"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         model = render_billboards(imgs, labels, J, self.rig, off, seams, supersample=self.config.supersample,
@@ -208,7 +214,7 @@ class FrameProcessor:
             hull = visual_hull(imgs, sil, J, self.rig, off)
             timings["visual_hull"] = time.perf_counter() - t0
         obs.report("joints3d", joints=J, name="free_viewpoint/joints", skeleton=SKELETON_14, frame=frame)
-        return FrameResult(frame, STATUS_OK, J1, J, off, labels, model, standard, hull, timings)
+        return FrameResult(frame, STATUS_OK, J1, J, off, labels, model, standard, hull, timings, outcome)
 
 
 #: Names of the rendering methods, in report order.
