@@ -29,38 +29,37 @@ two heads side by side split the grid between two people (the frame's
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from toolkit.cameras import Camera
 from toolkit.depth.cloud import ViewFrame, user_cloud
-from toolkit.depth.complete import CompletionConfig, PointKalman, complete
+from toolkit.depth.complete import PointKalman, complete
 from toolkit.depth.constraints import (
-    ConstraintConfig,
     LengthEstimator,
     enforce_collisions,
     enforce_joint_limits,
     enforce_lengths,
     enforce_velocity,
 )
-from toolkit.depth.curvature import CONVEX, PLANAR, CurvatureConfig, curvature_centres
-from toolkit.depth.energy import EnergyConfig, FitData, assign, fit_data, support_fraction
-from toolkit.depth.fit import FitConfig, GlobalSearch, LocalFit, fit_local
+from toolkit.depth.curvature import CONVEX, PLANAR, curvature_centres
+from toolkit.depth.energy import FitData, assign, fit_data, support_fraction
+from toolkit.depth.fit import GlobalSearch, LocalFit, fit_local
 from toolkit.depth.init import (
-    InitConfig,
     head_candidates,
     initial_poses,
     key_points,
     top_contour_peaks,
 )
-from toolkit.depth.mask import BackgroundModel, MaskConfig, user_mask
+from toolkit.depth.mask import BackgroundModel, user_mask
 from toolkit.depth.model import END_SPHERES, LIMBS, N_POINTS
 from toolkit.depth.moves import MoveContext, default_moves
 from toolkit.depth.normals import normal_map
-from toolkit.depth.orus import OrusConfig, build_orus
-from toolkit.depth.radial import RadialConfig, radial_profile
-from toolkit.depth.stabilise import Stabiliser, StabiliserConfig
+from toolkit.depth.orus import build_orus
+from toolkit.depth.radial import radial_profile
+from toolkit.depth.stabilise import Stabiliser
+from toolkit.depth.tracker_state import LOST, RECOVERING, STATE_NAMES, TRACKING, FrameResult, TrackerConfig
 from toolkit.errors import InputError
 from toolkit.observe import as_observer
 from toolkit.skeleton import SKELETON_13
@@ -77,8 +76,6 @@ __all__ = [
     "track_sequence",
 ]
 
-LOST, RECOVERING, TRACKING = 0, 1, 2
-STATE_NAMES = ("lost", "recovering", "tracking")
 
 #: Which primitives support each control point (for the observed flags).
 _SUPPORT = {
@@ -92,142 +89,6 @@ _SUPPORT = {
 }
 _PRIM_NAMES = tuple(n for n, *_ in LIMBS) + tuple(n for n, *_ in END_SPHERES) + ("torso",)
 _SUPPORT_MASK = np.array([[name in _SUPPORT[j] for name in _PRIM_NAMES] for j in range(N_POINTS)])
-
-
-@dataclass(frozen=True)
-class TrackerConfig:
-    """Settings of the whole tracker (one frozen config per stage inside).
-
-    Attributes
-    ----------
-    fps : float
-        Frame rate (sets ``dt``).
-    output : {"world", "camera"}
-        Coordinates of the output joints ("world" falls back to camera coordinates
-        when the camera pose is unknown).
-    min_bins : int
-        Fewer filled grid bins than this: no user.
-    confirm_frames : int
-        Good frames before ``recovering`` becomes ``tracking``.
-    reinit_after : int
-        Poor frames before the skeleton is searched for again.
-    good_explained : float
-        A fit is good when it explains at least this fraction of the user's bins ...
-    good_support : float
-        ... and the data support at least this fraction of its samples seen by the
-        camera (:func:`toolkit.depth.energy.support_fraction`).
-    person_gate_m : float
-        Bins farther than this from the predicted body are not the user ...
-    touching_fraction : float
-        ... when they are more than this fraction of the user's bins and show a
-        head of their own (a second person touching the user); otherwise the far
-        bins are the user moving away from the prediction and are kept.
-    touching_memory : int
-        After a second person was seen touching the user, far bins are left out for
-        this many frames without asking for their head again.
-    second_head_m : float
-        When the user is first found, two head candidates at the same height
-        at least this far apart sideways are two people; the grid is split
-        between them and the better head kept.
-    min_body_m : float
-        A second person's head has a body under it: the silhouette continues at
-        least this far straight down (a raised fist does not).
-    support_radius_m : float
-        A control point is observed when grid bins given to its primitives lie this close to it ...
-    support_min_bins : int
-        ... at least this many.
-    prev_weight_tracking, prev_weight_recovering, prev_weight_unseen : float
-        Weights of the previous-skeleton term (the last for points unseen in the previous frame).
-    single_thread_blas : bool
-        Limit BLAS to one thread while processing a frame: the fit multiplies
-        small matrices, which multi-threaded BLAS slows down by 10-30x on a busy machine.
-    report_max_points : int
-        At most about this many cloud points are reported to the observer per frame.
-    """
-
-    mask: MaskConfig = MaskConfig()
-    orus: OrusConfig = OrusConfig(normal_source="pixels")
-    curvature: CurvatureConfig = CurvatureConfig()
-    radial: RadialConfig = RadialConfig()
-    init: InitConfig = InitConfig()
-    energy: EnergyConfig = EnergyConfig()
-    fit: FitConfig = FitConfig()
-    constraints: ConstraintConfig = ConstraintConfig()
-    stabiliser: StabiliserConfig = StabiliserConfig()
-    completion: CompletionConfig = CompletionConfig()
-    fps: float = 30.0
-    output: str = "world"
-    min_bins: int = 25
-    confirm_frames: int = 3
-    reinit_after: int = 8
-    good_explained: float = 0.9
-    good_support: float = 0.8
-    person_gate_m: float = 0.12
-    touching_fraction: float = 0.2
-    second_head_m: float = 0.45
-    touching_memory: int = 15
-    min_body_m: float = 0.8
-    support_radius_m: float = 0.15
-    support_min_bins: int = 2
-    prev_weight_tracking: float = 0.3
-    prev_weight_recovering: float = 0.1
-    prev_weight_unseen: float = 1.0
-    single_thread_blas: bool = True
-    report_max_points: int = 5000
-
-    def __post_init__(self):
-        if self.output not in ("world", "camera"):
-            raise InputError("TrackerConfig.output", "'world' or 'camera'", repr(self.output))
-        if not self.fps > 0:
-            raise InputError("TrackerConfig.fps", "a positive frame rate", repr(self.fps))
-
-
-@dataclass(frozen=True)
-class FrameResult:
-    """The tracker's answer for one frame.
-
-    Attributes
-    ----------
-    index : int
-    state : int
-        :data:`LOST`, :data:`RECOVERING` or :data:`TRACKING`.
-    joints : ndarray of shape (13, 3)
-        Output coordinates (world or camera), metres; NaN when lost.
-    joints_view : ndarray of shape (13, 3)
-        The same in the view frame.
-    observed : ndarray of shape (13,), bool
-        Points supported by this frame's data (the others were completed).
-    explained : float
-        Fraction of the user's grid bins the skeleton explains.
-    supported : float
-        Fraction of the skeleton's samples seen by the camera that the data support.
-    energy : float
-    reason : str
-        Why the state is what it is (``"ok"``, ``"no depth"``, ``"no user"``, ``"init"``,
-        ``"poor fit"``, ``"touching"``, ...).
-    n_points : int
-        User points.
-    timings : dict
-        CPU seconds of the calling thread per stage (``mask_cloud``, ``orus_curvature``,
-        ``fit``, ``post``, ``total``); CPU rather than wall time so that other
-        processes on the machine do not inflate it.
-    """
-
-    index: int
-    state: int
-    joints: np.ndarray
-    joints_view: np.ndarray
-    observed: np.ndarray
-    explained: float = 0.0
-    supported: float = 0.0
-    energy: float = float("nan")
-    reason: str = "ok"
-    n_points: int = 0
-    timings: dict = field(default_factory=dict)
-
-    @property
-    def state_name(self) -> str:
-        return STATE_NAMES[self.state]
 
 
 _CONTROLLER = None
