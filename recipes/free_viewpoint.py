@@ -84,7 +84,7 @@ def main(argv=None) -> int:
     from toolkit.rendering import CpuCompositor, bbox_scores, birds_eye, orbit_path, source_path
     from toolkit.rendering.evaluation import BackgroundPlates, pose_errors, summarise
     from toolkit.rendering.freeviewpoint import METHODS, FrameProcessor, FreeViewpointConfig, render_methods
-    from toolkit.silhouettes import Stage1Config, default_database
+    from toolkit.silhouettes import Stage1Config, default_database, default_database_path
     from toolkit.silhouettes.pipeline import estimate_dataset
     from toolkit.skeleton import SKELETON_14
 
@@ -95,8 +95,11 @@ def main(argv=None) -> int:
         out = args.out
         # results of another dataset or other options must not be resumed (run.json)
         identity = {"recipe": "free_viewpoint", "dataset": dataset_fingerprint(ds.root),
-                    "db": None if args.db is None else str(args.db.resolve()), "foreground": args.foreground,
-                    "optimize": not args.no_optimize, "keep_calibration": args.keep_calibration}
+                    # the default database's file name holds its build configuration's key
+                    "db": default_database_path().name if args.db is None else str(args.db.resolve()),
+                    "foreground": args.foreground, "optimize": not args.no_optimize,
+                    "keep_calibration": args.keep_calibration, "baselines": not args.no_baselines,
+                    "renderer": args.renderer}
         resumed = start_run(out, identity, replace_stale=args.replace_stale)
         novel = list(ds.novel_rig) if ds.has_groundtruth and (ds.root / "groundtruth/novel/calibration.toml").exists() \
             else []
@@ -115,7 +118,9 @@ def main(argv=None) -> int:
             if novel:
                 observer.report("rig", rig=ds.novel_rig)
             observer.report("skeleton", skeleton=SKELETON_14)
-        rig = cameras_for_run(ds, out, refine=not args.keep_calibration, resumed=bool(done), observer=observer)
+        # frames of this same run are finished: continue with its cameras
+        rig = cameras_for_run(ds, out, refine=not args.keep_calibration, resumed=resumed and bool(done),
+                              observer=observer)
         if observer is not None:
             observer.report("rig", rig=rig)
         plates = BackgroundPlates(ds.scene_toml) if ds.scene_toml is not None else None
@@ -228,10 +233,12 @@ def main(argv=None) -> int:
                                                 sorted(outcome.items(), key=lambda kv: -kv[1]))
               + " (docs/stage3_billboards.md: what each means)")
     if rec_path is None:
-        print(f"outputs in {out}" + ("" if args.no_recording else "; every frame was already finished, the "
-                                     f"recording(s) are those of earlier runs: rerun {out}/recording*.rrd"))
+        earlier = not args.no_recording and any(out.glob("recording*.rrd"))
+        print(f"outputs in {out}" + (f"; every frame was already finished; earlier recordings: "
+                                     f"rerun {out}/recording*.rrd" if earlier else ""))
     elif rec_path.name == "recording.rrd":
-        print(f"outputs in {out}; recording: rerun {rec_path}")
+        print(f"outputs in {out}; recording: rerun {rec_path}"
+              + (f" (frames of this run only: {len(done)} earlier ones were made without one)" if done else ""))
     else:  # the parts of a resumed run share one recording id: the viewer merges them
         print(f"outputs in {out}; this run's recording: {rec_path.name}; all of it: rerun {out}/recording*.rrd")
     return 1 if stopped else 0

@@ -75,12 +75,17 @@ def test_cameras_for_run_writes_and_reuses_the_calibration(tiny_dataset, tmp_pat
     assert all(np.allclose(a.cam_from_world, b.cam_from_world) and np.allclose(a.K, b.K) for a, b in zip(rig, back))
     assert any("refined" in s or "kept" in s for s in lines)
     # a resumed run reuses the file even when asked to keep the measured cameras
-    again = cameras_for_run(ds, tmp_path / "run", refine=False, log=lines.append)
+    again = cameras_for_run(ds, tmp_path / "run", refine=False, resumed=True, log=lines.append)
     assert all(np.allclose(a.cam_from_world, b.cam_from_world) for a, b in zip(rig, again))
     assert "reusing" in lines[-1]
+    # a new run in the same folder does what it is asked: here, keep the measured cameras
+    n = len(lines)
+    fresh = cameras_for_run(ds, tmp_path / "run", refine=False, log=lines.append)
+    assert not any("reusing" in s for s in lines[n:])
+    assert all(np.allclose(a.cam_from_world, b.cam_from_world) for a, b in zip(fresh, ds.rig))
+    assert all(np.allclose(a.cam_from_world, b.cam_from_world) for a, b in zip(read_calibration(path), ds.rig))
     kept = cameras_for_run(ds, tmp_path / "kept", refine=False, log=None)
     assert all(np.allclose(a.cam_from_world, b.cam_from_world) for a, b in zip(kept, ds.rig))
-    assert stage_rig(ds, tmp_path / "run")[0].name == ds.camera_names[0]
     assert stage_rig(ds, tmp_path / "nothing-here") is ds.rig
     assert stage_rig(ds, None) is ds.rig
 

@@ -7,7 +7,14 @@ import json
 import pytest
 
 from toolkit.errors import InputError
-from toolkit.io.runs import RUN_FILE, dataset_fingerprint, file_fingerprint, run_recording, start_run
+from toolkit.io.runs import (
+    RECORDING_ID_KEY,
+    RUN_FILE,
+    dataset_fingerprint,
+    file_fingerprint,
+    run_recording,
+    start_run,
+)
 
 
 def _dataset(root, video=b"frames"):
@@ -34,7 +41,8 @@ def test_start_run_resumes_only_the_same_run(tmp_path):
     out = tmp_path / "out"
     ident = {"dataset": "abc", "optimize": True}
     assert start_run(out, ident, log=None) is False
-    assert json.loads((out / RUN_FILE).read_text()) == ident
+    stored = json.loads((out / RUN_FILE).read_text())
+    assert len(stored.pop(RECORDING_ID_KEY)) == 32 and stored == ident  # the identity, and a recording id
     (out / "frames").mkdir()
     (out / "frames" / "000000.json").write_text("{}")
     assert start_run(out, dict(ident), log=None) is True
@@ -74,5 +82,16 @@ def test_run_recording_never_overwrites_an_earlier_part(tmp_path):
     other = tmp_path / "other"
     start_run(other, {"recipe": "r", "x": 1}, log=None)
     path, rid_other = run_recording(other, resumed=True)
-    assert path == other / "recording.rrd" and rid_other != rid  # another folder: another recording
+    assert path == other / "recording.rrd" and rid_other != rid  # another run: another recording
+    # the id stays with the run when its folder moves; a run started afresh gets a new one
+    moved = tmp_path / "moved"
+    out.rename(moved)
+    assert start_run(moved, {"recipe": "r", "x": 1}, log=None) is True
+    assert run_recording(moved, resumed=True)[1] == rid
+    assert start_run(moved, {"recipe": "r", "x": 2}, replace_stale=True, log=None) is False
+    assert run_recording(moved, resumed=False)[1] not in (rid, rid_other)
+    with pytest.raises(InputError, match="run.json"):
+        run_recording(tmp_path / "never-started", resumed=False)
+    with pytest.raises(InputError, match=RECORDING_ID_KEY):
+        start_run(tmp_path / "x", {RECORDING_ID_KEY: "mine"}, log=None)
 

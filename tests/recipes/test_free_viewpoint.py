@@ -131,8 +131,7 @@ def test_free_viewpoint_end_to_end_and_resume(dataset, tmp_path, capsys):
     before = novel0.stat().st_mtime_ns
     first_rec = (out / "recording.rrd").stat()
     (out / "frames" / "000001.json").unlink()
-    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",
-                      "--no-baselines"])
+    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet"])
     assert rc == 0
     printed = capsys.readouterr().out
     assert "resuming: 1 of 2" in printed and "(1 this run" in printed
@@ -143,16 +142,15 @@ def test_free_viewpoint_end_to_end_and_resume(dataset, tmp_path, capsys):
     assert second.stat().st_size > 0 and "recording*.rrd" in printed
     after = (out / "recording.rrd").stat()
     assert (after.st_size, after.st_mtime_ns) == (first_rec.st_size, first_rec.st_mtime_ns)
-    if RERUN.exists():  # both parts are one recording for the viewer: same application and recording id
-        ids = []
-        for f in (out / "recording.rrd", second):
-            p = subprocess.run([str(RERUN), "rrd", "print", str(f)], capture_output=True, text=True)
-            assert p.returncode == 0, p.stderr
-            ids.append(re.search(r'"free_viewpoint",\s*"([0-9a-f-]+)"', p.stdout).group(1))
-        assert ids[0] == ids[1]
+    assert RERUN.exists(), f"the rerun CLI comes with rerun-sdk: {RERUN}"
+    ids = []  # both parts are one recording for the viewer: same application and recording id
+    for f in (out / "recording.rrd", second):
+        p = subprocess.run([str(RERUN), "rrd", "print", str(f)], capture_output=True, text=True)
+        assert p.returncode == 0, p.stderr
+        ids.append(re.search(r'"free_viewpoint",\s*"([0-9a-f-]+)"', p.stdout).group(1))
+    assert ids[0] == ids[1]
     # nothing left to do: no new recording part
-    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",
-                      "--no-baselines"])
+    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet"])
     assert rc == 0 and "already finished" in capsys.readouterr().out
     assert not (out / "recording.resume-2.rrd").exists()
 

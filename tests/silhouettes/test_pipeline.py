@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -224,13 +226,30 @@ def test_pooled_retriangulation_reports_beside_the_selection(walk_scene, walk_db
     from toolkit.silhouettes import Stage1Config
     from toolkit.silhouettes.pipeline import RETRIANGULATED_PREFIX
 
+    cam = walk_scene.rig[0]
+    wrist = cam.project(walk_scene.joints[0])[SKELETON_14.index("l_wrist")]
+    edits = {cam.name: JointEdit(0, cam.name, (("l_wrist", tuple(wrist + [4.0, 0.0])),), add_to_database=False)}
+    for frame_edits in (None, edits):  # pooling alone, and pooling with the user's corrections
+        obs = RecordingObserver()
+        est = SilhouettePoseEstimator(walk_scene.rig, walk_db, Stage1Config(pool_k=6), observer=obs)
+        e = est.step(walk_scene.masks[0], 0, edits=frame_edits)
+        assert any("pooled" in d["text"] for d in obs.of_kind("text"))
+        keys = [(k, d.get("name"), d.get("camera")) for k, d in obs.reports if d.get("frame") == 0]
+        repeated = {k for k in keys if keys.count(k) > 1}
+        assert not repeated, f"reported twice in frame 0: {sorted(repeated, key=str)[:5]}"
+        j3 = {d["name"]: d["joints"] for d in obs.of_kind("joints3d")}
+        assert "multiview/joints3d" in j3 and f"{RETRIANGULATED_PREFIX}/joints3d" in j3
+        np.testing.assert_allclose(j3[f"{RETRIANGULATED_PREFIX}/joints3d"], e.joints3d)
+    np.testing.assert_allclose(e.poses2d[0, SKELETON_14.index("l_wrist")], wrist + [4.0, 0.0])
+
+
+def test_pooling_uses_at_most_pool_k_entries(walk_scene, walk_db):
+    from toolkit.silhouettes import Stage1Config
+
     obs = RecordingObserver()
-    est = SilhouettePoseEstimator(walk_scene.rig, walk_db, Stage1Config(pool_k=6), observer=obs)
+    est = SilhouettePoseEstimator(walk_scene.rig, walk_db, Stage1Config(pool_k=2), observer=obs)  # query.k = 3
     e = est.step(walk_scene.masks[0], 0)
-    assert any("pooled" in d["text"] for d in obs.of_kind("text"))
-    keys = [(k, d.get("name"), d.get("camera")) for k, d in obs.reports if d.get("frame") == 0]
-    repeated = {k for k in keys if keys.count(k) > 1}
-    assert not repeated, f"reported twice in frame 0: {sorted(repeated, key=str)[:5]}"
-    j3 = {d["name"]: d["joints"] for d in obs.of_kind("joints3d")}
-    assert "multiview/joints3d" in j3 and f"{RETRIANGULATED_PREFIX}/joints3d" in j3
-    np.testing.assert_allclose(j3[f"{RETRIANGULATED_PREFIX}/joints3d"], e.joints3d)
+    assert all(len(c) == 3 for c in e.candidates)
+    text = [d["text"] for d in obs.of_kind("text") if d["name"].endswith("pooling")]
+    counts = [int(x) for x in re.findall(r"cam\w* (\d+)", text[0])] if text else []
+    assert counts and max(counts) <= 2, text

@@ -150,10 +150,12 @@ def cameras_for_run(dataset, out: str | os.PathLike, *, refine: bool = True, res
                     config: RefineConfig = RefineConfig(), observer=None, log=print) -> Rig:
     """The cameras a recipe run works with, written to ``out/calibration.toml``.
 
-    A run that finds ``out/calibration.toml`` from an earlier (interrupted)
-    run of the same dataset reuses it, so resumed frames see the same
-    cameras.  Otherwise the dataset's measured cameras are refined on its
-    field model (when it has one and ``refine`` is true) and written there.
+    A resumed run (``resumed``: the caller checked that ``out`` holds earlier
+    results of this same dataset and options, :func:`toolkit.io.runs.start_run`)
+    reuses ``out/calibration.toml``, so its remaining frames see the same
+    cameras.  Any other run refines the dataset's measured cameras on its field
+    model (when it has one and ``refine`` is true) and writes them there,
+    replacing what an earlier run left.
 
     Parameters
     ----------
@@ -163,9 +165,10 @@ def cameras_for_run(dataset, out: str | os.PathLike, *, refine: bool = True, res
     refine : bool
         Refine on the field lines; False keeps the measured calibration.
     resumed : bool
-        ``out`` already holds results of an earlier run.  Without a
-        ``calibration.toml`` that run predates it and used the measured
-        cameras, so they are kept (and written) for the frames still to do.
+        ``out`` holds results of an earlier run of the same dataset and
+        options, to be continued.  Without a ``calibration.toml`` that run
+        predates it and used the measured cameras, so they are kept (and
+        written) for the frames still to do.
     config : RefineConfig
     observer : Observer, optional
     log : callable
@@ -180,7 +183,7 @@ def cameras_for_run(dataset, out: str | os.PathLike, *, refine: bool = True, res
     out = Path(out)
     path = out / USED_CALIBRATION
     log = log or (lambda *_: None)
-    if path.is_file():
+    if resumed and path.is_file():
         rig = stage_rig(dataset, out)
         log(f"cameras: reusing {path}")
         return rig

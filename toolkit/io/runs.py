@@ -22,6 +22,11 @@ from toolkit.io.atomic import atomic_write_text
 
 #: The identity file of a run folder.
 RUN_FILE = "run.json"
+#: Key of ``run.json`` holding the run's rerun recording id (drawn when the run starts; not part of the
+#: identity): every part of a resumed run's recording carries it, so the viewer merges them.
+RECORDING_ID_KEY = "recording_id"
+#: File name of a run's recording; a resumed run writes ``recording.resume-<k>.rrd`` beside it.
+RECORDING_FILE = "recording.rrd"
 #: Bytes hashed at each end of a large file (whole files below twice this).
 _HASH_EDGE = 4 << 20
 
@@ -88,6 +93,9 @@ def start_run(out: str | os.PathLike, identity: dict, *, replace_stale: bool = F
     out = Path(out)
     log = log or (lambda *_: None)
     ident = json.loads(json.dumps(identity, sort_keys=True))
+    if RECORDING_ID_KEY in ident:
+        raise InputError("identity", f"a description without the reserved key {RECORDING_ID_KEY!r}",
+                         f"keys {sorted(ident)}")
     path = out / RUN_FILE
     stale = ""
     if path.is_file():
@@ -95,7 +103,13 @@ def start_run(out: str | os.PathLike, identity: dict, *, replace_stale: bool = F
             old = json.loads(path.read_text(encoding="utf-8"))
         except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
             raise InputError(str(path), "the JSON identity of an earlier run", f"unreadable: {e}") from None
+        if not isinstance(old, dict):
+            raise InputError(str(path), "the JSON identity of an earlier run", type(old).__name__)
+        rec_id = old.pop(RECORDING_ID_KEY, None)
         if old == ident:
+            if rec_id is None:  # written before runs had a recording id
+                atomic_write_text(path, json.dumps({**ident, RECORDING_ID_KEY: uuid.uuid4().hex}, indent=2,
+                                                   sort_keys=True) + "\n")
             return True
         diff = sorted(k for k in set(old) | set(ident) if old.get(k) != ident.get(k))
         stale = f"results of another run (differs in: {', '.join(diff)})"
@@ -112,12 +126,11 @@ def start_run(out: str | os.PathLike, identity: dict, *, replace_stale: bool = F
         out.rename(aside)
         log(f"{out}: {stale}; moved to {aside}")
     out.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(path, json.dumps(ident, indent=2, sort_keys=True) + "\n")
+    atomic_write_text(path, json.dumps({**ident, RECORDING_ID_KEY: uuid.uuid4().hex}, indent=2, sort_keys=True)
+                      + "\n")
     return False
 
 
-#: File name of a run's recording; a resumed run writes ``recording.resume-<k>.rrd`` beside it.
-RECORDING_FILE = "recording.rrd"
 
 
 def run_recording(out: str | os.PathLike, resumed: bool) -> tuple[Path, str]:
@@ -125,9 +138,10 @@ def run_recording(out: str | os.PathLike, resumed: bool) -> tuple[Path, str]:
 
     A first run writes ``OUT/recording.rrd``.  A resumed run must not overwrite
     it (it holds the finished frames' intermediates): it writes the next free
-    ``OUT/recording.resume-<k>.rrd``.  Every part gets the same recording id,
-    derived from the run's identity (``run.json``) and folder, so that the
-    viewer opens ``rerun OUT/recording*.rrd`` as one recording.
+    ``OUT/recording.resume-<k>.rrd``.  Every part gets the run's recording id,
+    drawn once by :func:`start_run` and kept in ``run.json``, so that the
+    viewer opens ``rerun OUT/recording*.rrd`` as one recording (also after the
+    folder was moved; a run started afresh draws a new one).
 
     Parameters
     ----------
@@ -140,11 +154,19 @@ def run_recording(out: str | os.PathLike, resumed: bool) -> tuple[Path, str]:
     -------
     path : Path
     recording_id : str
+
+    Raises
+    ------
+    InputError
+        ``OUT/run.json`` is missing or holds no recording id (call :func:`start_run` first).
     """
     out = Path(out)
     ident = out / RUN_FILE
-    seed = (ident.read_text(encoding="utf-8") if ident.is_file() else "") + "|" + str(out.resolve())
-    rec_id = str(uuid.uuid5(uuid.NAMESPACE_URL, "toolkit-run:" + seed))
+    try:
+        rec_id = json.loads(ident.read_text(encoding="utf-8"))[RECORDING_ID_KEY]
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, KeyError, TypeError):
+        raise InputError(str(ident), f"a run identity with a {RECORDING_ID_KEY!r} (written by start_run)",
+                         "none") from None
     path = out / RECORDING_FILE
     if resumed and path.exists():
         k = 1

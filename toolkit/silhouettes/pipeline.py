@@ -208,7 +208,8 @@ class SilhouettePoseEstimator:
                 boxes[v] = box
             if c is not None:
                 px = c.joints_px(box)
-                pool[v] = (px, np.asarray(c.errors, float))
+                pk = self.config.pool_k  # the query returned max(k, pool_k) entries
+                pool[v] = (px[:pk], np.asarray(c.errors, float)[:pk])
                 c = _first(c, k)
                 cands[v] = c
                 cand_px[v, :len(c)] = px[:k]
@@ -232,15 +233,31 @@ class SilhouettePoseEstimator:
                 offsets = np.where(used[:, None], sel.offsets, np.nan)
                 joints, cost = sel.joints3d, float(sel.cost)
                 chosen = poses
-                if self.config.pool_k > 1:
-                    poses, offsets, joints, cost = self._pool(pool, boxes, poses, offsets, joints, cost, frame)
+        # pooled and corrected 2D poses are triangulated once, together
+        target, counts = poses, np.zeros(n_views, int)
+        if sel is not None and sel.success and self.config.pool_k > 1:
+            target, counts = self._pool(pool, boxes, poses)
         t_multiview = time.perf_counter() - t_start - t_query
         edited = np.zeros(n_views, bool)
         added: list[int] = []
         if edits:
-            poses, offsets, joints, cost, edited, added, fstate, sel = self._apply_edits(
-                edits, masks, poses, offsets, joints, cost, fstate, sel, frame)
+            target, edited, added = self._apply_edits(edits, masks, target, frame)
+            poses = target  # the corrections stand even if they cannot be triangulated
         t_edits = time.perf_counter() - t_start - t_query - t_multiview
+        if (counts >= 2).any() or (edited.any() and (np.isfinite(target).all(-1).sum(-1) >= 1).sum() >= 2):
+            res = self._retriangulate(target, frame)
+            if res.success:
+                used = res.views_used
+                poses = np.where(used[:, None, None], target, np.nan)
+                offsets = np.where(used[:, None], res.offsets, np.nan)
+                joints, cost, fstate, sel = res.joints3d, float(res.cost), FRAME_OK, res
+            if (counts >= 2).any():
+                self.observer.report("text", name=f"{REPORT_PREFIX}/pooling", frame=frame,
+                                     text=f"frame {frame}: pooled " + ", ".join(
+                                         f"{c.name} {n}" for c, n in zip(self.rig, counts))
+                                     + " database entries per view"
+                                     + ("" if res.success else "; triangulation failed, the selection's pose kept"))
+        t_multiview = time.perf_counter() - t_start - t_query - t_edits
         # the temporal term of the next frame uses this frame's chosen database pose (not pooled) in its own
         # box; corrected views their corrected pose
         for v in range(n_views):
@@ -262,9 +279,9 @@ class SilhouettePoseEstimator:
                              edited, tuple(added), sel,
                              {"query": t_query, "multiview": t_multiview, "edits": t_edits})
 
-    def _pool(self, pool, boxes, poses, offsets, joints, cost, frame):
-        """Replace each view's chosen pose by the weighted mean of the database entries that agree with it,
-        then triangulate again (one candidate per view, offsets from the selection); see :class:`Stage1Config`."""
+    def _pool(self, pool, boxes, poses):
+        """Each view's chosen pose replaced by the weighted mean of the database entries that agree with it
+        (see :class:`Stage1Config`); returns the poses (n_views, 14, 2) and the entries pooled per view."""
         pooled = poses.copy()
         counts = np.zeros(self.n_views, int)
         for v in range(self.n_views):
@@ -272,18 +289,7 @@ class SilhouettePoseEstimator:
                 continue
             radius = self.config.pool_radius * float(boxes[v, 3] - boxes[v, 1])
             pooled[v], counts[v] = pool_pose(poses[v], pool[v][0], pool[v][1], radius)
-        if not (counts >= 2).any():
-            return poses, offsets, joints, cost
-        res = self._retriangulate(pooled, frame)
-        self.observer.report("text", name=f"{REPORT_PREFIX}/pooling", frame=frame,
-                             text=f"frame {frame}: pooled " + ", ".join(
-                                 f"{c.name} {n}" for c, n in zip(self.rig, counts)) + " database entries per view"
-                             + ("" if res.success else "; triangulation failed, the selection's pose kept"))
-        if not res.success:
-            return poses, offsets, joints, cost
-        used = res.views_used
-        return (np.where(used[:, None, None], pooled, np.nan), np.where(used[:, None], res.offsets, np.nan),
-                res.joints3d, float(res.cost))
+        return pooled, counts
 
     def _retriangulate(self, poses, frame) -> MultiViewSelection:
         """Triangulate fixed 2D poses (one candidate per view, no flips) from the tracker's offsets;
@@ -300,7 +306,9 @@ class SilhouettePoseEstimator:
                 self.tracker.joints3d = sel.joints3d
         return sel
 
-    def _apply_edits(self, edits, masks, poses, offsets, joints, cost, fstate, sel, frame):
+    def _apply_edits(self, edits, masks, poses, frame):
+        """The user's corrections applied to ``poses`` (n_views, 14, 2), optionally added to the database;
+        returns the poses, which views were edited and the database rows added (triangulated by the caller)."""
         n_views = self.n_views
         names = self.rig.names
         edited = np.zeros(n_views, bool)
@@ -323,17 +331,10 @@ class SilhouettePoseEstimator:
             entry = DatabaseEntry.from_silhouette(np.asarray(mask, bool), poses[v], motion=USER_MOTION, frame=frame,
                                                   source=f"{cam_name} frame {frame}")
             added.append(self.database.add(entry))
-        have = np.isfinite(poses).all(-1).sum(-1) >= 1
-        if have.sum() >= 2:
-            sel = self._retriangulate(poses, frame)
-            if sel.success:
-                offsets = np.where(sel.views_used[:, None], sel.offsets, np.nan)
-                joints, cost = sel.joints3d, float(sel.cost)
-                fstate = FRAME_OK
         self.observer.report("text", name=f"{REPORT_PREFIX}/edits", frame=frame,
                              text=f"frame {frame}: corrected {[names[v] for v in np.flatnonzero(edited)]}; "
                                   f"{len(added)} pose(s) added to the database ({len(self.database)} entries)")
-        return poses, offsets, joints, cost, edited, added, fstate, sel
+        return poses, edited, added
 
 
 def stack_estimates(estimates: Sequence[FrameEstimate | None], n_frames: int, camera_names: Sequence[str],
