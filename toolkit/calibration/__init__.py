@@ -14,7 +14,7 @@ from toolkit.calibration.dataset import (
     refine_dataset,
     stage_rig,
 )
-from toolkit.calibration.field import FIELD_MODEL_FILE, FieldModel, read_field_model, soccer_pitch, write_field_model
+from toolkit.calibration.field import FieldModel, read_field_model, soccer_pitch, write_field_model
 from toolkit.calibration.lines import LineDetectorConfig, LinePoints, detect_line_points
 from toolkit.calibration.refine import (
     RefineConfig,
@@ -25,6 +25,6 @@ from toolkit.calibration.refine import (
     refine_rig,
 )
 
-__all__ = ["USED_CALIBRATION", "background_image", "cameras_for_run", "refined_cameras", "describe", "refine_dataset", "stage_rig", "FIELD_MODEL_FILE", "FieldModel", "read_field_model", "soccer_pitch", "write_field_model",
+__all__ = ["USED_CALIBRATION", "background_image", "cameras_for_run", "refined_cameras", "describe", "refine_dataset", "stage_rig", "FieldModel", "read_field_model", "soccer_pitch", "write_field_model",
            "LineDetectorConfig", "LinePoints", "detect_line_points", "RefineConfig", "Refinement",
            "apply_correction", "calibration_error_px", "refine_camera", "refine_rig"]

@@ -15,15 +15,25 @@ from typing import Mapping
 
 import numpy as np
 
-from toolkit.calibration.field import FieldModel
 from toolkit.calibration.refine import RefineConfig, Refinement, refine_rig
 from toolkit.cameras import Rig
 from toolkit.errors import InputError
+from toolkit.foreground.background import BackgroundModel
+from toolkit.foreground.config import BACKGROUND_SAMPLES, BackgroundConfig
 
 #: File in a stage's output folder holding the cameras it used (refined or measured).
 USED_CALIBRATION = "calibration.toml"
-#: Frames sampled evenly over a video to learn its background when there is no clean plate.
-BACKGROUND_SAMPLES = 25
+class _DatasetFrames:
+    """One camera's frames of a dataset as a sequence (``len`` and ``read(i)``) for :class:`BackgroundModel`."""
+
+    def __init__(self, dataset, camera: str):
+        self.dataset, self.camera = dataset, camera
+
+    def __len__(self) -> int:
+        return self.dataset.n_frames
+
+    def read(self, i: int) -> np.ndarray:
+        return self.dataset.frame(self.camera, i)
 
 
 def background_image(dataset, camera: str, samples: int = BACKGROUND_SAMPLES) -> np.ndarray:
@@ -34,7 +44,8 @@ def background_image(dataset, camera: str, samples: int = BACKGROUND_SAMPLES) ->
     dataset : toolkit.io.Dataset
     camera : str
     samples : int
-        Frames sampled evenly over the video for the median.
+        Frames sampled evenly over the video for the median
+        (:class:`toolkit.foreground.BackgroundModel`, method ``"median"``).
 
     Returns
     -------
@@ -43,33 +54,21 @@ def background_image(dataset, camera: str, samples: int = BACKGROUND_SAMPLES) ->
     plate = dataset.background(camera)
     if plate is not None:
         return plate
-    idx = np.unique(np.linspace(0, dataset.n_frames - 1, min(samples, dataset.n_frames)).round().astype(int))
-    frames = []
-    for i in idx:
-        try:
-            frames.append(dataset.frame(camera, int(i)))
-        except Exception:  # noqa: BLE001 - a short video: use what decodes
-            break
-    if not frames:
-        raise InputError(str(dataset.video_path(camera)), "a decodable video", "no frame")
-    return np.median(np.stack(frames), axis=0).astype(np.uint8)
+    config = BackgroundConfig(method="median", n_samples=samples)
+    return BackgroundModel.fit(_DatasetFrames(dataset, camera), config).background
 
 
-def refine_dataset(dataset, config: RefineConfig = RefineConfig(), *, rig: Rig | None = None,
-                   field_model: FieldModel | None = None, images: Mapping[str, np.ndarray] | None = None,
+def refine_dataset(dataset, config: RefineConfig = RefineConfig(), *,
                    observer=None) -> tuple[Rig, dict[str, Refinement]]:
-    """Refine a dataset's measured cameras on its field model.
+    """Refine a dataset's measured cameras on its field model (``field_model.json``).
+
+    Each camera is fitted on its empty-scene image (:func:`background_image`);
+    for other cameras or images call :func:`toolkit.calibration.refine_rig`.
 
     Parameters
     ----------
     dataset : toolkit.io.Dataset
     config : RefineConfig
-    rig : Rig, optional
-        Cameras to refine (default ``dataset.rig``).
-    field_model : FieldModel, optional
-        Default: the dataset's ``field_model.json``.
-    images : mapping of str to ndarray, optional
-        Empty-scene images per camera (default: :func:`background_image`).
     observer : Observer, optional
 
     Returns
@@ -79,13 +78,11 @@ def refine_dataset(dataset, config: RefineConfig = RefineConfig(), *, rig: Rig |
     results : dict of str to Refinement
         Empty when the dataset has no field model.
     """
-    rig = dataset.rig if rig is None else rig
-    field_model = dataset.field_model() if field_model is None else field_model
+    field_model = dataset.field_model()
     if field_model is None:
-        return rig, {}
-    if images is None:
-        images = {c.name: background_image(dataset, c.name) for c in rig}
-    return refine_rig(rig, images, field_model, config, observer=observer)
+        return dataset.rig, {}
+    images = {c.name: background_image(dataset, c.name) for c in dataset.rig}
+    return refine_rig(dataset.rig, images, field_model, config, observer=observer)
 
 
 def describe(results: Mapping[str, Refinement]) -> list[str]:
@@ -197,6 +194,6 @@ def cameras_for_run(dataset, out: str | os.PathLike, *, refine: bool = True, res
             log(line)
     out.mkdir(parents=True, exist_ok=True)
     refined = ",".join(n for n, r in results.items() if r.accepted)
-    write_calibration(path, rig, metadata={"source": str(dataset.root / "calibration.toml"),
+    write_calibration(path, rig, metadata={"source": str(dataset.layout.calibration),
                                            "refined_on_field_lines": refined})
     return rig

@@ -25,10 +25,6 @@ import numpy as np
 
 from toolkit.errors import InputError
 
-#: File name of a dataset's field model (at the dataset root).
-FIELD_MODEL_FILE = "field_model.json"
-
-
 @dataclass(frozen=True, eq=False)
 class FieldModel:
     """Painted field lines as polylines.
@@ -53,9 +49,12 @@ class FieldModel:
         lines = []
         for i, p in enumerate(self.polylines):
             a = np.asarray(p, dtype=np.float64)
-            if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] < 2 or not np.isfinite(a).all():
+            if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] < 2:
                 raise InputError(f"field model polylines[{i}]", "a finite (K >= 2, 3) array of metres",
                                  f"shape {a.shape}" if a.ndim else repr(p))
+            if not np.isfinite(a).all():
+                raise InputError(f"field model polylines[{i}]", "a finite (K >= 2, 3) array of metres",
+                                 f"{int((~np.isfinite(a)).sum())} non-finite values")
             a.setflags(write=False)
             lines.append(a)
         if not lines:

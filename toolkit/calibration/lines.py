@@ -18,6 +18,7 @@ import cv2
 import numpy as np
 
 from toolkit.errors import InputError
+from toolkit.foreground.background import check_rgb
 
 
 @dataclass(frozen=True)
@@ -101,10 +102,7 @@ def detect_line_points(image: np.ndarray, config: LineDetectorConfig = LineDetec
     -------
     LinePoints
     """
-    img = np.asarray(image)
-    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
-        raise InputError("detect_line_points: image", "an (H, W, 3) uint8 RGB image",
-                         f"shape {img.shape}, dtype {img.dtype}")
+    img = check_rgb(image, "detect_line_points: image")
     white = img.min(axis=2)
     k = 2 * config.max_width_px + 1
     tophat = cv2.morphologyEx(white, cv2.MORPH_TOPHAT, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))

@@ -44,6 +44,7 @@ from toolkit.calibration.field import FieldModel
 from toolkit.calibration.lines import LineDetectorConfig, LinePoints, detect_line_points
 from toolkit.cameras import Camera, Rig
 from toolkit.errors import InputError
+from toolkit.foreground.background import check_rgb
 from toolkit.observe import as_observer
 
 
@@ -89,11 +90,14 @@ class RefineConfig:
     margin_px: float = 3.0
 
     def __post_init__(self):
-        if not (self.step_m > 0):
-            raise InputError("RefineConfig.step_m", "a positive spacing in metres", repr(self.step_m))
+        if not (np.isfinite(self.step_m) and self.step_m > 0):
+            raise InputError("RefineConfig.step_m", "a finite positive spacing in metres", repr(self.step_m))
         g = tuple(float(x) for x in self.gates_px)
-        if not g or any(not (x > 0) for x in g):
-            raise InputError("RefineConfig.gates_px", "a non-empty sequence of positive pixel gates", repr(self.gates_px))
+        if not g or any(not (np.isfinite(x) and x > 0) for x in g) or any(b > a for a, b in zip(g, g[1:])):
+            raise InputError("RefineConfig.gates_px", "a non-empty sequence of positive pixel gates, largest first",
+                             repr(self.gates_px))
+        if not (np.isfinite(self.margin_px) and self.margin_px >= 0):
+            raise InputError("RefineConfig.margin_px", "a finite value >= 0", repr(self.margin_px))
         object.__setattr__(self, "gates_px", g)
         for name in ("prior_rotation_px", "prior_focal", "max_rms_px", "inlier_px"):
             v = getattr(self, name)
@@ -231,10 +235,7 @@ def refine_camera(camera: Camera, image: np.ndarray, field_model: FieldModel,
     Refinement
     """
     obs = as_observer(observer)
-    img = np.asarray(image)
-    if img.ndim != 3 or img.shape[:2] != (camera.height, camera.width):
-        raise InputError(f"refine_camera({camera.name}): image",
-                         f"an RGB image of {camera.width}x{camera.height}", f"shape {img.shape}")
+    img = check_rgb(image, f"refine_camera({camera.name}): image", (camera.height, camera.width))
     lines = detect_line_points(img, config.detector, region)
     pts, _ = field_model.samples(config.step_m)
     f0 = float(camera.K[0, 0])
@@ -253,7 +254,7 @@ def refine_camera(camera: Camera, image: np.ndarray, field_model: FieldModel,
         return reject(f"only {len(lines)} line points detected (need {config.min_points})")
     tree = cKDTree(lines.points)
     rms_b, inl_b = _inlier_stats(camera, pts, tree, lines, config)
-    uv0, vis0 = _visible(camera, pts, config.margin_px)
+    _, vis0 = _visible(camera, pts, config.margin_px)
     if vis0.sum() < config.min_points:
         return reject(f"only {int(vis0.sum())} model line points project into the image (need {config.min_points})",
                       rms_b, inl_b)
@@ -264,8 +265,7 @@ def refine_camera(camera: Camera, image: np.ndarray, field_model: FieldModel,
         return apply_correction(camera, th[:3], th[3] if n_par == 4 else 0.0)
 
     history, paired = [], 0
-    sv = np.zeros(n_par)
-    for gate in config.gates_px:
+    for gate in config.gates_px:  # RefineConfig checks there is at least one
         cam = cam_of(theta)
         uv, vis = _visible(cam, pts, config.margin_px)
         ok, j = _pair(uv[vis], tree, gate)
@@ -274,11 +274,9 @@ def refine_camera(camera: Camera, image: np.ndarray, field_model: FieldModel,
         if paired < config.min_points:
             return reject(f"only {paired} model points within {gate:g} px of a detected line "
                           f"(need {config.min_points})", rms_b, inl_b, paired)
-        q, nrm = lines.points[J], lines.normals[J]
 
-        def residuals(th, P=P, q=q, nrm=nrm):
-            u = cam_of(th).project(P)
-            r = np.einsum("ij,ij->i", u - q, nrm)
+        def residuals(th, P=P, J=J):
+            r = _point_to_line(cam_of(th).project(P), lines, J)
             r = np.where(np.isfinite(r), r, gate)
             return np.concatenate([r, th / prior_sd])
 
@@ -296,6 +294,8 @@ def refine_camera(camera: Camera, image: np.ndarray, field_model: FieldModel,
                colors=np.tile(np.array([[255, 60, 60]], np.uint8), (len(lines), 1)), **where)
     for name, cam, col in (("calibration/model_before", camera, (255, 200, 0)),
                            ("calibration/model_after", refined, (0, 220, 255))):
+        if observer is None:  # the projected model lines are only drawn
+            break
         strips = [s for p in field_model.polylines if (s := _strip(cam, p, config.step_m)) is not None]
         strips = [s for piece in strips for s in piece]
         if strips:

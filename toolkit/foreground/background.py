@@ -52,7 +52,7 @@ def check_rgb(image, where: str, size: tuple[int, int] | None = None) -> np.ndar
     if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
         raise InputError(where, "an RGB uint8 image (H, W, 3)", f"shape {img.shape}, dtype {img.dtype}")
     if size is not None and img.shape[:2] != tuple(size):
-        raise InputError(where, f"an image of size (H, W) = {tuple(size)} like the background",
+        raise InputError(where, f"an image of size (H, W) = {tuple(size)}",
                          f"{img.shape[:2]}")
     return img
 
