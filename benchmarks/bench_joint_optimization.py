@@ -4,8 +4,8 @@
 Usage::
 
     python benchmarks/bench_joint_optimization.py [--frames 2] [--scene-frames 8]
-                                                  [--out out/bench_joint_optimization] [--no-stage1]
-                                                  [--seeds 0 1 2]
+                                                  [--out out/bench_joint_optimization]
+                                                  [--seeds 0 1 2] [--starts stage1 stage1+s2 gt+5cm gt-pure]
 
 Seeded broadcast scenes at 1280x720 (2 and 3 cameras, calibration error 0 and
 8 px; one scene of each kind per seed, so the camera layouts drawn by
@@ -34,7 +34,7 @@ Part labels: the scenes' ground-truth part labels and depth (for the seams),
 so that these starts measure stage 3 alone; and a third start, "stage1+s2",
 from the stage-1 joints with the labels of the pipeline (stage 2 fitted to the
 stage-1 joints on the ground-truth silhouettes, seams from the template's
-depth; ``--no-stage2`` skips it).  The single-evaluation timing is one joint's position score (all its
+depth).  ``--starts`` picks the starts; stage 1 runs only for the two that need it.  The single-evaluation timing is one joint's position score (all its
 bones, every evaluated view) on one core (OpenCV and BLAS limited to one thread).
 Besides the MPJPE, "aligned" is the MPJPE after removing the mean 3D
 translation between the estimate and the ground truth: with miscalibrated
@@ -153,9 +153,6 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", type=int, default=2, help="frames optimised per scene")
     ap.add_argument("--scene-frames", type=int, default=8, help="frames per generated scene")
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "bench_joint_optimization")
-    ap.add_argument("--no-stage1", action="store_true", help="only the ground-truth + noise start")
-    ap.add_argument("--no-stage2", dest="stage2", action="store_false",
-                    help="skip the start from stage 1 with stage-2 labels (ground-truth silhouettes)")
     ap.add_argument("--starts", nargs="+", choices=STARTS, default=list(STARTS),
                     help="which starts to run (default: all)")
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2],
@@ -176,7 +173,7 @@ def main(argv=None) -> int:
         ds = Dataset.open(root)
         angles[root.name] = camera_angles(ds.rig)
         gt = ds.gt_joints3d()
-        s1 = None if args.no_stage1 else stage1(root, args.out)
+        s1 = stage1(root, args.out) if {"stage1", "stage1+s2"} & set(args.starts) else None
         s1_joints = s1_offsets = None
         if s1 is not None:
             s1_joints = np.load(s1 / "poses3d.npz")["joints"]
@@ -206,7 +203,7 @@ def main(argv=None) -> int:
                 rig1, off1 = stage_rig(ds, s1), image_offsets(s1_offsets[t])
                 s1_scorer = PositionScorer(images, labels, rig1, off1, seams)
                 starts.insert(0, ("stage1", s1_joints[t], s1_scorer, config))
-                if args.stage2 and "stage1+s2" in args.starts:  # the pipeline's labels: stage 2 fitted to stage 1, seams from its template
+                if "stage1+s2" in args.starts:  # the pipeline's labels: stage 2 fitted to stage 1, seams from its template
                     l2, z2 = {}, {}
                     for ci, c in enumerate(ds.camera_names):
                         seg = segment_frame(images[c], ds.gt_mask(c, t), s1_joints[t], rig1[c], template,

@@ -34,6 +34,7 @@ import argparse
 import json
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
@@ -195,10 +196,7 @@ def main(argv=None) -> int:
             joints[r["frame"]], stage1[r["frame"]], status[r["frame"]] = r["joints"], r["joints_stage1"], r["status"]
         atomic_save_npz(out / "poses3d.npz", joints=joints, names=np.array(SKELETON_14.joint_names),
                         joints_stage1=stage1, status=status)
-        outcome: dict = {}  # how the stage-3 search ended, joints summed over frames
-        for r in records:
-            for k, v in r.get("optimize", {}).items():
-                outcome[k] = outcome.get(k, 0) + v
+        outcome = dict(sum((Counter(r.get("optimize", {})) for r in records), Counter()))  # stage 3, all frames
         finished = len(records) == n
         if finished:
             for p in PATHS:

@@ -32,6 +32,7 @@ import argparse
 import json
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
@@ -112,7 +113,7 @@ def main(argv=None) -> int:
         n_eval = np.zeros(n, int)
         secs = np.zeros(n)
         status = []
-        outcome: dict = {}  # how the search ended per joint, summed over frames (PoseResult.outcome_counts)
+        outcome = Counter()  # how the search ended per joint, summed over frames (PoseResult.outcome_counts)
         t_all = time.perf_counter()
         for t in range(n):
             J0 = init[t]
@@ -142,10 +143,10 @@ def main(argv=None) -> int:
             status.append("converged" if res.converged else "max sweeps")
             if observer is not None:
                 build_billboards(images, labels, res.joints, rig, offsets[t], seams, frame=t, observer=observer)
-            for k, v in res.outcome_counts(SKELETON_14.n_joints).items():
-                outcome[k] = outcome.get(k, 0) + v
+            counts = res.outcome_counts()
+            outcome.update(counts)
             line = (f"frame {t}: {res.n_sweeps} sweeps, {res.n_evaluations} evaluations, {res.seconds:.1f} s; "
-                    "joints " + ", ".join(f"{k} {v}" for k, v in sorted(res.outcome_counts().items())))
+                    "joints " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
             if gt is not None:
                 b = np.linalg.norm(J0 - gt[t], axis=1).mean() * 100
                 a = np.linalg.norm(res.joints - gt[t], axis=1).mean() * 100
@@ -161,7 +162,7 @@ def main(argv=None) -> int:
                        "evaluations_per_frame": float(n_eval[ok].mean()) if ok.any() else None,
                        "seconds_per_frame": float(secs[ok].mean()) if ok.any() else None,
                        "part_labels": "stage 2" if args.parts else "ground truth",
-                       "joint_outcomes": outcome}
+                       "joint_outcomes": dict(outcome)}
             atomic_write_text(args.out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
             if before is not None:
                 print(f"MPJPE {before * 100:.1f} -> {after * 100:.1f} cm over {int(ok.sum())} frame(s)")

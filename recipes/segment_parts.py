@@ -57,6 +57,8 @@ def _config(path: Path | None):
 
 
 def main(argv=None) -> int:
+    from toolkit.segmentation import TEMPLATE_POSES
+
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
     ap.add_argument("dataset", type=Path, help="dataset folder (docs/dataset_layout.md)")
@@ -65,7 +67,7 @@ def main(argv=None) -> int:
     src.add_argument("--poses", type=Path, default=None, help="output folder of recipes/pose_from_silhouettes.py")
     src.add_argument("--gt-joints", action="store_true", help="use the ground-truth joints and calibration")
     ap.add_argument("--gt-masks", action="store_true", help="use the ground-truth silhouettes")
-    ap.add_argument("--template-pose", choices=("multiview", "per_view"), default="multiview",
+    ap.add_argument("--template-pose", choices=TEMPLATE_POSES, default="multiview",
                     help="fit the template to the stage-1 3D joints projected (multiview, default) or to each "
                          "view's stage-1 2D pose (per_view)")
     ap.add_argument("--config", type=Path, default=None, help="TOML file with a [segmentation] table")

@@ -56,11 +56,11 @@ class View:
     virtual: bool
 
 
-def midway_camera(a: Camera, b: Camera, name: str | None = None, target=None) -> Camera:
+def midway_camera(a: Camera, b: Camera, name: str | None = None) -> Camera:
     """A virtual pinhole camera midway between two cameras, looking at what both look at.
 
-    The target is the point closest to both optical axes (``target`` when
-    given, e.g. the subject).  The centre lies on the arc between the two
+    The target is the point closest to both optical axes (broadcast cameras
+    aim at the subject).  The centre lies on the arc between the two
     cameras around the target: the target plus the mean of both cameras'
     distances along the bisector of the two directions to them, so the
     subject keeps about the same image size.  The orientation is the rotation
@@ -74,9 +74,7 @@ def midway_camera(a: Camera, b: Camera, name: str | None = None, target=None) ->
 
     rots = Rotation.from_matrix(np.stack([a.R, b.R]))
     R = Slerp([0.0, 1.0], rots)([0.5]).as_matrix()[0]
-    if target is None:
-        target = closest_point_to_rays(np.stack([a.center, b.center]), np.stack([a.forward, b.forward]))[0]
-    x = np.asarray(target, float)
+    x = closest_point_to_rays(np.stack([a.center, b.center]), np.stack([a.forward, b.forward]))[0]
     da, db = a.center - x, b.center - x
     ra, rb = np.linalg.norm(da), np.linalg.norm(db)
     u = da / max(ra, 1e-12) + db / max(rb, 1e-12)

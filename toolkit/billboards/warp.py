@@ -90,15 +90,13 @@ def plane_depth(camera: Camera, point, normal, roi, offset=(0.0, 0.0)) -> np.nda
     return np.where(z > 0, z, np.inf).astype(np.float32)
 
 
-def warp_texture(texture_rgba: np.ndarray, H: np.ndarray, camera: Camera, roi, size) -> Warp | None:
+def warp_texture(texture_rgba: np.ndarray, H: np.ndarray, roi, size) -> Warp | None:
     """Warp an RGBA texture into a view by the homography ``H`` (view pixels from texture pixels).
 
     Parameters
     ----------
     texture_rgba : ndarray of shape (h, w, 4) uint8
     H : ndarray of shape (3, 3)
-    camera : Camera
-        The view (for its size).
     roi : tuple of int (x0, y0, x1, y1) or None
         Restrict the output to this region of the view (None: the quad's footprint only).
     size : tuple of int
@@ -163,7 +161,7 @@ def warp_billboard(billboard: Billboard, camera: Camera, out_size: tuple[int, in
     rgba = np.dstack([billboard.texture.astype(np.float32), billboard.alpha])
     if billboard.surface == "plane":
         H = billboard.view_from_texture(camera, off)
-        w = warp_texture(rgba, H, camera, roi, size)
+        w = warp_texture(rgba, H, roi, size)
         if w is None:
             return _empty()
         depth = plane_depth(camera, billboard.corners[0], billboard.normal, w.roi, off)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import itertools
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -92,21 +93,18 @@ class PoseResult:
     steps: tuple = field(default_factory=tuple)
     seconds: float = 0.0
 
-    def outcomes(self, n_joints: int = 14) -> list[str]:
+    def outcomes(self) -> list[str]:
         """Per joint, ``"moved"`` if any sweep moved it, else the status of its last step
         (one of :data:`STATUSES`; ``"not searched"`` for a joint outside ``joint_order``)."""
-        out = ["not searched"] * n_joints
+        out = ["not searched"] * len(self.joints)
         for st in self.steps:
             if out[st.joint] != "moved":
                 out[st.joint] = st.status
         return out
 
-    def outcome_counts(self, n_joints: int = 14) -> dict[str, int]:
+    def outcome_counts(self) -> dict[str, int]:
         """How many joints ended with each of :meth:`outcomes`, e.g. ``{"moved": 9, "kept": 5}``."""
-        counts: dict[str, int] = {}
-        for o in self.outcomes(n_joints):
-            counts[o] = counts.get(o, 0) + 1
-        return counts
+        return dict(Counter(self.outcomes()))
 
 
 def _offsets(r: int) -> np.ndarray:

@@ -63,7 +63,7 @@ class CpuCompositor:
         if rgba is None:
             rgba = billboard.rgba()  # uint8: 8-bit alpha is plenty for the binary blend
             self._rgba[id(billboard)] = rgba
-        w = warp_texture(rgba, billboard.view_from_texture(camera, offset), camera, None, camera.size)
+        w = warp_texture(rgba, billboard.view_from_texture(camera, offset), None, camera.size)
         if w is None:
             return None
         return w.rgb.astype(np.float32), w.alpha.astype(np.float32) * np.float32(1 / 255), \

@@ -29,6 +29,7 @@ from toolkit.observe import Observer, as_observer
 from toolkit.optimize import OptimizeConfig
 from toolkit.rendering.baselines import VisualHull, standard_billboards, visual_hull
 from toolkit.rendering.fans import RENDER_SUPERSAMPLE, render_billboards
+from toolkit.segmentation.pipeline import TEMPLATE_POSES
 from toolkit.skeleton import SKELETON_14
 
 #: ``FrameResult.status`` values.
@@ -71,9 +72,6 @@ class FreeViewpointConfig:
         if self.template_pose not in TEMPLATE_POSES:
             raise InputError("FreeViewpointConfig.template_pose", f"one of {TEMPLATE_POSES}", repr(self.template_pose))
 
-
-#: What the template is fitted to per view (:class:`FreeViewpointConfig`).
-TEMPLATE_POSES = ("multiview", "per_view")
 
 
 @dataclass(frozen=True, eq=False)
@@ -198,7 +196,7 @@ class FrameProcessor:
             scorer = PositionScorer(imgs, labels, self.rig, off, seams)
             found = optimize_pose(scorer, J1, self.constraints, self.config.optimize_config, observer=obs,
                                   frame=frame)
-            J, outcome = found.joints, found.outcome_counts(SKELETON_14.n_joints)
+            J, outcome = found.joints, found.outcome_counts()
             timings["optimize"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         model = render_billboards(imgs, labels, J, self.rig, off, seams, supersample=self.config.supersample,

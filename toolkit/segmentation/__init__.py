@@ -1,7 +1,7 @@
 """Stage 2b: body-part segmentation with per-part Gaussian-mixture colour models (source 000 §2.3, claim 14)."""
 
 from toolkit.segmentation.colour import COLOUR_SPACES, PartColourModels, colour_features, fit_part_models
-from toolkit.segmentation.pipeline import PoseSource, segment_views
+from toolkit.segmentation.pipeline import TEMPLATE_POSES, PoseSource, segment_views
 from toolkit.segmentation.segment import (
     DEFAULT_COLOUR_SPACE,
     DEFAULT_COMPONENTS,
@@ -16,4 +16,4 @@ from toolkit.segmentation.segment import (
 
 __all__ = ["COLOUR_SPACES", "PartColourModels", "colour_features", "fit_part_models", "DEFAULT_COLOUR_SPACE",
            "DEFAULT_COMPONENTS", "FALLBACK_PART", "RULES", "SegmentationConfig", "SegmentationResult",
-           "label_uncertain", "part_iou", "segment_frame", "PoseSource", "segment_views"]
+           "label_uncertain", "part_iou", "segment_frame", "PoseSource", "TEMPLATE_POSES", "segment_views"]

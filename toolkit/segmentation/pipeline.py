@@ -12,6 +12,10 @@ from toolkit.errors import InputError
 from toolkit.segmentation.segment import SegmentationConfig, SegmentationResult, segment_frame
 from toolkit.template import PoseDatabase, Template
 
+#: What the template is fitted to in each view: the multi-view 3D joints projected through the view's
+#: (offset) camera, or that view's own stage-1 2D pose (the source's per-view fit).
+TEMPLATE_POSES = ("multiview", "per_view")
+
 
 @dataclass(frozen=True)
 class PoseSource:
