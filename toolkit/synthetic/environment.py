@@ -60,11 +60,14 @@ def _quad(name, corners, texture):
     return Surface(name, V, T, UV, texture)
 
 
-#: Half-size of the broadcast grass, metres (the field lines lie 5 m inside it).
+#: Half-size of the broadcast grass, metres (the field lines lie PITCH_MARGIN_M inside it).
 PITCH_HALF_X, PITCH_HALF_Y = 60.0, 40.0
+#: Grass around the painted field lines on every side, metres.
+PITCH_MARGIN_M = 5.0
 
 
-def _pitch(rng, half_x=PITCH_HALF_X, half_y=PITCH_HALF_Y, res=4096):
+def _pitch(rng, res=4096):
+    half_x, half_y = PITCH_HALF_X, PITCH_HALF_Y
     w = res
     h = int(res * half_y / half_x)
     tex = _noise_texture(rng, (h, w), [0.20, 0.50, 0.18], 0.18, 1.2)
@@ -78,7 +81,7 @@ def _pitch(rng, half_x=PITCH_HALF_X, half_y=PITCH_HALF_Y, res=4096):
     white = (235, 235, 235)
     t = max(1, int(round(0.12 * px)))
     # the painted lines are those of the field model written into broadcast datasets
-    for line in soccer_pitch(2 * half_x - 10.0, 2 * half_y - 10.0).polylines:
+    for line in field_model("broadcast").polylines:
         uv = np.stack([(line[:, 0] + half_x) * px, (half_y - line[:, 1]) * py], axis=1) - 0.5  # texel centres
         cv2.polylines(img, [np.round(uv * 16).astype(np.int32)], False, white, t, cv2.LINE_8, shift=4)
     corners = [[-half_x, -half_y, 0], [half_x, -half_y, 0], [half_x, half_y, 0], [-half_x, half_y, 0]]
@@ -168,7 +171,7 @@ def field_model(layout: str):
     inside 120 x 80 m of grass); the studio floor has no lines.
     """
     if layout == "broadcast":
-        return soccer_pitch(PITCH_HALF_X * 2 - 10.0, PITCH_HALF_Y * 2 - 10.0)
+        return soccer_pitch(2 * (PITCH_HALF_X - PITCH_MARGIN_M), 2 * (PITCH_HALF_Y - PITCH_MARGIN_M))
     if layout == "studio":
         return None
     raise InputError("layout", "'broadcast' or 'studio'", repr(layout))
