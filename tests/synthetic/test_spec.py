@@ -30,6 +30,16 @@ def test_parses_default_specs():
     ('seed = 11', 'seed = 11\ncolour = 3', "unknown keys"),
     ('seed = 11', '', "seed"),
     ('seed = 11', 'seed = [', "valid TOML"),
+    ('motion = "walk"', 'motion = "walk"\noutfit = "camouflage"', "subject.outfit"),
+    ('motion = "walk"', 'motion = "walk"\nshirt_rgb = [0.2, 1.5, 0.1]', "subject.shirt_rgb"),
+    ('motion = "walk"', 'motion = "walk"\ntrousers_rgb = [0.2, 0.1]', "subject.trousers_rgb"),
+    ('motion = "walk"', 'motion = "walk"\npattern = "dots"', "subject.pattern"),
+    ('calibration_error_px = 4.0', 'calibration_error_px = 4.0\nspacing_deg = [90, 30]', "cameras.spacing_deg"),
+    ('calibration_error_px = 4.0', 'calibration_error_px = 4.0\nspacing_deg = 200', "cameras.spacing_deg"),
+    ('calibration_error_px = 4.0', 'calibration_error_px = 4.0\nsubject_px = "tall"', "cameras.subject_px"),
+    ('layout = "broadcast"\nresolution = [320, 180]\ncalibration_error_px = 4.0',
+     'layout = "studio"\nresolution = [320, 180]\ncalibration_error_px = 4.0\nsubject_px = 100', "cameras.subject_px"),
+    ('[novel]\ncount = 1', '[novel]\ncount = 1\nplacement = "behind"', "novel.placement"),
 ])
 def test_bad_values_name_the_field(old, new, field):
     text = TINY_SPEC.replace(old, new, 1)
@@ -61,3 +71,59 @@ def test_bvh_motion_scene(tmp_path):
     scene = build_scene(load_spec(spec_path))
     assert scene.joints.shape == (3, 14, 3) and np.isfinite(scene.joints).all()
     assert scene.joints[..., 2].min() > -0.02
+
+
+ZOO_SPEC = TINY_SPEC.replace('motion = "walk"', 'motion = "turn"\noutfit = "like_background"\npattern = "checks"').replace(
+    'calibration_error_px = 4.0', 'calibration_error_px = 0.0\nspacing_deg = 100\nsubject_px = 120').replace(
+    '[novel]\ncount = 1', '[novel]\ncount = 4\nplacement = "around"').replace(
+    'resolution = [320, 180]', 'resolution = [960, 540]')
+#: Subject-size tolerance: ``subject_px`` is the stature; joints span ~90 % of it (head top and soles lie outside).
+SUBJECT_PX_SPAN = (0.8, 1.0)
+#: Outfit "like_background": the shirt's base colour lies this close (max per channel) to the grass.
+KIT_NEAR_TOL = 0.3
+
+
+def test_zoo_fields_shape_the_scene():
+    import numpy as np
+
+    from toolkit.synthetic.environment import GRASS_RGB
+    from toolkit.synthetic.generator import _spacings_deg, build_scene
+
+    spec = parse_spec(ZOO_SPEC, "zoo.toml")
+    assert spec.spacing_deg == (100.0, 100.0) and spec.subject_px == (120.0, 120.0)
+    scene = build_scene(spec)
+    assert abs(_spacings_deg(scene.rig, scene.joints)[0] - 100.0) < 1.0
+    for cam in scene.rig:
+        uv = cam.project(scene.joints)
+        span = np.nanmedian(np.nanmax(uv[..., 1], 1) - np.nanmin(uv[..., 1], 1))
+        assert SUBJECT_PX_SPAN[0] * 120 < span < SUBJECT_PX_SPAN[1] * 120
+    shirt = scene.body.shape.colours[2]
+    assert np.abs(shirt - np.array(GRASS_RGB)).max() < KIT_NEAR_TOL
+    assert scene.body.shape.pattern_kind == "checks"
+    # novel cameras all around: the first one is on the far side of the subject from both sources
+    c = scene.joints[:, 1].mean(0)
+    back = scene.novel[0].center[:2] - c[:2]
+    for cam in scene.rig:
+        src = cam.center[:2] - c[:2]
+        assert np.dot(back, src) / np.linalg.norm(back) / np.linalg.norm(src) < -0.3
+    elev = [np.degrees(np.arctan2(cam.center[2] - 0.9, np.linalg.norm(cam.center[:2] - c[:2]))) for cam in scene.novel]
+    assert max(elev) > 35.0  # a high view
+    for cam in scene.novel:  # every novel camera sees the subject
+        uv = cam.project(scene.joints[0])
+        assert ((uv >= 0) & (uv < np.array(cam.size))).all()
+
+
+def test_zoo_fields_leave_other_draws_unchanged():
+    """Widening the scene space must not change the scenes the project already has."""
+    import numpy as np
+
+    from toolkit.synthetic.generator import build_scene
+
+    a = build_scene(parse_spec(TINY_SPEC, "a.toml"))
+    b = build_scene(parse_spec(TINY_SPEC.replace('motion = "walk"', 'motion = "walk"\nshirt_rgb = [0.1, 0.2, 0.3]'),
+                               "b.toml"))
+    np.testing.assert_array_equal(a.joints, b.joints)
+    for ca, cb in zip(a.rig, b.rig):
+        np.testing.assert_array_equal(ca.K, cb.K)
+    np.testing.assert_array_equal(a.body.shape.colours[3], b.body.shape.colours[3])
+    np.testing.assert_allclose(b.body.shape.colours[2], [0.1, 0.2, 0.3])

@@ -12,7 +12,7 @@ Sizes are fractions of stature; see :class:`BodyShape`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -92,6 +92,42 @@ class BodyShape:
             long_trousers=bool(rng.random() < 0.8),
             noise_amplitude=float(rng.uniform(0.04, 0.08)),
         )
+
+
+def dress(shape: BodyShape, *, near: np.ndarray | None = None, shirt_rgb=None, trousers_rgb=None,
+          pattern: str | None = None, rng: np.random.Generator | int | None = None) -> BodyShape:
+    """The same person in another outfit (the scene spec's ``[subject]`` outfit fields).
+
+    Parameters
+    ----------
+    shape : BodyShape
+    near : array_like of shape (K, 3), optional
+        Colours of the surroundings (RGB in [0, 1]); when given, the shirt and its
+        print are drawn close to one of them (a kit like the pitch or the backdrop:
+        within about 0.1 per channel, the print slightly darker or lighter).
+    shirt_rgb, trousers_rgb : array_like of shape (3,), optional
+        Explicit colours (override ``near``).
+    pattern : {"stripes", "checks", "plain"}, optional
+    rng : numpy.random.Generator or int or None
+
+    Returns
+    -------
+    BodyShape
+    """
+    rng = np.random.default_rng(rng)
+    colours, second = shape.colours.copy(), shape.pattern.copy()
+    if near is not None:
+        near = np.asarray(near, float).reshape(-1, 3)
+        base = near[rng.integers(len(near))]
+        colours[2] = np.clip(base * rng.uniform(0.9, 1.2) + rng.uniform(-0.06, 0.06, 3), 0, 1)
+        second[0] = np.clip(colours[2] * rng.choice([0.7, 1.3]) + rng.uniform(-0.04, 0.04, 3), 0, 1)
+    if shirt_rgb is not None:
+        colours[2] = np.asarray(shirt_rgb, float)
+    if trousers_rgb is not None:
+        colours[3] = np.asarray(trousers_rgb, float)
+        second[1] = colours[3] * 0.6
+    return replace(shape, colours=colours, pattern=second,
+                   pattern_kind=shape.pattern_kind if pattern is None else str(pattern))
 
 
 @dataclass(frozen=True)

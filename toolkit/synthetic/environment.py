@@ -60,6 +60,13 @@ def _quad(name, corners, texture):
     return Surface(name, V, T, UV, texture)
 
 
+#: Base colours (RGB in [0, 1]) of the surroundings' textures: grass; studio walls and floor.
+GRASS_RGB = (0.20, 0.50, 0.18)
+STUDIO_WALL_RGB = (0.62, 0.64, 0.68)
+STUDIO_FLOOR_RGB = (0.55, 0.42, 0.30)
+#: What a subject is seen against per layout (``[subject] outfit = "like_background"`` dresses it in these).
+SURROUNDING_COLOURS = {"broadcast": (GRASS_RGB,), "studio": (STUDIO_WALL_RGB, STUDIO_FLOOR_RGB)}
+
 #: Half-size of the broadcast grass, metres (the field lines lie PITCH_MARGIN_M inside it).
 PITCH_HALF_X, PITCH_HALF_Y = 60.0, 40.0
 #: Grass around the painted field lines on every side, metres.
@@ -70,7 +77,7 @@ def _pitch(rng, res=4096):
     half_x, half_y = PITCH_HALF_X, PITCH_HALF_Y
     w = res
     h = int(res * half_y / half_x)
-    tex = _noise_texture(rng, (h, w), [0.20, 0.50, 0.18], 0.18, 1.2)
+    tex = _noise_texture(rng, (h, w), list(GRASS_RGB), 0.18, 1.2)
     # mowing stripes every 5 m along x
     x = np.linspace(-half_x, half_x, w)
     stripes = (np.floor(x / 5.0) % 2 == 0)[None, :, None]
@@ -119,7 +126,7 @@ def _crowd(rng, size):
 
 def _studio_wall(rng, size):
     h, w = size
-    tex = _noise_texture(rng, (h, w), [0.62, 0.64, 0.68], 0.08, 2.0)
+    tex = _noise_texture(rng, (h, w), list(STUDIO_WALL_RGB), 0.08, 2.0)
     img = np.clip(tex * 255, 0, 255).astype(np.uint8)
     for k in range(12):  # posters and panels as texture for background subtraction realism
         x0, y0 = int(rng.uniform(0, w - w // 20)), int(rng.uniform(0, h - h // 4))
@@ -130,7 +137,7 @@ def _studio_wall(rng, size):
 
 
 def _floor(rng, half=8.0, res=2048):
-    tex = _noise_texture(rng, (res, res), [0.55, 0.42, 0.30], 0.10, 1.0)
+    tex = _noise_texture(rng, (res, res), list(STUDIO_FLOOR_RGB), 0.10, 1.0)
     # planks 0.2 m wide
     x = np.linspace(-half, half, res)
     plank = (np.floor(x / 0.2) % 3)[None, :, None]

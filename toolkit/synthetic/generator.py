@@ -28,14 +28,14 @@ from toolkit.io import DatasetWriter, atomic_write_text
 from toolkit.motion import generate_motion, motion_from_bvh
 from toolkit.observe import Observer, as_observer
 from toolkit.skeleton import SKELETON_14
-from toolkit.synthetic.body import BodyMesh, BodyModel
-from toolkit.synthetic.environment import BACKGROUND_COLOUR, field_model, make_environment
+from toolkit.synthetic.body import BodyMesh, BodyModel, BodyShape, dress
+from toolkit.synthetic.environment import BACKGROUND_COLOUR, SURROUNDING_COLOURS, field_model, make_environment
 from toolkit.synthetic.render import Raycaster, RaycastRenderer, SceneRenderer
 from toolkit.synthetic.rigs import make_rig, novel_rig, perturb_rig
 from toolkit.synthetic.spec import SceneSpec
 
 #: Names of the independent random streams drawn from the spec's seed (order matters).
-RNG_STREAMS = ("body", "motion", "cameras", "calibration", "environment", "novel", "light", "depth")
+RNG_STREAMS = ("body", "motion", "cameras", "calibration", "environment", "novel", "light", "depth", "outfit")
 
 
 @dataclass(frozen=True)
@@ -82,15 +82,26 @@ def build_scene(spec: SceneSpec) -> Scene:
     seqs = np.random.SeedSequence(spec.seed).spawn(len(RNG_STREAMS))
     rngs = {name: np.random.default_rng(s) for name, s in zip(RNG_STREAMS, seqs)}
     props = BodyProportions.sample(spec.height_m, rngs["body"])
-    body = BodyModel.sample(props, rngs["body"])
+    shape = BodyShape.sample(props, rngs["body"])  # the draws of BodyModel.sample, dressed in between
+    if spec.outfit != "random" or spec.shirt_rgb or spec.trousers_rgb or spec.pattern:
+        near = SURROUNDING_COLOURS[spec.layout] if spec.outfit == "like_background" else None
+        shape = dress(shape, near=near, shirt_rgb=spec.shirt_rgb, trousers_rgb=spec.trousers_rgb,
+                      pattern=spec.pattern, rng=rngs["outfit"])
+    body = BodyModel(shape, rngs["body"])
     if spec.motion_is_bvh:
         joints = motion_from_bvh(spec.motion, props, spec.frames, spec.fps, rngs["motion"])
     else:
         joints = generate_motion(spec.motion, props, spec.frames, spec.fps, rngs["motion"])
     centre = np.r_[np.nanmean(joints[:, 1, :2], axis=0), 0.0]
-    rig = make_rig(spec.layout, spec.camera_count, spec.resolution, spec.height_m, rngs["cameras"], centre=centre)
+    kw = {}
+    if spec.subject_px is not None:  # a size asked for: keep only the motion's own extent in view
+        kw = dict(subject_px=spec.subject_px,
+                  working_radius_m=float(np.nanmax(np.linalg.norm(joints[..., :2] - centre[:2], axis=-1))) + 0.5)
+    rig = make_rig(spec.layout, spec.camera_count, spec.resolution, spec.height_m, rngs["cameras"], centre=centre,
+                   spacing_deg=spec.spacing_deg, **kw)
     measured, errs = perturb_rig(rig, spec.calibration_error_px, joints.reshape(-1, 3), rngs["calibration"])
-    novel = novel_rig(spec.layout, rig, spec.novel_count, spec.height_m, rngs["novel"], centre=centre)
+    novel = novel_rig(spec.layout, rig, spec.novel_count, spec.height_m, rngs["novel"], centre=centre,
+                      placement=spec.novel_placement, **kw)
     az = rngs["light"].uniform(0, 2 * np.pi)
     el = rngs["light"].uniform(np.radians(35), np.radians(70))
     light = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
@@ -110,6 +121,16 @@ def _subject_heights_px(rig: Rig, joints: np.ndarray) -> list[float]:
         uv = cam.project(joints)
         out.append(float(np.nanmedian(np.nanmax(uv[..., 1], 1) - np.nanmin(uv[..., 1], 1))))
     return out
+
+
+def _spacings_deg(rig: Rig, joints: np.ndarray) -> list[float]:
+    """Azimuth gaps between neighbouring cameras around the subject, degrees (sorted by azimuth)."""
+    c = np.nanmean(joints[:, 1, :2], axis=0)
+    az = np.sort([np.arctan2(*(cam.center[:2] - c)[::-1]) for cam in rig])
+    if len(az) < 2:
+        return []
+    gaps = np.degrees(np.diff(np.r_[az, az[0] + 2 * np.pi]))
+    return [round(float(g), 1) for g in gaps]
 
 
 def generate_scene(spec: SceneSpec, out: str | Path, observer: Observer | None = None, progress: bool = True):
@@ -155,7 +176,11 @@ def generate_scene(spec: SceneSpec, out: str | Path, observer: Observer | None =
             "motion": spec.motion,
             "light_dir": scene.light_dir.tolist(),
             "outfit": {"pattern": scene.body.shape.pattern_kind, "long_sleeves": scene.body.shape.long_sleeves,
-                       "long_trousers": scene.body.shape.long_trousers},
+                       "long_trousers": scene.body.shape.long_trousers, "kind": spec.outfit,
+                       "shirt_rgb": [round(float(v), 3) for v in scene.body.shape.colours[2]],
+                       "trousers_rgb": [round(float(v), 3) for v in scene.body.shape.colours[3]]},
+            "camera_spacing_deg": _spacings_deg(scene.rig, scene.joints),
+            "novel_placement": spec.novel_placement,
         }
         atomic_write_text(out / "groundtruth" / "scene_info.json", json.dumps(info, indent=2))
 

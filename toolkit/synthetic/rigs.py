@@ -24,22 +24,29 @@ BROADCAST_SUBJECT_PX = (100.0, 250.0)
 WORKING_RADIUS_M = 3.0
 
 
-def _broadcast_camera(name, azimuth, rng, size, subject_height, centre):
+def _broadcast_camera(name, azimuth, rng, size, subject_height, centre, subject_px=None,
+                      working_radius_m=WORKING_RADIUS_M, high=False):
     dist = rng.uniform(25.0, 45.0)
     elev = rng.uniform(6.0, 15.0)
+    if high:  # a high view (a spider cam, a roof camera): 40-60 degrees above the horizon
+        elev = dist * np.tan(np.radians(rng.uniform(40.0, 60.0)))
     eye = centre + np.array([dist * np.cos(azimuth), dist * np.sin(azimuth), elev])
     target = centre + np.array([rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), 0.9])
     px = rng.uniform(*BROADCAST_SUBJECT_PX) * size[1] / 720.0
+    if subject_px is not None:  # asked for: same draws, another size
+        px = float(np.interp(px, np.array(BROADCAST_SUBJECT_PX) * size[1] / 720.0, subject_px))
     rng_d = np.linalg.norm(eye - target)
     focal = px * rng_d / subject_height
-    # keep the working volume (a 3 m radius) in the image
-    max_focal = 0.5 * min(size) * rng_d / (WORKING_RADIUS_M + 1.0)
+    # keep the working volume (a 3 m radius, or the motion's own when given) in the image
+    max_focal = 0.5 * min(size) * rng_d / (working_radius_m + 1.0)
     return Camera.look_at(name, eye, target, size=size, focal_px=min(focal, max_focal))
 
 
-def _studio_camera(name, azimuth, rng, size, centre):
+def _studio_camera(name, azimuth, rng, size, centre, high=False):
     dist = rng.uniform(3.5, 5.0)
     h = rng.uniform(1.2, 2.5)
+    if high:  # a ceiling camera 35-55 degrees above the subject's middle
+        h = 0.95 + dist * np.tan(np.radians(rng.uniform(35.0, 55.0)))
     eye = centre + np.array([dist * np.cos(azimuth), dist * np.sin(azimuth), h])
     target = centre + np.array([0.0, 0.0, 0.95])
     # frame a 2.4 m tall, 2 m wide volume
@@ -50,7 +57,8 @@ def _studio_camera(name, azimuth, rng, size, centre):
 
 def make_rig(layout: str, count: int, size: tuple[int, int], subject_height: float,
              rng: np.random.Generator | int | None = None, *, prefix: str = "cam",
-             centre=(0.0, 0.0, 0.0), azimuths=None) -> Rig:
+             centre=(0.0, 0.0, 0.0), azimuths=None, spacing_deg=None, subject_px=None,
+             working_radius_m: float = WORKING_RADIUS_M, high=None) -> Rig:
     """Cameras of a layout.
 
     Parameters
@@ -69,6 +77,15 @@ def make_rig(layout: str, count: int, size: tuple[int, int], subject_height: flo
         Centre of the working volume on the ground.
     azimuths : array_like of shape (count,), optional
         Camera azimuths in radians (drawn from ``rng`` when omitted).
+    spacing_deg : tuple of float, optional
+        ``(lo, hi)`` range of the azimuth between neighbouring cameras, degrees
+        (default: the layout's, see :func:`layout_azimuths`).
+    subject_px : tuple of float, optional
+        Broadcast: ``(lo, hi)`` subject height in pixels (default 100-250 at 720 rows).
+    working_radius_m : float
+        Radius of the volume the subject moves in, metres (broadcast focal lengths keep it in view).
+    high : array_like of bool of shape (count,), optional
+        Cameras placed high above the subject (40-60 degrees broadcast, 35-55 studio).
 
     Returns
     -------
@@ -79,22 +96,31 @@ def make_rig(layout: str, count: int, size: tuple[int, int], subject_height: flo
         raise InputError("cameras.count", "at least 1", str(count))
     centre = np.asarray(centre, float)
     if azimuths is None:
-        azimuths = layout_azimuths(layout, count, rng)
+        azimuths = layout_azimuths(layout, count, rng, spacing_deg)
+    high = np.zeros(len(azimuths), bool) if high is None else np.asarray(high, bool)
     cams = []
     for i, az in enumerate(azimuths):
         name = f"{prefix}{i:02d}"
         if layout == "broadcast":
-            cams.append(_broadcast_camera(name, az, rng, size, subject_height, centre))
+            cams.append(_broadcast_camera(name, az, rng, size, subject_height, centre, subject_px,
+                                          working_radius_m, bool(high[i])))
         elif layout == "studio":
-            cams.append(_studio_camera(name, az, rng, size, centre))
+            cams.append(_studio_camera(name, az, rng, size, centre, bool(high[i])))
         else:
             raise InputError("cameras.layout", "'broadcast' or 'studio'", repr(layout))
     return Rig(tuple(cams))
 
 
-def layout_azimuths(layout: str, count: int, rng: np.random.Generator) -> np.ndarray:
-    """Camera azimuths (radians): a wide baseline for broadcast, a ring for studio."""
+def layout_azimuths(layout: str, count: int, rng: np.random.Generator, spacing_deg=None) -> np.ndarray:
+    """Camera azimuths (radians): a wide baseline for broadcast, a ring for studio.
+
+    With ``spacing_deg = (lo, hi)`` neighbouring cameras of either layout are
+    ``uniform(lo, hi)`` degrees apart (an arc of ``count`` cameras).
+    """
     start = rng.uniform(0, 2 * np.pi)
+    if spacing_deg is not None:
+        steps = rng.uniform(np.radians(spacing_deg[0]), np.radians(spacing_deg[1]), max(count - 1, 0))
+        return start + np.concatenate([[0.0], np.cumsum(steps)])
     if layout == "broadcast":
         steps = rng.uniform(np.radians(35), np.radians(110), max(count - 1, 0))
         return start + np.concatenate([[0.0], np.cumsum(steps)])
@@ -102,12 +128,42 @@ def layout_azimuths(layout: str, count: int, rng: np.random.Generator) -> np.nda
 
 
 def novel_rig(layout: str, source: Rig, count: int, subject_height: float,
-              rng: np.random.Generator | int | None = None, centre=(0.0, 0.0, 0.0)) -> Rig:
-    """Evaluation cameras between the source cameras (same layout and image size)."""
+              rng: np.random.Generator | int | None = None, centre=(0.0, 0.0, 0.0), placement: str = "between",
+              subject_px=None, working_radius_m: float = WORKING_RADIUS_M) -> Rig:
+    """Evaluation cameras (same layout and image size as the sources).
+
+    Parameters
+    ----------
+    layout : {"broadcast", "studio"}
+    source : Rig
+    count : int
+    subject_height : float
+    rng : numpy.random.Generator or int or None
+    centre : array_like of shape (3,)
+    placement : {"between", "around"}
+        ``"between"``: in the angular gaps between the source cameras, smallest
+        gaps first.  ``"around"``: all around the subject: the first camera at the
+        reverse angle (opposite the sources' mean direction, where every billboard
+        is seen from behind), the others evenly spread (+-10 degrees) with every
+        second one a high view.
+    subject_px, working_radius_m
+        As in :func:`make_rig`.
+    """
     rng = np.random.default_rng(rng)
     if count <= 0:
         return Rig(())
     c = np.asarray(centre, float)
+    size = source[0].size
+    kw = dict(prefix="novel", centre=c, subject_px=subject_px, working_radius_m=working_radius_m)
+    if placement == "around":
+        dirs = np.array([(cam.center - c)[:2] / np.linalg.norm((cam.center - c)[:2]) for cam in source])
+        mean = dirs.sum(0)
+        back = np.arctan2(-mean[1], -mean[0]) if np.linalg.norm(mean) > 1e-6 else rng.uniform(0, 2 * np.pi)
+        az = back + 2 * np.pi * np.arange(count) / count + np.r_[0.0, rng.uniform(-1, 1, count - 1) * np.radians(10)]
+        high = np.arange(count) % 2 == 1
+        return make_rig(layout, count, size, subject_height, rng, azimuths=az, high=high, **kw)
+    if placement != "between":
+        raise InputError("novel.placement", "'between' or 'around'", repr(placement))
     az = np.sort(np.array([np.arctan2(*(cam.center - c)[1::-1]) for cam in source]))
     # midpoints of the angular gaps between sorted source azimuths, smallest gaps first
     # (those are the views between cameras the pipeline is meant to interpolate)
@@ -125,8 +181,7 @@ def novel_rig(layout: str, source: Rig, count: int, subject_height: float,
             mids.append(az[i] + frac * gaps[i])
             k += 1
         mids = np.array(mids)
-    size = source[0].size
-    return make_rig(layout, count, size, subject_height, rng, prefix="novel", centre=c, azimuths=mids)
+    return make_rig(layout, count, size, subject_height, rng, azimuths=mids, **kw)
 
 
 def perturb_rig(rig: Rig, target_px: float, points: np.ndarray,

@@ -19,6 +19,14 @@ Example (``datasets_synthetic/default.toml``)::
     [novel]
     count = 2
 
+Optional fields that widen the scene space (the scene zoo, ``benchmarks/bench_zoo.py``):
+``[subject] outfit`` (``"random"`` or ``"like_background"``: a kit close to the
+pitch or the backdrop), ``shirt_rgb`` / ``trousers_rgb`` (RGB in [0, 1]) and
+``pattern``; ``[cameras] spacing_deg`` (azimuth between neighbouring cameras,
+a number or ``[lo, hi]``) and ``subject_px`` (broadcast: subject height in
+pixels, a number or ``[lo, hi]``); ``[novel] placement`` (``"between"`` the
+sources, or ``"around"`` the subject: reverse angles and high views).
+
 Optional tables: ``[render]`` (``engine``: ``"raycast"`` (default) or
 ``"open3d"``; ``sample_count``: anti-aliasing samples per pixel for Open3D,
 ``supersample``: rays per pixel side for the ray caster, default 2) and
@@ -39,6 +47,16 @@ MAX_FRAMES = 100_000
 MAX_CAMERAS = 32
 HEIGHT_RANGE_M = (1.40, 2.10)
 LAYOUTS = ("broadcast", "studio")
+#: ``[subject] outfit`` values: drawn from the palettes, or close to the surroundings' colours.
+OUTFITS = ("random", "like_background")
+#: Shirt print patterns (``[subject] pattern``).
+PATTERNS = ("stripes", "checks", "plain")
+#: ``[novel] placement`` values.
+NOVEL_PLACEMENTS = ("between", "around")
+#: Allowed ``[cameras] spacing_deg`` range, degrees.
+SPACING_RANGE_DEG = (5.0, 180.0)
+#: Allowed ``[cameras] subject_px`` range, pixels.
+SUBJECT_PX_RANGE = (20.0, 4000.0)
 
 
 @dataclass(frozen=True)
@@ -55,6 +73,13 @@ class SceneSpec:
     resolution: tuple[int, int]
     calibration_error_px: float
     novel_count: int = 0
+    outfit: str = "random"
+    shirt_rgb: tuple | None = None
+    trousers_rgb: tuple | None = None
+    pattern: str | None = None
+    spacing_deg: tuple | None = None
+    subject_px: tuple | None = None
+    novel_placement: str = "between"
     sample_count: int = 4
     engine: str = "raycast"
     supersample: int = 2
@@ -86,6 +111,32 @@ def _check_keys(table: dict, allowed: set, where: str, source: str):
     if extra:
         raise InputError(f"{source}: [{where}]" if where else source, f"only the keys {sorted(allowed)}",
                          f"unknown keys {sorted(extra)}")
+
+
+def _rgb(table: dict, key: str, where: str, source: str):
+    """An optional ``[r, g, b]`` in [0, 1] as a tuple, or None."""
+    if key not in table:
+        return None
+    v = table[key]
+    if (not isinstance(v, list) or len(v) != 3
+            or not all(isinstance(c, (int, float)) and not isinstance(c, bool) and 0 <= c <= 1 for c in v)):
+        raise InputError(f"{source}: {where}.{key}", "[r, g, b] with values in [0, 1]", repr(v))
+    return tuple(float(c) for c in v)
+
+
+def _range(table: dict, key: str, where: str, source: str, limits: tuple):
+    """An optional number or ``[lo, hi]`` within ``limits`` as a ``(lo, hi)`` tuple, or None."""
+    if key not in table:
+        return None
+    v = table[key]
+    num = lambda x: isinstance(x, (int, float)) and not isinstance(x, bool)  # noqa: E731
+    if num(v):
+        v = [v, v]
+    if (not isinstance(v, list) or len(v) != 2 or not all(num(x) for x in v) or v[0] > v[1]
+            or not all(limits[0] <= x <= limits[1] for x in v)):
+        raise InputError(f"{source}: {where}.{key}",
+                         f"a number or [lo, hi] (lo <= hi) within {limits[0]:g}..{limits[1]:g}", repr(table[key]))
+    return (float(v[0]), float(v[1]))
 
 
 def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) -> SceneSpec:
@@ -122,7 +173,7 @@ def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) 
     if not 0 < fps <= 1000:
         raise InputError(S("fps"), "a frame rate in (0, 1000]", str(fps))
     sub = _get(d, "subject", f"{source}: ", dict)
-    _check_keys(sub, {"height_m", "motion"}, "subject", source)
+    _check_keys(sub, {"height_m", "motion", "outfit", "shirt_rgb", "trousers_rgb", "pattern"}, "subject", source)
     h = float(_get(sub, "height_m", f"{source}: subject.", (int, float)))
     if not HEIGHT_RANGE_M[0] <= h <= HEIGHT_RANGE_M[1]:
         raise InputError(S("subject.height_m"), f"a stature between {HEIGHT_RANGE_M[0]} and {HEIGHT_RANGE_M[1]} m",
@@ -137,8 +188,17 @@ def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) 
         motion = str(p)
     elif motion not in MOTIONS:
         raise InputError(S("subject.motion"), f"one of {list(MOTIONS)} or a .bvh path", repr(motion))
+    outfit = _get(sub, "outfit", f"{source}: subject.", str, "random")
+    if outfit not in OUTFITS:
+        raise InputError(S("subject.outfit"), f"one of {list(OUTFITS)}", repr(outfit))
+    shirt_rgb = _rgb(sub, "shirt_rgb", "subject", source)
+    trousers_rgb = _rgb(sub, "trousers_rgb", "subject", source)
+    pattern = _get(sub, "pattern", f"{source}: subject.", str, None)
+    if pattern is not None and pattern not in PATTERNS:
+        raise InputError(S("subject.pattern"), f"one of {list(PATTERNS)}", repr(pattern))
     cams = _get(d, "cameras", f"{source}: ", dict)
-    _check_keys(cams, {"count", "layout", "resolution", "calibration_error_px"}, "cameras", source)
+    _check_keys(cams, {"count", "layout", "resolution", "calibration_error_px", "spacing_deg", "subject_px"},
+                "cameras", source)
     count = _get(cams, "count", f"{source}: cameras.", int)
     if not 1 <= count <= MAX_CAMERAS:
         raise InputError(S("cameras.count"), f"an integer from 1 to {MAX_CAMERAS}", str(count))
@@ -152,8 +212,19 @@ def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) 
     err = float(_get(cams, "calibration_error_px", f"{source}: cameras.", (int, float), 0.0))
     if not 0 <= err <= 100:
         raise InputError(S("cameras.calibration_error_px"), "a value from 0 to 100 pixels", str(err))
+    spacing = _range(cams, "spacing_deg", "cameras", source, SPACING_RANGE_DEG)
+    if spacing is not None and count > 1 and spacing[0] * (count - 1) > 360.0:
+        raise InputError(S("cameras.spacing_deg"), f"at most {360.0 / (count - 1):g} degrees for {count} cameras",
+                         repr(cams["spacing_deg"]))
+    subject_px = _range(cams, "subject_px", "cameras", source, SUBJECT_PX_RANGE)
+    if subject_px is not None and layout != "broadcast":
+        raise InputError(S("cameras.subject_px"), "no value for a studio (its cameras frame the whole volume)",
+                         repr(cams["subject_px"]))
     novel = _get(d, "novel", f"{source}: ", dict, {})
-    _check_keys(novel, {"count"}, "novel", source)
+    _check_keys(novel, {"count", "placement"}, "novel", source)
+    placement = _get(novel, "placement", f"{source}: novel.", str, "between")
+    if placement not in NOVEL_PLACEMENTS:
+        raise InputError(S("novel.placement"), f"one of {list(NOVEL_PLACEMENTS)}", repr(placement))
     ncount = _get(novel, "count", f"{source}: novel.", int, 0)
     if not 0 <= ncount <= MAX_CAMERAS:
         raise InputError(S("novel.count"), f"an integer from 0 to {MAX_CAMERAS}", str(ncount))
@@ -171,6 +242,8 @@ def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) 
     depth = _get(d, "depth_camera", f"{source}: ", dict, None)
     return SceneSpec(seed=seed, frames=frames, fps=fps, height_m=h, motion=motion, camera_count=count,
                      layout=layout, resolution=(res[0], res[1]), calibration_error_px=err, novel_count=ncount,
+                     outfit=outfit, shirt_rgb=shirt_rgb, trousers_rgb=trousers_rgb, pattern=pattern,
+                     spacing_deg=spacing, subject_px=subject_px, novel_placement=placement,
                      sample_count=sc, engine=engine, supersample=ss, depth_camera=depth, source=source, text=text)
 
 
