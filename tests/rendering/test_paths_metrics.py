@@ -57,3 +57,44 @@ def test_psnr_and_ssim_known_values():
     assert abs(psnr(b, a, sel.all(-1)) - expected) < 1e-9
     with pytest.raises(InputError):
         psnr(a, a[:10])
+
+
+def test_subject_scores_on_hand_made_arrays():
+    from toolkit.rendering import subject_scores
+    from toolkit.rendering.metrics import SUBJECT_DILATION_PX
+
+    ref = np.zeros((20, 20, 3), np.uint8)
+    mask = np.zeros((20, 20), bool)
+    mask[8:12, 8:12] = True  # 16 pixels; dilated by 2 px: an 8x8 square of 64 pixels
+    img = ref.copy()
+    img[0, 0] = 200  # far from the subject: not counted
+    img[6, 6] = 40  # on the dilated border: counted (one pixel of 64, all three channels)
+    alpha = mask.astype(np.float32)
+    alpha[8, 8:12] = 0.5  # not above 0.5: 4 of 16 pixels uncovered
+    s = subject_scores(img, ref, mask, alpha)
+    assert SUBJECT_DILATION_PX == 2
+    assert abs(s["psnr_subject"] - 10 * np.log10(255 ** 2 / (40 ** 2 / 64))) < 1e-9
+    assert s["coverage"] == 0.75
+    # uint8 opacity (255 = opaque) gives the same coverage; an empty mask gives NaN
+    a8 = (mask * 255).astype(np.uint8)
+    a8[8, 8:12] = 127  # 127/255 < 0.5
+    assert subject_scores(img, ref, mask, a8)["coverage"] == 0.75
+    empty = subject_scores(img, ref, np.zeros_like(mask), alpha)
+    assert np.isnan(empty["psnr_subject"]) and np.isnan(empty["coverage"])
+    assert subject_scores(ref, ref, mask, alpha)["psnr_subject"] == float("inf")
+    with pytest.raises(InputError, match="alpha"):
+        subject_scores(img, ref, mask, alpha[:10])
+    with pytest.raises(InputError, match="gt_mask"):
+        subject_scores(img, ref, mask[:10], alpha)
+
+
+def test_summarise_means_and_worst_coverage():
+    from toolkit.rendering.evaluation import summarise
+
+    frames = [{"articulated": {"a": {"psnr": 20.0, "ssim": 0.5, "psnr_subject": 18.0, "coverage": 1.0},
+                               "b": {"psnr": float("nan"), "ssim": float("nan"), "psnr_subject": float("nan"),
+                                     "coverage": float("nan")}}},  # no subject in view b
+              {"articulated": {"a": {"psnr": 30.0, "ssim": 0.7, "psnr_subject": 22.0, "coverage": 0.6}}}]
+    s = summarise(frames)["articulated"]
+    assert s["n"] == 2 and s["psnr"] == 25.0 and abs(s["ssim"] - 0.6) < 1e-12
+    assert s["psnr_subject"] == 20.0 and abs(s["coverage"] - 0.8) < 1e-12 and s["coverage_min"] == 0.6

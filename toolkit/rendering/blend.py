@@ -36,12 +36,64 @@ from toolkit.cameras import Camera
 from toolkit.errors import InputError
 from toolkit.observe import Observer, as_observer
 from toolkit.rendering.config import BlendConfig
-from toolkit.rendering.weights import CameraWeights, attenuation, camera_weights, grazing_fade
+from toolkit.rendering.weights import (CameraWeights, attenuation, back_view_angles, camera_weights, grazing_fade,
+                                      omega)
 
-#: A warp of one billboard into a view: ``(billboard, camera, offset) -> (rgb, alpha, roi)`` with
+#: A warp of one billboard into a view: ``(billboard, camera, offset, pose) -> (rgb, alpha, roi)`` with
 #: rgb (h, w, 3) float32 0..255, alpha (h, w) float32 and roi (x0, y0, x1, y1) in the view, or None if
-#: the billboard does not reach the image.
-Warper = Callable[[Billboard, Camera, tuple], "tuple[np.ndarray, np.ndarray, tuple] | None"]
+#: the billboard does not reach the image; ``pose`` is None or a rigid (4, 4) world transform to apply to
+#: the billboard first (:func:`facing_pose`).
+Warper = Callable[[Billboard, Camera, tuple, "np.ndarray | None"], "tuple[np.ndarray, np.ndarray, tuple] | None"]
+
+
+def facing_pose(billboard: Billboard, eye: np.ndarray) -> np.ndarray | None:
+    """Rigid transform (4, 4) that turns a planar billboard about its bone until it faces ``eye``.
+
+    The billboard of a source camera holds the bone and faces that camera;
+    seen from another view it is foreshortened across the bone by the cosine
+    of the angle between them (a torso seen 50 degrees off its source is drawn
+    64 % as wide), while a limb, round about its bone, is not.  Turned about
+    the bone by the smallest angle that makes it face the view, front or back
+    (at most 90 degrees: a view behind the plane still sees its back face, so
+    left and right stay where they are), it keeps its width from every
+    direction around the bone.  At its own source camera the turn is zero.
+
+    Parameters
+    ----------
+    billboard : Billboard
+        A planar billboard with its bone (``axis``).
+    eye : ndarray of shape (3,)
+        Centre of the view, metres.
+
+    Returns
+    -------
+    ndarray of shape (4, 4) or None
+        None when there is nothing to turn: no bone, not a plane, or the view
+        on the bone's line.
+    """
+    if billboard.axis is None or billboard.surface != "plane":
+        return None
+    x0 = billboard.axis[0]
+    b = billboard.axis[1] - x0
+    if np.linalg.norm(b) < 1e-9:
+        return None
+    b = b / np.linalg.norm(b)
+    n0 = billboard.normal - (billboard.normal @ b) * b
+    to_eye = np.asarray(eye, float) - x0
+    n1 = to_eye - (to_eye @ b) * b
+    if np.linalg.norm(n1) < 1e-9 or np.linalg.norm(n0) < 1e-9:
+        return None
+    n0 /= np.linalg.norm(n0)
+    n1 /= np.linalg.norm(n1)
+    if n0 @ n1 < 0:  # seen from behind: turn the back face towards the view
+        n1 = -n1
+    c, s = float(n0 @ n1), float(np.cross(n0, n1) @ b)
+    K = np.array([[0, -b[2], b[1]], [b[2], 0, -b[0]], [-b[1], b[0], 0]])
+    R = np.eye(3) + s * K + (1.0 - c) * K @ K  # Rodrigues: rotation by atan2(s, c) about b
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = x0 - R @ x0
+    return T
 
 #: ``RenderResult.status`` values.
 STATUS_OK = "ok"
@@ -101,7 +153,18 @@ class RenderResult:
 def fan_weights(model: BillboardModel, camera: Camera, config: BlendConfig = BlendConfig()) -> CameraWeights:
     """Camera weights (eqs. 5, 7, fade) of every fan of ``model`` for the view ``camera``.
 
-    Cameras without a billboard in a fan get zero fade (no contribution).
+    Cameras without a billboard in a fan get zero fade (no contribution).  Per fan:
+
+    * the billboards V sees from the front fade with :func:`grazing_fade`;
+    * when V sees none of them from the front (a reverse angle: every billboard
+      faces a source on the other side), their back faces are drawn instead
+      (``config.back_faces``), weighted by
+      :func:`~toolkit.rendering.weights.back_view_angles`;
+    * the fades are divided by the fan's largest (``config.normalise_fade``):
+      the best-placed billboard of a part is always opaque, the others fade
+      relative to it, so a part seen only at grazing angles (two cameras far
+      apart, a high view) is not drawn half transparent; a fan seen exactly
+      edge-on by every billboard keeps the least foreshortened one.
     """
     names = model.rig.names
     n_f, n_c = len(model.fans), len(names)
@@ -120,12 +183,30 @@ def fan_weights(model: BillboardModel, camera: Camera, config: BlendConfig = Ble
                        angle_sigma=config.angle_sigma, attenuation_sigma_m=config.attenuation_sigma_m)
     fade = np.where(present, grazing_fade(normals, points, camera.center, model.rig.centers,
                                           config.fade_low, config.fade_high), 0.0)
-    # the nearest camera among those that have a billboard in the fan
-    nearest = np.argmax(np.where(present, w.omega, -1.0), axis=1)
+    beta = w.beta
+    back = np.zeros((n_f, n_c), bool)
+    if config.back_faces:
+        behind = present & ~np.any(fade > 0, axis=1, keepdims=True)
+        fade_b = np.where(behind, grazing_fade(normals, points, camera.center, model.rig.centers,
+                                               config.fade_low, config.fade_high, side="back"), 0.0)
+        back = fade_b > 0
+        if back.any():
+            fade = np.where(back, fade_b, fade)
+            beta = np.where(back, back_view_angles(anchors, normals, points, camera.center, model.rig.centers), beta)
+    if config.normalise_fade:
+        top = fade.max(axis=1, keepdims=True)
+        fade = np.where(top > 0, fade / np.maximum(top, 1e-12), fade)
+    om = omega(beta, config.angle_sigma)
+    # the nearest camera among those that draw in the fan (else among those that have a billboard)
+    usable = np.where(np.any(fade > 0, axis=1, keepdims=True), fade > 0, present)
+    nearest = np.argmax(np.where(usable, om, -1.0), axis=1)
+    # eqs. 8-10 are ratios of omega within a fan: relative to the nearest camera's, so that a fan seen
+    # only by cameras far from V (omega ~ 1e-13 at 140 degrees) is not lost to the "no weight" threshold
+    om = om / np.maximum(om[np.arange(n_f), nearest], 1e-300)[:, None]
     dist = np.linalg.norm(model.rig.centers[nearest] - camera.center, axis=1)
     att = np.repeat(attenuation(dist, config.attenuation_sigma_m)[:, None], n_c, axis=1)
     att[np.arange(n_f), nearest] = 1.0
-    return CameraWeights(w.beta, w.omega, att, fade, nearest, dist)
+    return CameraWeights(beta, om, att, fade, nearest, dist, back if back.any() else None)
 
 
 def _edges(labels: np.ndarray) -> np.ndarray:
@@ -199,7 +280,7 @@ def composite(model: BillboardModel, camera: Camera, warper: Warper, config: Ble
             j = names.index(b.camera)
             if cw.fade[i, j] <= 0 or (weight[i, j] <= 0 and j != cw.nearest[i]):
                 continue
-            got = warper(b, camera, tuple(offset))
+            got = warper(b, camera, tuple(offset), facing_pose(b, camera.center) if config.face_view else None)
             if got is None:
                 continue
             layers.append((j, got))

@@ -19,11 +19,26 @@ from toolkit.observe import Observer
 from toolkit.rendering.blend import RenderResult, composite
 from toolkit.rendering.config import BlendConfig
 
-def warp_to_view(billboard: Billboard, camera: Camera, offset=(0.0, 0.0)):
+def posed_homography(billboard: Billboard, camera: Camera, offset=(0.0, 0.0), pose: np.ndarray | None = None):
+    """Homography (3, 3) from texels of ``billboard``, moved by the rigid ``pose`` (4, 4), to pixels of ``camera``."""
+    if pose is None:
+        return billboard.view_from_texture(camera, offset)
+    M = pose[:3, :3] @ billboard.world_from_texture()
+    M[:, 2] += pose[:3, 3]
+    A = camera.R @ M
+    A[:, 2] += camera.t
+    T = np.array([[1.0, 0, offset[0]], [0, 1.0, offset[1]], [0, 0, 1.0]])
+    return T @ camera.K @ A
+
+
+def warp_to_view(billboard: Billboard, camera: Camera, offset=(0.0, 0.0), pose: np.ndarray | None = None):
     """The :data:`~toolkit.rendering.blend.Warper` of the CPU compositor, without caching.
 
     Calls :func:`toolkit.billboards.warp_billboard` (one homography per planar
-    billboard, ``cv2.warpPerspective`` over its footprint only).
+    billboard, ``cv2.warpPerspective`` over its footprint only); a planar
+    billboard moved by ``pose`` (a rigid (4, 4) world transform,
+    :func:`toolkit.rendering.blend.facing_pose`) goes through
+    :func:`posed_homography`.
 
     Returns
     -------
@@ -31,7 +46,11 @@ def warp_to_view(billboard: Billboard, camera: Camera, offset=(0.0, 0.0)):
         rgb (h, w, 3) float32 0..255, alpha (h, w) float32, roi (x0, y0, x1, y1);
         None when the billboard is behind the view or outside the image.
     """
-    w = warp_billboard(billboard, camera, offset=offset)
+    if pose is not None and billboard.surface == "plane":
+        rgba = np.dstack([billboard.texture.astype(np.float32), billboard.alpha])
+        w = warp_texture(rgba, posed_homography(billboard, camera, offset, pose), None, camera.size)
+        return None if w is None else (w.rgb, w.alpha, tuple(int(v) for v in w.roi))
+    w = warp_billboard(billboard, camera, offset=offset, min_cos=-2.0)  # the blend fades back faces itself
     if w.empty:
         return None
     return w.rgb, w.alpha, tuple(int(v) for v in w.roi)
@@ -56,14 +75,14 @@ class CpuCompositor:
         self._model = None
         self._rgba: dict[int, np.ndarray] = {}
 
-    def _warp(self, billboard: Billboard, camera: Camera, offset):
+    def _warp(self, billboard: Billboard, camera: Camera, offset, pose=None):
         if billboard.surface != "plane":
-            return warp_to_view(billboard, camera, offset)
+            return warp_to_view(billboard, camera, offset, pose)
         rgba = self._rgba.get(id(billboard))
         if rgba is None:
             rgba = billboard.rgba()  # uint8: 8-bit alpha is plenty for the binary blend
             self._rgba[id(billboard)] = rgba
-        w = warp_texture(rgba, billboard.view_from_texture(camera, offset), None, camera.size)
+        w = warp_texture(rgba, posed_homography(billboard, camera, offset, pose), None, camera.size)
         if w is None:
             return None
         return w.rgb.astype(np.float32), w.alpha.astype(np.float32) * np.float32(1 / 255), \

@@ -30,6 +30,18 @@ class BlendConfig:
     fade_low, fade_high : float
         Foreshortening ratios between which grazing billboards fade in
         (:func:`toolkit.rendering.weights.grazing_fade`).
+    back_faces : bool
+        Where a view sees every billboard of a part from behind, draw their back
+        faces (the fallback that keeps the subject in reverse-angle views) instead
+        of nothing.
+    normalise_fade : bool
+        Divide each fan's fades by its largest, so the best-placed billboard of
+        a part is opaque and a part seen only at grazing angles is not drawn
+        half transparent.
+    face_view : bool
+        Turn each planar billboard about its bone to face the view
+        (:func:`toolkit.rendering.blend.facing_pose`), so parts keep their width
+        between and behind the sources; at a source camera nothing turns.
     binary_alpha : bool
         Threshold each warped billboard alpha at 0.5 (the source's binary
         segmentation masks): the parts of a source view then tile it exactly,
@@ -49,6 +61,9 @@ class BlendConfig:
     attenuation_sigma_m: float = ATTENUATION_SIGMA_M
     fade_low: float = FADE_RATIO_LOW
     fade_high: float = FADE_RATIO_HIGH
+    back_faces: bool = True
+    normalise_fade: bool = True
+    face_view: bool = True
     binary_alpha: bool = True
     smoothing: bool = True
     smoothing_sigma_px: float = SMOOTHING_SIGMA_PX

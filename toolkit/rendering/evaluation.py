@@ -58,16 +58,46 @@ def pose_errors(joints: np.ndarray, truth: np.ndarray) -> dict:
             "frames": int(np.isfinite(a).all(axis=(-1, -2)).sum())}
 
 
+#: PSNRs are capped at this in the averages, dB (identical images give inf).
+PSNR_CAP_DB = 100.0
+
+
 def summarise(per_frame: list[dict]) -> dict:
-    """Average per-frame ``{method: {camera: {"psnr", "ssim"}}}`` scores into ``{method: {"psnr", "ssim", "n"}}``."""
+    """Average per-frame scores of every method over views and frames.
+
+    Parameters
+    ----------
+    per_frame : list of dict
+        ``{method: {camera: {"psnr", "ssim"[, "psnr_subject", "coverage"]}}}`` per frame
+        (:func:`toolkit.rendering.metrics.bbox_scores` and
+        :func:`~toolkit.rendering.metrics.subject_scores`).
+
+    Returns
+    -------
+    dict
+        ``{method: {"psnr", "ssim", "n", "psnr_subject", "coverage", "coverage_min"}}``: means over the
+        views with a subject (PSNR capped at :data:`PSNR_CAP_DB`), ``n`` their count, ``coverage_min`` the
+        worst view-frame; NaN where there is none (e.g. ``psnr_subject`` of frames scored before it existed).
+    """
     acc: dict = {}
+    keys = ("psnr", "ssim", "psnr_subject", "coverage")
     for f in per_frame:
         for method, cams in f.items():
+            a = acc.setdefault(method, {k: [] for k in keys})
             for s in cams.values():
-                a = acc.setdefault(method, {"psnr": [], "ssim": []})
-                if np.isfinite(s["psnr"]):
-                    a["psnr"].append(min(s["psnr"], 100.0))
-                    a["ssim"].append(s["ssim"])
-    return {m: {"psnr": float(np.mean(v["psnr"])) if v["psnr"] else float("nan"),
-                "ssim": float(np.mean(v["ssim"])) if v["ssim"] else float("nan"), "n": len(v["psnr"])}
+                if np.isnan(s["psnr"]):
+                    continue  # no subject in this view
+                for k in keys:
+                    v = s.get(k, float("nan"))
+                    if k.startswith("psnr"):
+                        v = min(v, PSNR_CAP_DB)
+                    if np.isfinite(v):
+                        a[k].append(v)
+
+    def mean(v):
+        return float(np.mean(v)) if v else float("nan")
+
+    return {m: {"psnr": mean(v["psnr"]), "ssim": mean(v["ssim"]), "n": len(v["psnr"]),
+                "psnr_subject": mean(v["psnr_subject"]), "coverage": mean(v["coverage"]),
+                "coverage_min": float(np.min(v["coverage"])) if v["coverage"] else float("nan")}
             for m, v in acc.items()}

@@ -219,9 +219,25 @@ class FrameProcessor:
 METHODS = ("articulated", "standard", "visual_hull")
 
 
-def render_methods(result: FrameResult, camera, background: np.ndarray, compositor=None,
-                   methods=METHODS, observer: Observer | None = None) -> dict:
-    """Render one frame's subject with each method into ``camera`` over ``background``.
+@dataclass(frozen=True, eq=False)
+class RenderedView:
+    """One method's rendering of a frame into one view.
+
+    Attributes
+    ----------
+    image : ndarray of shape (H, W, 3), uint8
+        The subject over the background.
+    alpha : ndarray of shape (H, W), float32
+        Opacity of the subject in [0, 1] (0 everywhere for an empty frame).
+    """
+
+    image: np.ndarray
+    alpha: np.ndarray
+
+
+def render_views(result: FrameResult, camera, background: np.ndarray, compositor=None,
+                 methods=METHODS, observer: Observer | None = None) -> dict:
+    """Render one frame's subject with each method into ``camera`` over ``background``, with its opacity.
 
     Parameters
     ----------
@@ -233,11 +249,13 @@ def render_methods(result: FrameResult, camera, background: np.ndarray, composit
     compositor : CpuCompositor, optional
     methods : sequence of str
         Subset of :data:`METHODS`; methods whose model is missing are skipped.
+    observer : Observer, optional
+        Passed to the articulated rendering.
 
     Returns
     -------
-    dict of str -> ndarray (H, W, 3) uint8
-        The background alone for an empty frame (``result.ok`` False).
+    dict of str -> RenderedView
+        The background alone (opacity 0) for an empty frame (``result.ok`` False).
     """
     from toolkit.rendering.baselines import render_points
     from toolkit.rendering.compositor import CpuCompositor
@@ -248,12 +266,20 @@ def render_methods(result: FrameResult, camera, background: np.ndarray, composit
     out = {}
     for m in methods:
         if m == "articulated" and result.model is not None:
-            out[m] = comp.render(result.model, camera, observer=observer, frame=result.frame).over(bg)
+            r = comp.render(result.model, camera, observer=observer, frame=result.frame)
+            out[m] = RenderedView(r.over(bg), r.alpha)
         elif m == "standard" and result.standard is not None:
-            out[m] = comp.render(result.standard, camera).over(bg)
+            r = comp.render(result.standard, camera)
+            out[m] = RenderedView(r.over(bg), r.alpha)
         elif m == "visual_hull" and result.hull is not None:
             rgb, a = render_points(result.hull, camera)
-            out[m] = np.clip(rgb + (1.0 - a[..., None]) * bg + 0.5, 0, 255).astype(np.uint8)
+            out[m] = RenderedView(np.clip(rgb + (1.0 - a[..., None]) * bg + 0.5, 0, 255).astype(np.uint8), a)
         elif m in METHODS and not result.ok:
-            out[m] = plain
+            out[m] = RenderedView(plain, np.zeros(plain.shape[:2], np.float32))
     return out
+
+
+def render_methods(result: FrameResult, camera, background: np.ndarray, compositor=None,
+                   methods=METHODS, observer: Observer | None = None) -> dict:
+    """The images of :func:`render_views`: dict of str -> ndarray (H, W, 3) uint8."""
+    return {m: v.image for m, v in render_views(result, camera, background, compositor, methods, observer).items()}

@@ -1,4 +1,13 @@
-"""Image quality inside the subject's bounding box: PSNR and SSIM."""
+"""Image quality of a rendered subject: PSNR and SSIM in its bounding box, PSNR on it, coverage.
+
+* :func:`bbox_scores`: PSNR and SSIM inside the ground-truth mask's bounding box
+  (plus :data:`BBOX_MARGIN_PX`);
+* :func:`subject_scores`: PSNR over the ground-truth mask dilated by
+  :data:`SUBJECT_DILATION_PX` (the subject and its border, where a method can
+  be wrong; the background far from it is the same plate for every method) and
+  the *coverage*: the share of the true mask where the rendered opacity
+  exceeds :data:`COVERAGE_ALPHA` (1 = the subject is fully there, 0 = missing).
+"""
 
 from __future__ import annotations
 
@@ -9,6 +18,10 @@ from toolkit.errors import InputError
 
 #: Pixels added around the ground-truth mask's bounding box.
 BBOX_MARGIN_PX = 4
+#: Pixels the ground-truth mask is dilated by for the subject-region PSNR (issue 13: "mask + 2 px").
+SUBJECT_DILATION_PX = 2
+#: Rendered opacity above which a true subject pixel counts as covered.
+COVERAGE_ALPHA = 0.5
 #: SSIM constants (Wang et al. 2004) for 8-bit images: (0.01 L)^2 and (0.03 L)^2, L = 255.
 SSIM_C1 = (0.01 * 255) ** 2
 SSIM_C2 = (0.03 * 255) ** 2
@@ -66,3 +79,55 @@ def bbox_scores(image: np.ndarray, reference: np.ndarray, gt_mask: np.ndarray) -
     x0, y0, x1, y1 = box
     a, b = image[y0:y1, x0:x1], reference[y0:y1, x0:x1]
     return {"psnr": psnr(a, b), "ssim": ssim(a, b)}
+
+
+def subject_scores(image: np.ndarray, reference: np.ndarray, gt_mask: np.ndarray, alpha: np.ndarray) -> dict:
+    """PSNR on the subject and how much of it the rendering covers.
+
+    Parameters
+    ----------
+    image : ndarray of shape (H, W, 3)
+        The rendered view (subject over the background), uint8 or float 0..255.
+    reference : ndarray of shape (H, W, 3)
+        The ground-truth view.
+    gt_mask : ndarray of shape (H, W)
+        True subject pixels (bool or 0/1).
+    alpha : ndarray of shape (H, W)
+        Rendered opacity of the subject, in [0, 1] (float) or 0..255 (uint8).
+
+    Returns
+    -------
+    dict
+        ``psnr_subject``: PSNR in dB over ``gt_mask`` dilated by
+        :data:`SUBJECT_DILATION_PX` (a 5x5 square for 2 px; NaN when the mask is
+        empty, inf when identical there); ``coverage``: share of ``gt_mask``
+        where the opacity exceeds :data:`COVERAGE_ALPHA` (NaN when the mask is empty).
+
+    Raises
+    ------
+    InputError
+        When the shapes disagree.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> ref = np.zeros((8, 8, 3), np.uint8); m = np.zeros((8, 8), bool); m[3:5, 3:5] = True
+    >>> a = m.astype(np.float32); a[3, 3] = 0.2
+    >>> subject_scores(ref + 10, ref, m, a)["coverage"]
+    0.75
+    """
+    _pair(image, reference, "subject_scores: image, reference")
+    m = np.asarray(gt_mask)
+    a = np.asarray(alpha)
+    if m.shape != np.asarray(image).shape[:2]:
+        raise InputError("subject_scores: gt_mask", f"shape {np.asarray(image).shape[:2]} (the image's)",
+                         f"shape {m.shape}")
+    if a.shape != m.shape:
+        raise InputError("subject_scores: alpha", f"shape {m.shape} (the mask's)", f"shape {a.shape}")
+    m = m.astype(bool)
+    if not m.any():
+        return {"psnr_subject": float("nan"), "coverage": float("nan")}
+    a = a.astype(np.float64) / 255.0 if a.dtype == np.uint8 else a.astype(np.float64)
+    k = 2 * SUBJECT_DILATION_PX + 1
+    region = cv2.dilate(m.astype(np.uint8), np.ones((k, k), np.uint8)) > 0
+    return {"psnr_subject": psnr(image, reference, region), "coverage": float(np.mean(a[m] > COVERAGE_ALPHA))}

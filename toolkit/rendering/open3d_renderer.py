@@ -129,10 +129,11 @@ class Open3DRenderer:
             self._names[id(b)] = names
         self._model_id = id(model)
 
-    def _warp(self, billboard: Billboard, camera: Camera, offset):
-        if np.any(camera.depth_of(billboard.corners) <= 1e-6):
+    def _warp(self, billboard: Billboard, camera: Camera, offset, pose=None):
+        corners = billboard.corners if pose is None else billboard.corners @ pose[:3, :3].T + pose[:3, 3]
+        if np.any(camera.depth_of(corners) <= 1e-6):
             return None
-        px = camera.project(billboard.corners) + np.asarray(offset, float)
+        px = camera.project(corners) + np.asarray(offset, float)
         roi = footprint_roi(px, camera.size)
         if roi[2] <= roi[0] or roi[3] <= roi[1]:
             return None
@@ -144,6 +145,7 @@ class Open3DRenderer:
         x0, y0, x1, y1 = roi
         out = []
         for name in (c_name, a_name):
+            self._r.scene.set_geometry_transform(name, np.eye(4) if pose is None else pose)  # turned to the view
             self._r.scene.show_geometry(name, True)
             img = self._draw(view)[y0:y1, x0:x1]
             self._r.scene.show_geometry(name, False)

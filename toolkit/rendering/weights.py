@@ -12,7 +12,10 @@ virtual camera V:
   (:data:`ATTENUATION_SIGMA_M` = 1 m, eq. 7), so a virtual camera placed on a
   source camera sees that camera alone;
 * a fade-out of billboards seen at a grazing angle or from behind (§4.2, last
-  paragraph), :func:`grazing_fade`.
+  paragraph), :func:`grazing_fade`;
+* where V sees every billboard of a fan from behind (a reverse angle), their
+  back faces, weighted by :func:`back_view_angles` (the renderer's fallback,
+  :func:`toolkit.rendering.blend.fan_weights`).
 
 All functions are vectorised over fans.
 """
@@ -83,14 +86,16 @@ def view_angles(anchors: np.ndarray, virtual_center: np.ndarray, source_centers:
 
 
 def grazing_fade(normals: np.ndarray, points: np.ndarray, virtual_center: np.ndarray,
-                 source_centers: np.ndarray, low: float = FADE_RATIO_LOW, high: float = FADE_RATIO_HIGH
-                 ) -> np.ndarray:
+                 source_centers: np.ndarray, low: float = FADE_RATIO_LOW, high: float = FADE_RATIO_HIGH,
+                 side: str = "front") -> np.ndarray:
     """Fade factor in [0, 1] of billboards seen at a grazing angle or from behind.
 
     The ratio ``r = cos(angle to V) / cos(angle to the billboard's own source camera)``
     measures how much more foreshortened V sees the billboard than its source did;
     the factor rises linearly from 0 at ``r = low`` to 1 at ``r = high``, and
     is 0 when V is behind the plane.  At the source camera ``r = 1``: no fade.
+    With ``side="back"`` the same is measured for the billboard's back face
+    (V behind the plane; 0 when V is in front of it).
 
     Parameters
     ----------
@@ -100,22 +105,66 @@ def grazing_fade(normals: np.ndarray, points: np.ndarray, virtual_center: np.nda
         A point on each billboard (metres).
     virtual_center : ndarray of shape (3,)
     source_centers : ndarray of shape (C, 3)
+    low, high : float
+        Ratios where the fade starts and ends.
+    side : {"front", "back"}
+        Which face of the billboards V is to see.
 
     Returns
     -------
     ndarray of shape (F, C)
     """
-    n = _unit(np.asarray(normals, np.float64))
+    if side not in ("front", "back"):
+        raise InputError("grazing_fade: side", "'front' or 'back'", repr(side))
+    n = _oriented(normals, points, source_centers)
     p = np.asarray(points, np.float64)
-    to_src = _unit(np.asarray(source_centers, np.float64)[None] - p)
-    cos_src = np.einsum("fck,fck->fc", n, to_src)
-    n = n * np.where(cos_src < 0, -1.0, 1.0)[..., None]
-    cos_src = np.abs(cos_src)
+    cos_src = np.einsum("fck,fck->fc", n, _unit(np.asarray(source_centers, np.float64)[None] - p))
     to_v = _unit(np.asarray(virtual_center, np.float64)[None, None] - p)
-    cos_v = np.einsum("fck,fck->fc", n, to_v)
+    cos_v = np.einsum("fck,fck->fc", n, to_v) * (1.0 if side == "front" else -1.0)
     r = cos_v / np.maximum(cos_src, 1e-6)
     fade = np.clip((r - low) / (high - low), 0.0, 1.0)
     return np.where(cos_v > 0, fade, 0.0)
+
+
+def _oriented(normals: np.ndarray, points: np.ndarray, source_centers: np.ndarray) -> np.ndarray:
+    """Unit normals (F, C, 3) turned towards each billboard's source camera."""
+    n = _unit(np.asarray(normals, np.float64))
+    to_src = np.asarray(source_centers, np.float64)[None] - np.asarray(points, np.float64)
+    return n * np.where(np.einsum("fck,fck->fc", n, to_src) < 0, -1.0, 1.0)[..., None]
+
+
+def back_view_angles(anchors: np.ndarray, normals: np.ndarray, points: np.ndarray, virtual_center: np.ndarray,
+                     source_centers: np.ndarray) -> np.ndarray:
+    """Angles beta of billboards seen from behind, for the blend.
+
+    A plane seen from V behind it looks exactly like the mirror image of the
+    plane seen from V', V reflected through the plane; its source camera's
+    texture is right for V' when the source is near V'.  So the camera weight
+    of a back face is omega of the angle, at the fan's anchor, between the
+    directions to V' and to the source camera.
+
+    Parameters
+    ----------
+    anchors : ndarray of shape (F, 3)
+        Fan centres, metres.
+    normals, points : ndarray of shape (F, C, 3)
+        Billboard normals (any sign) and a point on each billboard, metres.
+    virtual_center : ndarray of shape (3,)
+    source_centers : ndarray of shape (C, 3)
+
+    Returns
+    -------
+    ndarray of shape (F, C)
+        Radians in [0, pi].
+    """
+    a = np.asarray(anchors, np.float64).reshape(-1, 1, 3)
+    n = _unit(np.asarray(normals, np.float64))
+    p = np.asarray(points, np.float64)
+    v = np.asarray(virtual_center, np.float64)[None, None]
+    mirrored = v - 2.0 * np.einsum("fck,fck->fc", v - p, n)[..., None] * n  # (F, C, 3)
+    d_v = _unit(mirrored - a)
+    d_s = _unit(np.asarray(source_centers, np.float64)[None] - a)
+    return np.arccos(np.clip(np.einsum("fck,fck->fc", d_v, d_s), -1.0, 1.0))
 
 
 @dataclass(frozen=True)
@@ -136,6 +185,9 @@ class CameraWeights:
         Index of each fan's nearest source camera (largest omega).
     distance_m : ndarray of shape (F,)
         Distance from V to that camera.
+    back : ndarray of shape (F, C), bool, or None
+        Billboards drawn from behind (their back face; ``beta`` and ``omega``
+        are then those of :func:`back_view_angles`); None = none.
     """
 
     beta: np.ndarray
@@ -144,6 +196,7 @@ class CameraWeights:
     fade: np.ndarray
     nearest: np.ndarray
     distance_m: np.ndarray
+    back: np.ndarray | None = None
 
     @property
     def weight(self) -> np.ndarray:

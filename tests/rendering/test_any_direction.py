@@ -1,0 +1,110 @@
+"""Novel views from any direction: a subject is never missing, parts keep their width.
+
+A body ray-cast with flat part colours is seen by two far cameras 100 degrees
+apart (a broadcast pair); the articulated billboards, built from the true
+joints and part labels, are rendered into novel cameras between the sources,
+behind both of them (the reverse angle) and high above, and compared with the
+ray-cast ground truth.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from toolkit.anthropometry.proportions import BodyProportions
+from toolkit.cameras import Camera, Rig
+from toolkit.motion import generate_motion
+from toolkit.rendering import CpuCompositor, render_billboards, subject_scores
+from toolkit.rendering.blend import facing_pose
+from toolkit.rendering.config import BlendConfig
+from toolkit.synthetic.body import BodyModel
+from toolkit.synthetic.render import Raycaster
+
+#: Flat colour per part id (0 = background, black).
+COLOURS = np.array([[0, 0, 0], [225, 185, 150], [190, 40, 40], [215, 125, 95], [215, 125, 95], [170, 50, 50],
+                    [205, 105, 85], [40, 40, 130], [70, 45, 25], [45, 45, 150], [80, 55, 35]], np.uint8)
+#: Share of the true mask every novel view must cover with opacity > 0.5 (issue 13).
+MIN_COVERAGE = 0.9
+#: Coverage bounds of the harder views, measured 0.90 (140 degrees round: one source seen from behind, the
+#: other edge-on) and 0.73 (55 degrees above: planes through the bones cannot show the top of the body,
+#: shoulders and the torso's depth; see docs/stage4_rendering.md).
+REVERSE_SIDE_COVERAGE = 0.85
+HIGH_VIEW_COVERAGE = 0.7
+#: Subject-region PSNR of the reverse-angle view (measured 19.9 dB: flat colours, the back drawn with the
+#: front's texture); a view that misses the subject scores ~9 dB.
+REVERSE_PSNR_DB = 16.0
+#: Without the fallback (back faces off, billboards not turned) the reverse view is empty: coverage ~0.
+EMPTY_COVERAGE = 0.05
+#: Rotation residual, radians / metres.
+POSE_TOL = 1e-9
+
+
+def _camera(name, centre, az_deg, elev_deg=15.0, dist=30.0):
+    a, e = np.radians(az_deg), np.radians(elev_deg)
+    eye = centre + dist * np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
+    return Camera.look_at(name, eye, centre, size=(320, 240), focal_px=2400.0)
+
+
+@pytest.fixture(scope="module")
+def pair():
+    rng = np.random.default_rng(3)
+    props = BodyProportions.sample(1.75, rng)
+    body = BodyModel.sample(props, rng, detail=0.4)
+    joints = generate_motion("walk", props, 1, 25.0, rng)[0]
+    centre = np.r_[joints[1, :2], 0.9]
+    rig = Rig((_camera("cam_0", centre, -50.0), _camera("cam_1", centre, 50.0)))
+    novel = {"between": _camera("between", centre, 0.0), "reverse": _camera("reverse", centre, 180.0),
+             "reverse_side": _camera("reverse_side", centre, 140.0), "high": _camera("high", centre, 90.0, 55.0)}
+    caster = Raycaster()
+    mesh = body.mesh(joints)
+    images, labels = {}, {}
+    for cam in rig:
+        lab, _, _ = caster.cast(cam, [mesh])
+        images[cam.name], labels[cam.name] = COLOURS[lab], lab
+    truth = {}
+    for k, cam in novel.items():
+        lab, subject, _ = caster.cast(cam, [mesh])
+        truth[k] = (COLOURS[lab], subject > 0)
+    model = render_billboards(images, labels, joints, rig)
+    return model, novel, truth
+
+
+def _score(model, cam, truth, config=BlendConfig()):
+    r = CpuCompositor(config).render(model, cam)
+    return subject_scores(r.over(np.zeros(r.rgb.shape, np.float32)), truth[0], truth[1], r.alpha)
+
+
+def test_two_cameras_reverse_angle_renders_the_subject(pair):
+    model, novel, truth = pair
+    bounds = {"between": MIN_COVERAGE, "reverse": MIN_COVERAGE, "reverse_side": REVERSE_SIDE_COVERAGE,
+              "high": HIGH_VIEW_COVERAGE}
+    for k in novel:
+        s = _score(model, novel[k], truth[k])
+        assert s["coverage"] >= bounds[k], (k, s)
+    assert _score(model, novel["reverse"], truth["reverse"])["psnr_subject"] > REVERSE_PSNR_DB
+    # the same view with the source's blend alone (grazing / back-facing billboards faded out): empty
+    old = BlendConfig(back_faces=False, normalise_fade=False, face_view=False)
+    assert _score(model, novel["reverse"], truth["reverse"], old)["coverage"] < EMPTY_COVERAGE
+
+
+def test_facing_pose_turns_about_the_bone_towards_the_view(pair):
+    model, novel, _ = pair
+    rig = model.rig
+    for b in model.billboards:
+        x0, x1 = b.axis
+        bone = (x1 - x0) / np.linalg.norm(x1 - x0)
+        at_source = facing_pose(b, rig[b.camera].center)
+        assert np.allclose(at_source, np.eye(4), atol=1e-7)  # a source view is drawn unchanged
+        for cam in novel.values():
+            T = facing_pose(b, cam.center)
+            R = T[:3, :3]
+            assert np.allclose(R @ R.T, np.eye(3), atol=POSE_TOL) and np.linalg.det(R) > 0
+            assert np.allclose(T[:3, :3] @ x0 + T[:3, 3], x0, atol=POSE_TOL)  # the bone stays put
+            assert np.allclose(R @ bone, bone, atol=POSE_TOL)
+            n = R @ b.normal
+            to_eye = cam.center - x0
+            across = to_eye - (to_eye @ bone) * bone
+            # it now faces the view (front or back), turned by at most 90 degrees
+            assert abs(abs(n @ across) / np.linalg.norm(across) - 1.0) < 1e-9
+            assert n @ b.normal >= -POSE_TOL
