@@ -4,11 +4,21 @@
 Usage::
 
     python recipes/pose_from_keypoints.py --calibration Calib.toml --keypoints pose-associated \\
-        --out out/keypoints [--format body_25b] [--max-frames N] [--videos videos]
+        --out out/keypoints [--format auto] [--max-frames N] [--videos videos]
+    python recipes/pose_from_keypoints.py --keypoints Session/Participant/Trial --out out/trial \\
+        [--filter-cutoff 6]
 
-``--keypoints`` holds one sub-folder of OpenPose JSON files per camera (one file
-per frame); the sub-folders, sorted by name, are matched to the calibration's
-cameras sorted by name.  Keypoints are mapped to the 14-joint skeleton, joints
+``--keypoints`` holds per camera a sub-folder of JSON files (one per frame:
+OpenPose, or MMPose per image) or one JSON file (MMPose video predictions, COCO
+results or annotations); see docs/keypoint_formats.md.  A Pose2Sim trial folder
+is read as it is: its ``pose-associated/`` (else ``pose/``) keypoints, the
+session's ``Calib*.toml`` (unless ``--calibration``), ``pose_model`` and
+``frame_rate`` from its ``Config.toml`` files.  Cameras are matched to the
+calibration's by name (``cam01_json`` is ``cam_01``), else by the numbers in the
+names, else by sorted order; the keypoint format is found from the files
+(``--format auto``) or checked against the one given.  Frames missing in a camera
+are marked missing, files without people are empty frames; bad files raise an
+error naming them.  Keypoints are mapped to the 14-joint skeleton, joints
 below ``--min-confidence`` are dropped, and every frame is triangulated with
 the multi-view stage of source 000 §2.1 (one candidate per view plus its
 left/right flips, per-view 2D offsets by Levenberg-Marquardt, the previous
@@ -24,6 +34,13 @@ Writes into ``--out``:
 * ``offsets.npz``: ``offsets`` (T, n_cams, 2) pixels, ``camera_names``;
 * ``poses2d.npz``: per camera ``<camera>`` (T, 14, 2) offset-corrected joints
   and ``<camera>_raw`` (T, 14, 2) as detected (flips applied);
+* ``poses3d.trc``, ``poses3d.c3d``, ``poses3d.csv`` (``--export``): the joints under
+  Pose2Sim's marker names (TRC: Y up, metres, Pose2Sim's header; C3D: millimetres,
+  the TRC's axes; CSV: metres, world frame), see toolkit/io/trajectories.py; with
+  ``--filter-cutoff`` also ``poses3d_filt_butterworth.*``, low-pass filtered
+  (zero-phase Butterworth, the cut-off in the C3D / CSV metadata);
+* ``poses3d.json``: frame rate (and where it came from), keypoint format (and why),
+  camera matching, filter, files;
 * ``anthropometry.txt``: the broken constraints of every frame;
 * ``recording.rrd``: rerun recording of the rig, images (with ``--videos``),
   keypoints, rays, closest points, 3D joints, offsets and costs.
@@ -35,6 +52,7 @@ processed are NaN).
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
@@ -43,8 +61,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 
 from toolkit.errors import InputError  # noqa: E402
 
-#: --format names accepted, mapped to the names of toolkit.skeleton.mappings.
-FORMATS = {"body_25b": "body_25b", "body_25": "body_25", "coco17": "coco_17", "coco_17": "coco_17"}
+#: --format names accepted, mapped to the names of toolkit.skeleton.mappings ("auto": found from the files).
+FORMATS = {"auto": None, "body_25b": "body_25b", "body_25": "body_25", "coco17": "coco_17", "coco_17": "coco_17",
+           "coco_18": "coco_18", "coco": "coco_18", "halpe_26": "halpe_26", "coco_133": "coco_133"}
+#: Frame rate assumed when neither --fps, a Pose2Sim Config.toml nor --videos gives one (said so in the outputs).
+ASSUMED_FPS = 30.0
 #: Video file suffixes looked for in --videos.
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv")
 
@@ -54,11 +75,23 @@ def parse_args(argv=None):
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
-    ap.add_argument("--calibration", type=Path, required=True, help="calibration file (.toml or .yaml)")
+    ap.add_argument("--calibration", type=Path, default=None,
+                    help="calibration file (.toml or .yaml); default: a Pose2Sim session's Calib*.toml")
     ap.add_argument("--keypoints", type=Path, required=True,
-                    help="folder with one sub-folder of OpenPose JSON files per camera")
+                    help="folder with one sub-folder of JSON files (or one JSON file) per camera, "
+                         "or a Pose2Sim trial folder")
     ap.add_argument("--out", type=Path, required=True, help="output folder")
-    ap.add_argument("--format", choices=sorted(FORMATS), default="body_25b", help="keypoint format (default body_25b)")
+    ap.add_argument("--format", choices=sorted(FORMATS), default="auto",
+                    help="keypoint format (default auto: from the files, or a Pose2Sim Config.toml's pose_model)")
+    ap.add_argument("--fps", type=float, default=None,
+                    help="frame rate of the keypoints (default: Pose2Sim Config.toml, else the videos, "
+                         f"else {ASSUMED_FPS:g}, said so in poses3d.json)")
+    ap.add_argument("--export", default="trc,c3d,csv",
+                    help="trajectory files besides poses3d.npz, comma-separated among trc,c3d,csv, or 'none'")
+    ap.add_argument("--filter-cutoff", type=float, default=None,
+                    help="also write low-pass filtered trajectories (zero-phase Butterworth) with this cut-off, Hz")
+    ap.add_argument("--filter-order", type=int, default=4,
+                    help="order of the zero-phase Butterworth filter, even (default 4, as Pose2Sim)")
     ap.add_argument("--max-frames", type=int, default=None, help="process only the first N frames")
     ap.add_argument("--videos", type=Path, default=None,
                     help="folder of one video per camera (sorted like the cameras): frames go into the recording")
@@ -80,18 +113,24 @@ def parse_args(argv=None):
     args = ap.parse_args(argv)
     if args.max_frames is not None and args.max_frames < 1:
         ap.error("--max-frames must be >= 1")
+    if args.fps is not None and not args.fps > 0:
+        ap.error("--fps must be > 0")
+    args.export = () if args.export.strip() == "none" else tuple(e.strip() for e in args.export.split(",") if e.strip())
+    if any(e not in ("trc", "c3d", "csv") for e in args.export):
+        ap.error(f"--export takes trc, c3d, csv or none, not {','.join(args.export)}")
+    if args.filter_order < 2 or args.filter_order % 2:
+        ap.error("--filter-order must be even and >= 2")
     return args
 
 
-def match_cameras(rig, folders, what: str):
-    """Rig sorted by camera name, matched one-to-one with sorted folders or files."""
+def match_cameras(rig, sources, what: str):
+    """Rig sorted by camera name, and the sources (folders or files) in its order (by name, number or order)."""
     from toolkit.cameras import Rig
+    from toolkit.io.keypoint_formats import match_cameras as match
 
     cams = sorted(rig, key=lambda c: c.name)
-    if len(cams) != len(folders):
-        raise InputError(what, f"{len(cams)} entries, one per calibration camera {[c.name for c in cams]}",
-                         f"{len(folders)}: {[f.name for f in folders]}")
-    return Rig(tuple(cams))
+    order, how = match([c.name for c in cams], list(sources), what)
+    return Rig(tuple(cams)), [sources[i] for i in order], how
 
 
 def run(args) -> int:
@@ -100,24 +139,48 @@ def run(args) -> int:
 
     from toolkit.anthropometry import AnthropometricConstraints
     from toolkit.io import VideoReader, atomic_save_npz, atomic_write_text, read_calibration
-    from toolkit.io.openpose import camera_folders, read_openpose_cameras
+    from toolkit.io.keypoint_formats import camera_sources, read_keypoints
+    from toolkit.io.pose2sim import is_pose2sim_trial, read_pose2sim_trial
+    from toolkit.io.trajectories import skeleton14_trajectories, write_trajectories
+    from toolkit.filtering import ButterworthFilter
     from toolkit.multiview import MultiViewConfig, MultiViewTracker, keypoints_to_candidates, stack_selections
     from toolkit.skeleton import SKELETON_14
-    from toolkit.skeleton.mappings import KEYPOINTS, to_skeleton14
+    from toolkit.skeleton.mappings import to_skeleton14
 
-    fmt = FORMATS[args.format]
     flips = () if args.flips.strip() == "none" else tuple(f.strip() for f in args.flips.split(",") if f.strip())
-    rig = read_calibration(args.calibration)
-    folders = camera_folders(args.keypoints)
-    rig = match_cameras(rig, folders, f"{args.keypoints}: camera sub-folders")
+    trial = read_pose2sim_trial(args.keypoints) if is_pose2sim_trial(args.keypoints) else None
+    kp_root = trial.keypoints if trial is not None else args.keypoints
+    calibration = args.calibration or (trial.calibration if trial is not None else None)
+    if calibration is None:
+        raise InputError("--calibration", "a calibration file (or a Pose2Sim trial whose session has one)",
+                         f"none given and none found for {args.keypoints}")
+    rig = read_calibration(calibration)
+    rig, sources, matched = match_cameras(rig, camera_sources(kp_root), f"{kp_root}: camera sources")
     videos = None
     if args.videos is not None:
         if not args.videos.is_dir():
             raise InputError(str(args.videos), "a folder of videos", "no such folder")
         files = sorted(p for p in args.videos.iterdir() if p.suffix.lower() in VIDEO_SUFFIXES)
-        match_cameras(rig, files, f"{args.videos}: video files")
+        _, files, _ = match_cameras(rig, files, f"{args.videos}: video files")
         videos = [VideoReader(p) for p in files]
-    _, frame_numbers, kp = read_openpose_cameras(args.keypoints, len(KEYPOINTS[fmt]), max_frames=args.max_frames)
+    declared, declared_by = FORMATS[args.format], "--format"
+    if declared is None and trial is not None and trial.pose_model is not None:
+        declared, declared_by = trial.pose_model, "[pose] pose_model of the Pose2Sim Config.toml"
+    keypoints = read_keypoints(sources, declared, declared_by, max_frames=args.max_frames)
+    fmt, frame_numbers, kp = keypoints.format.fmt, keypoints.frames, keypoints.keypoints
+    fps, fps_from = args.fps, "--fps"
+    if fps is None and trial is not None and trial.frame_rate is not None:
+        fps, fps_from = trial.frame_rate, "Pose2Sim Config.toml"
+    if fps is None and videos:
+        fps, fps_from = float(videos[0].fps), f"video {videos[0].path.name}"
+    if fps is None:
+        fps, fps_from = ASSUMED_FPS, "assumed (give --fps)"
+    lowpass = None
+    if args.filter_cutoff is not None:
+        lowpass = ButterworthFilter(args.filter_cutoff, args.filter_order)
+        if not args.filter_cutoff < fps / 2:
+            raise InputError("--filter-cutoff", f"a cut-off below half the frame rate ({fps / 2:g} Hz, {fps_from})",
+                             f"{args.filter_cutoff:g}")
     # keypoints below the threshold are missing, so the mapping falls back to the next alternative
     kp14 = to_skeleton14(kp, fmt, confidence=True, min_confidence=args.min_confidence)  # (n_cams, T, 14, 3)
     n_cams, n_frames = kp14.shape[:2]
@@ -132,8 +195,12 @@ def run(args) -> int:
                                  camera_names=rig.names)
         observer.report("rig", rig=rig, static=True)
         observer.report("skeleton", skeleton=SKELETON_14)
-    print(f"{n_cams} cameras ({', '.join(f'{c.name} <- {f.name}' for c, f in zip(rig, folders))}), "
-          f"{n_frames} frames, format {fmt}")
+    print(f"{n_cams} cameras matched {matched} ({', '.join(f'{c.name} <- {f.name}' for c, f in zip(rig, sources))}), "
+          f"{n_frames} frames at {fps:g} fps ({fps_from}), format {fmt} ({keypoints.format.reason})")
+    for c, cam in enumerate(rig):
+        if keypoints.missing[c].any() or keypoints.empty[c].any():
+            print(f"  {cam.name}: {int(keypoints.missing[c].sum())} frames without a file, "
+                  f"{int(keypoints.empty[c].sum())} with nobody (marked missing)")
 
     tracker = MultiViewTracker(rig, config, observer)
     selections = [None] * n_frames
@@ -159,8 +226,32 @@ def run(args) -> int:
         arrays = stack_selections(selections, n_cams)
         names = np.array(SKELETON_14.joint_names)
         violations = np.array([len(s.violations) if s is not None else -1 for s in selections])
+        meta = {"source": "pose_from_keypoints", "keypoint_format": f"{fmt} ({keypoints.format.reason})",
+                "frame_rate": f"{fps:g} Hz ({fps_from})", "status": status}
+        extra = {}
+        if lowpass is not None:
+            extra = {"joints_filtered": lowpass.apply(arrays["joints"], fps), "filter": np.array(lowpass.describe())}
         atomic_save_npz(args.out / "poses3d.npz", joints=arrays["joints"], names=names, frames=frame_numbers,
-                        success=arrays["success"], cost=arrays["cost"], violations=violations)
+                        success=arrays["success"], cost=arrays["cost"], violations=violations,
+                        frame_rate=np.array(fps), **extra)
+        exported = write_trajectories(args.out / "poses3d", skeleton14_trajectories(
+            arrays["joints"], names, frame_numbers, fps, {**meta, "filter": "none"}), args.export)
+        if lowpass is not None:
+            exported += write_trajectories(args.out / "poses3d_filt_butterworth", skeleton14_trajectories(
+                extra["joints_filtered"], names, frame_numbers, fps, {**meta, "filter": lowpass.describe()}),
+                args.export)
+        atomic_write_text(args.out / "poses3d.json", json.dumps({
+            **meta, "frame_rate_hz": fps, "keypoints": str(kp_root), "calibration": str(calibration),
+            "cameras": {c.name: str(f) for c, f in zip(rig, sources)}, "camera_matching": matched,
+            "frames_without_file": {c.name: int(m) for c, m in zip(rig, keypoints.missing.sum(1))},
+            "frames_with_nobody": {c.name: int(m) for c, m in zip(rig, keypoints.empty.sum(1))},
+            "filter": lowpass.describe() if lowpass is not None else "none",
+            "filter_cutoff_hz": lowpass.cutoff_hz if lowpass is not None else None,
+            "filter_order": lowpass.order if lowpass is not None else None,
+            "trajectory_axes": {"npz, csv": "world frame of the calibration (z up), metres",
+                                "trc": "Y up: (X, Y, Z) = world (y, z, x), metres",
+                                "c3d": "the TRC's axes, millimetres"},
+            "files": [p.name for p in exported]}, indent=2) + "\n")
         atomic_save_npz(args.out / "offsets.npz", offsets=arrays["offsets"], camera_names=np.array(rig.names))
         atomic_save_npz(args.out / "poses2d.npz", names=names,
                         **{c: arrays["poses2d"][i] for i, c in enumerate(rig.names)},
@@ -182,6 +273,8 @@ def run(args) -> int:
             print(f"  mean ray distance: {1000 * np.nanmean(arrays['cost'][ok]):.1f} mm; frames breaking an "
                   f"anthropometric constraint: {int(np.sum(violations > 0))}")
         print(f"  3D joints:     {args.out / 'poses3d.npz'}")
+        for p in exported:
+            print(f"  trajectories:  {p}")
         print(f"  offsets:       {args.out / 'offsets.npz'}")
         print(f"  2D joints:     {args.out / 'poses2d.npz'}")
         print(f"  anthropometry: {args.out / 'anthropometry.txt'}")

@@ -2,7 +2,8 @@
 
 OpenPose writes ``{"people": [{"pose_keypoints_2d": [x0, y0, c0, x1, ...]}, ...]}``
 per frame, with ``(0, 0, 0)`` for undetected keypoints.  Here undetected
-keypoints come back as ``(NaN, NaN, 0)``.  A person without
+keypoints (and those with a NaN confidence) come back as ``(NaN, NaN, 0)``; a
+negative confidence raises, naming the file.  A person without
 ``pose_keypoints_2d`` (Pose2Sim writes ``{}`` when it found nobody to
 associate) and a frame without people are all-missing frames, not errors.
 
@@ -108,6 +109,10 @@ def read_openpose_json(path: str | os.PathLike, n_keypoints: int | None = None,
         if n_keypoints is not None and len(arr) != n_keypoints:
             raise InputError(f"{p}: people[{i}].pose_keypoints_2d", f"{n_keypoints} keypoints for the chosen format",
                              f"{len(arr)}")
+        neg = np.flatnonzero(arr[:, 2] < 0)
+        if neg.size:  # no detector writes one: the file is not what it seems
+            raise InputError(f"{p}: people[{i}].pose_keypoints_2d", "confidences >= 0 (0 = not detected)",
+                             f"{arr[neg[0], 2]:g} at keypoint {int(neg[0])}")
         people.append(arr)
     if not people:
         empty = np.full((n_keypoints or 0, 3), np.nan)

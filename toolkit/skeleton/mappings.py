@@ -9,10 +9,12 @@ head is the mean of the ears, or of the eyes when an ear is missing, and so
 on.  A joint with no complete alternative is NaN.
 
 Sources of the keypoint orders: the OpenPose output documentation (BODY_25,
-COCO), the OpenPose experimental-models list for BODY_25B (its ids 0-16 are
+COCO-18), the OpenPose experimental-models list for BODY_25B (its ids 0-16 are
 COCO's, 17 UpperNeck, 18 HeadTop, 19-24 the feet; Pose2Sim's demo
 ``Config.toml`` lists the same ids under the names Neck and Head), the COCO
-keypoint task (17 keypoints), and the CMU motion-capture BVH conversions
+keypoint task (17 keypoints), the HALPE full-body dataset (26 keypoints, as
+AlphaPose, RTMPose and Pose2Sim order them), COCO-WholeBody (133: COCO's 17,
+six foot, 68 face and 2 x 21 hand keypoints), and the CMU motion-capture BVH conversions
 (31 joints in file order, then their 7 ``End Site`` points named
 ``<parent>_end``, as returned by ``BvhMotion.positions(end_sites=True)``).
 
@@ -28,8 +30,9 @@ import numpy as np
 from toolkit.errors import InputError
 from toolkit.skeleton.skeleton import JOINTS_14
 
-__all__ = ["KEYPOINTS", "MAPPINGS", "FORMATS", "BODY_25", "BODY_25B", "COCO_17", "CMU_BVH",
-           "CMU_BVH_TO_14", "SKELETON14_BVH_TO_14", "to_skeleton14", "mapping_table"]
+__all__ = ["KEYPOINTS", "MAPPINGS", "FORMATS", "BODY_25", "BODY_25B", "COCO_17", "COCO_18", "HALPE_26",
+           "COCO_133", "CMU_BVH", "CMU_BVH_TO_14", "SKELETON14_BVH_TO_14", "DETECTOR_FORMATS",
+           "POSE2SIM_MARKERS", "to_skeleton14", "mapping_table"]
 
 #: OpenPose BODY_25 keypoints, in output order.
 BODY_25 = ("Nose", "Neck", "RShoulder", "RElbow", "RWrist", "LShoulder", "LElbow", "LWrist",
@@ -46,6 +49,20 @@ BODY_25B = ("Nose", "LEye", "REye", "LEar", "REar", "LShoulder", "RShoulder", "L
             "LWrist", "RWrist", "LHip", "RHip", "LKnee", "RKnee", "LAnkle", "RAnkle", "UpperNeck",
             "HeadTop", "LBigToe", "LSmallToe", "LHeel", "RBigToe", "RSmallToe", "RHeel")
 
+#: OpenPose COCO (18 keypoints, ``--model_pose COCO``), in output order.
+COCO_18 = ("Nose", "Neck", "RShoulder", "RElbow", "RWrist", "LShoulder", "LElbow", "LWrist", "RHip", "RKnee",
+           "RAnkle", "LHip", "LKnee", "LAnkle", "REye", "LEye", "REar", "LEar")
+
+#: HALPE-26 keypoints (AlphaPose, RTMPose ``body26``, Pose2Sim's ``HALPE_26`` / ``Body_with_feet``), in order.
+HALPE_26 = ("Nose", "LEye", "REye", "LEar", "REar", "LShoulder", "RShoulder", "LElbow", "RElbow", "LWrist",
+            "RWrist", "LHip", "RHip", "LKnee", "RKnee", "LAnkle", "RAnkle", "Head", "Neck", "Hip", "LBigToe",
+            "RBigToe", "LSmallToe", "RSmallToe", "LHeel", "RHeel")
+
+#: COCO-WholeBody (133 keypoints: COCO-17, 6 foot, 68 face, 2 x 21 hand), in order.
+COCO_133 = COCO_17 + ("left_big_toe", "left_small_toe", "left_heel", "right_big_toe", "right_small_toe",
+                      "right_heel") + tuple(f"face_{i}" for i in range(68)) \
+    + tuple(f"left_hand_{i}" for i in range(21)) + tuple(f"right_hand_{i}" for i in range(21))
+
 #: Joints of the CMU motion-capture BVH conversions (e.g. ``01_01.bvh``), file
 #: order, then the end sites.
 CMU_BVH = ("Hips", "LHipJoint", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase", "RHipJoint",
@@ -56,8 +73,19 @@ CMU_BVH = ("Hips", "LHipJoint", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase
            "LeftToeBase_end", "RightToeBase_end", "Head_end", "LFingers_end", "LThumb_end",
            "RFingers_end", "RThumb_end")
 
-KEYPOINTS = {"body_25": BODY_25, "body_25b": BODY_25B, "coco_17": COCO_17, "cmu_bvh": CMU_BVH}
+KEYPOINTS = {"body_25": BODY_25, "body_25b": BODY_25B, "coco_17": COCO_17, "cmu_bvh": CMU_BVH,
+             "coco_18": COCO_18, "halpe_26": HALPE_26, "coco_133": COCO_133}
 FORMATS = tuple(KEYPOINTS)
+#: The formats of 2D keypoint detectors (all of :data:`FORMATS` but the motion-capture skeleton).
+DETECTOR_FORMATS = ("body_25", "body_25b", "coco_18", "coco_17", "halpe_26", "coco_133")
+
+#: Our 14 joints under Pose2Sim's marker names (its BODY_25B / HALPE_26 skeletons), in the order Pose2Sim
+#: writes them in its .trc files.  Pose2Sim's ``Neck`` and ``Head`` are the detector's neck and head-top
+#: keypoints; ours are the base of the neck (C7) and the head centre (docs/conventions.md).
+POSE2SIM_MARKERS = {"r_hip": "RHip", "r_knee": "RKnee", "r_ankle": "RAnkle", "l_hip": "LHip", "l_knee": "LKnee",
+                    "l_ankle": "LAnkle", "neck": "Neck", "head": "Head", "r_shoulder": "RShoulder",
+                    "r_elbow": "RElbow", "r_wrist": "RWrist", "l_shoulder": "LShoulder", "l_elbow": "LElbow",
+                    "l_wrist": "LWrist"}
 
 
 def _one(name):
@@ -103,6 +131,16 @@ MAPPINGS = {
                   "wrist": ("left_wrist", "right_wrist"), "hip": ("left_hip", "right_hip"),
                   "knee": ("left_knee", "right_knee"), "ankle": ("left_ankle", "right_ankle")}),
     },
+    "coco_18": {
+        "head": _OPENPOSE_HEAD,
+        "neck": ({"Neck": 1.0}, _mean("LShoulder", "RShoulder")),
+        **_limbs(_OPENPOSE_LIMBS),
+    },
+    "halpe_26": {
+        "head": _OPENPOSE_HEAD[:2] + (_mean("Head", "Neck"),) + _OPENPOSE_HEAD[2:],
+        "neck": ({"Neck": 1.0}, _mean("LShoulder", "RShoulder")),
+        **_limbs(_OPENPOSE_LIMBS),
+    },
     "cmu_bvh": {
         # CMU "Head" sits where the neck-to-head distance matches the ANSUR
         # neck-to-head-centre length (about 0.1 m); Neck1 is just above the
@@ -114,6 +152,8 @@ MAPPINGS = {
                   "knee": ("LeftLeg", "RightLeg"), "ankle": ("LeftFoot", "RightFoot")}),
     },
 }
+
+MAPPINGS["coco_133"] = MAPPINGS["coco_17"]
 
 #: CMU BVH names -> 14 joints, as single weight sets (for ``bvh_to_skeleton14``).
 CMU_BVH_TO_14 = {j: dict(MAPPINGS["cmu_bvh"][j][0]) for j in JOINTS_14}

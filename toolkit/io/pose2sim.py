@@ -1,0 +1,155 @@
+"""A Pose2Sim session folder read as it is.
+
+Pose2Sim lays a session out as::
+
+    Session/                      Config.toml, the session's settings
+      S00_Calibration/            Calib*.toml (cameras [cam_01] ... as Pose2Sim writes them)
+      Participant/                Config.toml (optional, overrides the session's)
+        Trial/                    Config.toml (optional, overrides the participant's)
+          pose/                   raw 2D detections, one folder per camera (cam01_json/ ...)
+          pose-associated/        the same with the main person picked (Pose2Sim's personAssociation)
+          pose-3d/                Pose2Sim's own triangulation (.trc)
+
+or without the participant level (``Session/Trial/``).  :func:`read_pose2sim_trial`
+takes a trial folder and finds the keypoints (``pose-associated`` when there, else
+``pose``), the calibration file, the keypoint format (``[pose] pose_model``) and the
+frame rate (``[project] frame_rate``) with Pose2Sim's own precedence (trial, then
+participant, then session settings).
+"""
+
+from __future__ import annotations
+
+import os
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+from toolkit.errors import InputError
+
+__all__ = ["POSE_MODELS", "Pose2SimTrial", "is_pose2sim_trial", "read_pose2sim_trial"]
+
+#: Pose2Sim ``pose_model`` names (upper case) -> keypoint formats of toolkit.skeleton.mappings.
+POSE_MODELS = {"BODY_25B": "body_25b", "BODY_25": "body_25", "COCO": "coco_18", "COCO_18": "coco_18",
+               "COCO_17": "coco_17", "BODY": "coco_17", "HALPE_26": "halpe_26", "BODY_WITH_FEET": "halpe_26",
+               "COCO_133": "coco_133", "WHOLE_BODY": "coco_133", "COCO_133_WRIST": "coco_133"}
+#: Keypoint folders of a trial, in order of preference.
+POSE_FOLDERS = ("pose-associated", "pose")
+
+
+@dataclass(frozen=True)
+class Pose2SimTrial:
+    """What a Pose2Sim trial folder holds.
+
+    Attributes
+    ----------
+    trial : Path
+    keypoints : Path
+        ``pose-associated`` (or ``pose``): one sub-folder of JSON files per camera.
+    calibration : Path or None
+        The session's ``Calib*.toml``.
+    pose_model : str or None
+        The keypoint format (:data:`POSE_MODELS`) of the settings, ``None`` when not set.
+    frame_rate : float or None
+        ``[project] frame_rate`` when a number (``None`` for ``'auto'`` or not set).
+    config_files : tuple of Path
+        The ``Config.toml`` files read, session first.
+    reference_trc : tuple of Path
+        Pose2Sim's own results (``pose-3d/*.trc``).
+    """
+
+    trial: Path
+    keypoints: Path
+    calibration: Path | None
+    pose_model: str | None
+    frame_rate: float | None
+    config_files: tuple[Path, ...]
+    reference_trc: tuple[Path, ...]
+
+
+def is_pose2sim_trial(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is a folder holding ``pose-associated/`` or ``pose/`` (and so is read as a trial)."""
+    p = Path(path)
+    return p.is_dir() and any((p / f).is_dir() for f in POSE_FOLDERS)
+
+
+def _merge(base: dict, over: dict) -> dict:
+    out = dict(base)
+    for k, v in over.items():
+        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def _calibration_dir(folder: Path) -> Path | None:
+    subs = [p for p in folder.iterdir() if p.is_dir() and "calib" in p.name.lower()] if folder.is_dir() else []
+    return sorted(subs)[0] if subs else None
+
+
+def read_pose2sim_trial(path: str | os.PathLike) -> Pose2SimTrial:
+    """The keypoints, calibration and settings of a Pose2Sim trial folder.
+
+    Parameters
+    ----------
+    path : path-like
+        The trial folder (holding ``pose-associated/`` or ``pose/``).
+
+    Returns
+    -------
+    Pose2SimTrial
+
+    Raises
+    ------
+    InputError
+        Not a trial folder, an unreadable ``Config.toml``, a ``pose_model`` the toolkit has no
+        mapping for, a bad ``frame_rate``, or several calibration files (each names the file).
+    """
+    trial = Path(path)
+    if not is_pose2sim_trial(trial):
+        raise InputError(str(trial), f"a Pose2Sim trial folder holding one of {list(POSE_FOLDERS)}", "none of them")
+    keypoints = next(trial / f for f in POSE_FOLDERS if (trial / f).is_dir())
+    # the session is the first folder above the trial that holds a calibration folder
+    session, calib_dir = None, None
+    for up in (trial.parent, trial.parent.parent):
+        calib_dir = _calibration_dir(up)
+        if calib_dir is not None:
+            session = up
+            break
+    levels = [trial]
+    if session is not None:
+        p = trial.parent
+        while p != session and session in p.parents:
+            levels.append(p)
+            p = p.parent
+        levels.append(session)
+    config, files = {}, []
+    for folder in reversed(levels):  # session first, trial last (the trial's settings win)
+        f = folder / "Config.toml"
+        if f.is_file():
+            try:
+                config = _merge(config, tomllib.loads(f.read_text(encoding="utf-8")))
+            except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
+                raise InputError(str(f), "a readable Pose2Sim Config.toml", f"{type(e).__name__}: {e}") from None
+            files.append(f)
+    where = str(files[-1]) if files else str(trial)
+    model = config.get("pose", {}).get("pose_model") if isinstance(config.get("pose"), dict) else None
+    fmt = None
+    if model is not None:
+        fmt = POSE_MODELS.get(str(model).upper())
+        if fmt is None:
+            raise InputError(f"{where}: [pose] pose_model", f"one of {sorted(POSE_MODELS)}", repr(model))
+    rate = config.get("project", {}).get("frame_rate") if isinstance(config.get("project"), dict) else None
+    if rate is not None and not (isinstance(rate, str) and rate.lower() == "auto"):
+        if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not rate > 0:
+            raise InputError(f"{where}: [project] frame_rate", "a positive number or 'auto'", repr(rate))
+        rate = float(rate)
+    else:
+        rate = None
+    calibration = None
+    if calib_dir is not None:
+        tomls = sorted(calib_dir.glob("Calib*.toml")) or sorted(calib_dir.glob("*.toml"))
+        if len(tomls) > 1:
+            raise InputError(str(calib_dir), "one calibration .toml (else give --calibration)",
+                             f"{[t.name for t in tomls]}")
+        calibration = tomls[0] if tomls else None
+    trc = tuple(sorted((trial / "pose-3d").glob("*.trc"))) if (trial / "pose-3d").is_dir() else ()
+    return Pose2SimTrial(trial=trial, keypoints=keypoints, calibration=calibration, pose_model=fmt,
+                         frame_rate=rate, config_files=tuple(files), reference_trc=trc)
