@@ -60,7 +60,7 @@ PER_FRAME_LAYOUTS = ("openpose", "mmpose_frame")
 #: (a factor 3 either way; measured about -2.5 on BODY_25-like and +1.5 on BODY_25B data).
 BODY25_LOG_RATIO = float(np.log(3.0))
 #: ... on at least this many detections with the keypoints it needs,
-BODY25_MIN_DETECTIONS = 5
+BODY25_MIN_DETECTIONS = 3
 #: ... and this share of them must agree in sign.
 BODY25_MIN_AGREEMENT = 0.8
 

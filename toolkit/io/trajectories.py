@@ -207,6 +207,7 @@ def read_trc(path: str | os.PathLike) -> Trajectories:
         fields = fields[:2 + 3 * n_markers] + [""] * max(0, 2 + 3 * n_markers - len(fields))
         try:
             frames.append(int(float(fields[0])))
+            float(fields[1])                                  # Time: a number (derived from Frame# here)
             rows.append([float(f) if f.strip() else np.nan for f in fields[2:]])
         except ValueError:
             raise InputError(f"{p}: line {i}", "numbers (or empty fields)", repr(line)[:80]) from None
