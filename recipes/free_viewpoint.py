@@ -15,9 +15,13 @@ of the dataset and of three camera paths.  Writes into OUT:
   poses3d.npz            joints (T, 14, 3) metres, names, joints_stage1, status (str per frame)
   parts/<camera>/NNNNNN.png      part labels per source camera
   novel/<camera>/NNNNNN.png      articulated-billboard rendering of each novel camera
+  novel_alpha/<camera>/NNNNNN.png   its opacity, uint8 (255 = opaque subject, 0 = background)
   baselines/<method>/<camera>/NNNNNN.png   standard billboards and visual hull, same views
+  baselines/plate/<camera>/NNNNNN.png      the background alone (what the subject is drawn over)
   paths/<path>/NNNNNN.png, paths/<path>.mp4   orbit, sweep through the sources, bird's-eye
-  metrics.json           PSNR / SSIM per method in the subject's box, pose error, timings (with ground truth)
+  metrics.json           per method: PSNR / SSIM in the subject's box, psnr_subject (PSNR on the true mask
+                         + 2 px), coverage (share of the true mask rendered with opacity > 0.5; mean and
+                         coverage_min, the worst view); pose error, timings (with ground truth)
   recording.rrd          every intermediate of this run, with a blueprint; a resumed run writes
                          recording.resume-<k>.rrd beside it (same recording id: rerun OUT/recording*.rrd)
   frames/NNNNNN.json     per-frame results; a frame with one is finished and skipped when the run resumes
@@ -82,9 +86,10 @@ def main(argv=None) -> int:
     from toolkit.io import Dataset, atomic_save_npz, atomic_write_png, atomic_write_text, write_video
     from toolkit.io.frames import frame_filename, read_png
     from toolkit.io.runs import dataset_fingerprint, run_recording, start_run
-    from toolkit.rendering import CpuCompositor, bbox_scores, birds_eye, orbit_path, source_path
+    from toolkit.rendering import CpuCompositor, bbox_scores, birds_eye, orbit_path, source_path, subject_scores
     from toolkit.rendering.evaluation import BackgroundPlates, pose_errors, summarise
-    from toolkit.rendering.freeviewpoint import METHODS, FrameProcessor, FreeViewpointConfig, render_methods
+    from toolkit.rendering.freeviewpoint import (METHODS, FrameProcessor, FreeViewpointConfig, render_methods,
+                                                   render_views)
     from toolkit.silhouettes import Stage1Config, default_database, default_database_path
     from toolkit.silhouettes.pipeline import estimate_dataset
     from toolkit.skeleton import SKELETON_14
@@ -165,14 +170,20 @@ def main(argv=None) -> int:
                 scores = {}
                 for cam in novel:
                     bg = plates.plate(cam) if plates is not None else np.zeros(cam.size[::-1] + (3,), np.float32)
-                    views = render_methods(res, cam, bg, compositor, observer=observer)
+                    views = render_views(res, cam, bg, compositor, observer=observer)
                     gt, gt_mask = ds.novel_image(cam.name, t), ds.novel_mask(cam.name, t)
-                    for m, img in views.items():
+                    atomic_write_png(out / "baselines" / "plate" / cam.name / frame_filename(t),
+                                     np.clip(np.asarray(bg, np.float32) + 0.5, 0, 255).astype(np.uint8))
+                    for m, v in views.items():
                         folder = out / "novel" if m == "articulated" else out / "baselines" / m
-                        atomic_write_png(folder / cam.name / frame_filename(t), img)
-                        scores.setdefault(m, {})[cam.name] = bbox_scores(img, gt, gt_mask)
+                        atomic_write_png(folder / cam.name / frame_filename(t), v.image)
+                        if m == "articulated":
+                            atomic_write_png(out / "novel_alpha" / cam.name / frame_filename(t),
+                                             np.clip(np.rint(v.alpha * 255.0), 0, 255).astype(np.uint8))
+                        scores.setdefault(m, {})[cam.name] = {**bbox_scores(v.image, gt, gt_mask),
+                                                              **subject_scores(v.image, gt, gt_mask, v.alpha)}
                         if observer is not None:
-                            observer.report("image", camera=cam.name, image=img, name=f"render/{m}", frame=t)
+                            observer.report("image", camera=cam.name, image=v.image, name=f"render/{m}", frame=t)
                 for p, cams in paths.items():
                     bg = plates.plate(cams[t]) if plates is not None else np.zeros(cams[t].size[::-1] + (3,))
                     img = render_methods(res, cams[t], bg, compositor, methods=("articulated",))["articulated"]
@@ -222,7 +233,8 @@ def main(argv=None) -> int:
         for m in METHODS:
             s = metrics["methods"].get(m)
             if s:
-                print(f"  {m:12s} PSNR {s['psnr']:.2f} dB  SSIM {s['ssim']:.3f}  ({s['n']} views)")
+                print(f"  {m:12s} PSNR {s['psnr']:.2f} dB  SSIM {s['ssim']:.3f}  on the subject {s['psnr_subject']:.2f} dB"
+                      f"  coverage {s['coverage']:.3f} (worst view {s['coverage_min']:.3f})  ({s['n']} views)")
         e, e1 = metrics["pose"]["mpjpe_m"], metrics["pose_stage1"]["mpjpe_m"]
         print(f"  pose error {e * 100:.1f} cm (stage 1: {e1 * 100:.1f} cm)")
     if outcome:  # e.g. two cameras far apart: every joint "few_views", stage 3 changed nothing

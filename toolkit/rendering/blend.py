@@ -209,6 +209,146 @@ def fan_weights(model: BillboardModel, camera: Camera, config: BlendConfig = Ble
     return CameraWeights(beta, om, att, fade, nearest, dist, back if back.any() else None)
 
 
+#: Ridge weight on the (B, C) terms of the elliptic cross-section fit of :func:`view_widths`.
+WIDTH_RIDGE = 0.1
+#: A part is drawn at most this many times as wide as the widest segment its sources saw.
+WIDTH_GROWTH_MAX = 1.5
+#: ... and at least this many times as wide as the narrowest.
+WIDTH_SHRINK_MIN = 0.7
+
+
+def part_depth(fan) -> float:
+    """Thickness of a part across its bone, metres: the narrowest of its billboards' segments.
+
+    Each billboard's segment width across the bone (columns of its texture
+    with alpha >= 0.5, times the texel width) is the part's width seen from
+    that source; the narrowest of them stands for the part's depth.
+    """
+    widths = []
+    for b in fan.billboards:
+        cols = int(np.count_nonzero((b.alpha >= 0.5).any(axis=0)))
+        widths.append(cols * float(np.linalg.norm(b.corners[1] - b.corners[0])) / b.size[0])
+    return min(widths) if widths else 0.0
+
+
+def behind_pose(pose: np.ndarray, billboard: Billboard, eye: np.ndarray, depth_m: float) -> np.ndarray:
+    """``pose`` followed by a shift of ``depth_m`` metres away from ``eye`` along the turned billboard's normal."""
+    n = pose[:3, :3] @ billboard.normal
+    if n @ (np.asarray(eye, float) - (pose[:3, :3] @ billboard.center + pose[:3, 3])) > 0:
+        n = -n
+    T = pose.copy()
+    T[:3, 3] += depth_m * n
+    return T
+
+
+def segment_width(billboard: Billboard) -> float:
+    """Width of a billboard's segment across its bone, metres (texture columns with alpha >= 0.5 x texel width)."""
+    cols = int(np.count_nonzero((billboard.alpha >= 0.5).any(axis=0)))
+    return cols * float(np.linalg.norm(billboard.corners[1] - billboard.corners[0])) / billboard.size[0]
+
+
+def view_widths(fan, centers: dict, eye: np.ndarray, ridge: float = WIDTH_RIDGE) -> dict:
+    """Width of a part seen from ``eye``, from the widths its sources saw, with an elliptic cross-section.
+
+    An ellipse seen from the angle theta about its axis is ``w`` wide with
+    ``(w/2)^2 = A + B cos 2 theta + C sin 2 theta``: linear in (A, B, C).
+    The segment widths of the fan's billboards (:func:`segment_width`) at
+    their cameras' angles about the bone give (A, B, C) by least squares,
+    with a ridge on (B, C) (one camera: a circle; two: the roundest ellipse
+    through both), and so the width from ``eye``, clipped to
+    [:data:`WIDTH_SHRINK_MIN`, :data:`WIDTH_GROWTH_MAX`] x the widths seen.
+
+    Parameters
+    ----------
+    fan : BillboardFan
+    centers : dict of str -> ndarray (3,)
+        Source camera centres by name.
+    eye : ndarray of shape (3,)
+        The view's centre.
+    ridge : float
+        Weight of ``B^2 + C^2`` against the squared residuals (dimensionless).
+
+    Returns
+    -------
+    dict of str -> float
+        Per source camera of the fan: the width from ``eye`` divided by the width that camera saw
+        (1 where it is unknown).
+    """
+    b = fan.axis[1] - fan.axis[0]
+    if not fan.billboards or np.linalg.norm(b) < 1e-9:
+        return {}
+    b = b / np.linalg.norm(b)
+    mid = fan.axis.mean(axis=0)
+    ref = fan.billboards[0].normal - (fan.billboards[0].normal @ b) * b
+    if np.linalg.norm(ref) < 1e-9:
+        return {bb.camera: 1.0 for bb in fan.billboards}
+    ref = ref / np.linalg.norm(ref)
+    side = np.cross(b, ref)
+
+    def angle(p):
+        d = np.asarray(p, float) - mid
+        return float(np.arctan2(d @ side, d @ ref))
+
+    w = np.array([segment_width(bb) for bb in fan.billboards])
+    if not np.all(w > 0):
+        return {bb.camera: 1.0 for bb in fan.billboards}
+    th = np.array([angle(centers[bb.camera]) for bb in fan.billboards])
+    X = np.column_stack([np.ones_like(th), np.cos(2 * th), np.sin(2 * th)])
+    y = (w / 2) ** 2
+    reg = np.diag([0.0, ridge, ridge]) * float(np.mean(y)) ** 0  # (B, C) in the units of y: dimensionless weight
+    c = np.linalg.solve(X.T @ X + reg * len(w) + 1e-12 * np.eye(3), X.T @ y)
+    tv = angle(eye)
+    yv = float(c @ [1.0, np.cos(2 * tv), np.sin(2 * tv)])
+    wv = 2 * np.sqrt(max(yv, 0.0))
+    wv = float(np.clip(wv, WIDTH_SHRINK_MIN * w.min(), WIDTH_GROWTH_MAX * w.max()))
+    return {bb.camera: wv / wj for bb, wj in zip(fan.billboards, w)}
+
+
+def stretch_across(pose: np.ndarray, billboard: Billboard, factor: float) -> np.ndarray:
+    """``pose`` followed by a stretch of the turned billboard across its bone by ``factor`` (about the bone)."""
+    u = pose[:3, :3] @ billboard.axes[0]
+    u = u - (u @ (pose[:3, :3] @ (billboard.axis[1] - billboard.axis[0]))) * 0.0
+    S = np.eye(4)
+    S[:3, :3] += (factor - 1.0) * np.outer(u, u)
+    S[:3, 3] = -(factor - 1.0) * (u @ billboard.axis[0]) * u
+    return S @ pose
+
+
+def _steeper(billboard: Billboard, source: np.ndarray, eye: np.ndarray) -> float:
+    """``1 - |cos(bone, source)| / |cos(bone, view)|`` clipped to [0, 1]: how much more along its bone a view
+    looks than the billboard's source (0 when not more: the source's segment already shows that much of the
+    part's far side; -> 1 looking down the bone)."""
+    if billboard.axis is None:
+        return 0.0
+    b = billboard.axis[1] - billboard.axis[0]
+    b = b / max(np.linalg.norm(b), 1e-12)
+    mid = billboard.axis.mean(axis=0)
+
+    def along(p):
+        d = np.asarray(p, float) - mid
+        return abs(float(d @ b)) / max(float(np.linalg.norm(d)), 1e-12)
+
+    return float(np.clip(1.0 - along(source) / max(along(eye), 1e-6), 0.0, 1.0))
+
+
+def _front_over_back(front, back):
+    """Merge two warps ``(rgb, alpha, roi)`` of one billboard: ``front`` where it covers, else ``back``."""
+    if back is None:
+        return front
+    if front is None:
+        return back
+    (fc, fa, fr), (bc, ba, br) = front, back
+    x0, y0, x1, y1 = min(fr[0], br[0]), min(fr[1], br[1]), max(fr[2], br[2]), max(fr[3], br[3])
+    rgb = np.zeros((y1 - y0, x1 - x0, 3), np.float32)
+    alpha = np.zeros((y1 - y0, x1 - x0), np.float32)
+    for c, a, r in ((bc, ba, br), (fc, fa, fr)):
+        sl = (slice(r[1] - y0, r[3] - y0), slice(r[0] - x0, r[2] - x0))
+        take = a >= np.maximum(alpha[sl], 0.5) if c is fc else a > alpha[sl]
+        rgb[sl] = np.where(take[..., None], c, rgb[sl])
+        alpha[sl] = np.maximum(alpha[sl], a)
+    return rgb, alpha, (x0, y0, x1, y1)
+
+
 def _edges(labels: np.ndarray) -> np.ndarray:
     """Pixels whose 4-neighbourhood holds a different label."""
     e = np.zeros(labels.shape, bool)
@@ -272,15 +412,26 @@ def composite(model: BillboardModel, camera: Camera, warper: Warper, config: Ble
     depth = camera.depth_of(np.array([f.axis.mean(axis=0) for f in model.fans]))
     order = [i for i in np.argsort(-depth, kind="stable") if depth[i] > 0]
     drawn = []
+    centers = dict(zip(names, model.rig.centers))
     bx0, by0, bx1, by1 = w_img, h_img, 0, 0  # box of everything drawn
     for i in order:
         fan = model.fans[i]
         layers = []
+        depth_m = config.thickness * part_depth(fan) if config.face_view and config.thickness > 0 else 0.0
+        widths = view_widths(fan, centers, camera.center) if config.face_view and config.view_width else {}
         for b in fan.billboards:
             j = names.index(b.camera)
             if cw.fade[i, j] <= 0 or (weight[i, j] <= 0 and j != cw.nearest[i]):
                 continue
-            got = warper(b, camera, tuple(offset), facing_pose(b, camera.center) if config.face_view else None)
+            pose = facing_pose(b, camera.center) if config.face_view else None
+            if pose is not None and config.view_width:  # the part's width from this view, not the source's
+                k = 1.0 + (widths.get(b.camera, 1.0) - 1.0) * (1.0 - float(omega(cw.beta[i, j], config.angle_sigma)))
+                pose = stretch_across(pose, b, k)
+            got = warper(b, camera, tuple(offset), pose)
+            back_m = depth_m * _steeper(b, model.rig.centers[j], camera.center) if pose is not None else 0.0
+            if back_m > 0:  # the part's far side: what a view more along the bone than the source's sees more
+                got = _front_over_back(got, warper(b, camera, tuple(offset),
+                                                   behind_pose(pose, b, camera.center, back_m)))
             if got is None:
                 continue
             layers.append((j, got))

@@ -7,6 +7,9 @@ from dataclasses import dataclass
 from toolkit.errors import InputError
 from toolkit.rendering.weights import ANGLE_SIGMA, ATTENUATION_SIGMA_M, FADE_RATIO_HIGH, FADE_RATIO_LOW
 
+#: Where the back copy of a turned billboard sits, in part depths behind the bone (0.5: the part's back
+#: surface when the bone runs through its middle).
+THICKNESS = 0.5
 #: Standard deviation of the adaptive smoothing Gaussian, pixels.
 SMOOTHING_SIGMA_PX = 0.8
 #: Half-width of the band around detected discontinuities that gets smoothed, pixels (0: the
@@ -42,6 +45,17 @@ class BlendConfig:
         Turn each planar billboard about its bone to face the view
         (:func:`toolkit.rendering.blend.facing_pose`), so parts keep their width
         between and behind the sources; at a source camera nothing turns.
+    view_width : bool
+        With ``face_view``, stretch each turned billboard across its bone to
+        the part's width from the view, predicted by an elliptic
+        cross-section fitted to the widths its sources saw
+        (:func:`toolkit.rendering.blend.view_widths`), the more the farther
+        the view from the billboard's source (not at all on it).
+    thickness : float
+        With ``face_view``, each billboard is also drawn this many part
+        depths (:func:`toolkit.rendering.blend.part_depth`) behind itself,
+        under itself: seen from the side nothing changes, seen from above (or
+        below) the part's far half shows, as on a body (0 = off).
     binary_alpha : bool
         Threshold each warped billboard alpha at 0.5 (the source's binary
         segmentation masks): the parts of a source view then tile it exactly,
@@ -64,6 +78,8 @@ class BlendConfig:
     back_faces: bool = True
     normalise_fade: bool = True
     face_view: bool = True
+    view_width: bool = False
+    thickness: float = THICKNESS
     binary_alpha: bool = True
     smoothing: bool = True
     smoothing_sigma_px: float = SMOOTHING_SIGMA_PX
@@ -78,5 +94,7 @@ class BlendConfig:
         if not 0 <= self.fade_low < self.fade_high:
             raise InputError("BlendConfig.fade_low/fade_high", "0 <= fade_low < fade_high",
                              f"{self.fade_low}, {self.fade_high}")
+        if not 0.0 <= self.thickness <= 2.0:
+            raise InputError("BlendConfig.thickness", "a number of part depths in [0, 2]", repr(self.thickness))
         if self.smoothing_band_px < 0:
             raise InputError("BlendConfig.smoothing_band_px", "a non-negative integer", repr(self.smoothing_band_px))
