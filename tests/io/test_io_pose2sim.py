@@ -33,6 +33,14 @@ def test_trial_with_participant_level_and_config_precedence(tmp_path):
     assert [f.parent for f in t.config_files] == [tmp_path, tmp_path / "P00", trial]
     (trial / "pose-associated" / "cam01_json").mkdir(parents=True)
     assert read_pose2sim_trial(trial).keypoints == trial / "pose-associated"
+    # the raw detections asked for explicitly: the trial's settings still apply
+    assert is_pose2sim_trial(trial / "pose")
+    t = read_pose2sim_trial(trial / "pose")
+    assert t.trial == trial and t.keypoints == trial / "pose" and t.pose_model == "halpe_26"
+    # a folder merely called "pose" with nothing of Pose2Sim around is not a trial
+    other = tmp_path / "a" / "b" / "elsewhere" / "pose"
+    (other / "cam1").mkdir(parents=True)
+    assert not is_pose2sim_trial(other)
 
 
 def test_trial_without_participant_level_and_auto_rate(tmp_path):

@@ -12,7 +12,7 @@ Pose2Sim lays a session out as::
 
 or without the participant level (``Session/Trial/``).  :func:`read_pose2sim_trial`
 takes a trial folder and finds the keypoints (``pose-associated`` when there, else
-``pose``), the calibration file, the keypoint format (``[pose] pose_model``) and the
+``pose``; or the one of the two it is given), the calibration file, the keypoint format (``[pose] pose_model``) and the
 frame rate (``[project] frame_rate``) with Pose2Sim's own precedence (trial, then
 participant, then session settings).
 """
@@ -66,10 +66,23 @@ class Pose2SimTrial:
     reference_trc: tuple[Path, ...]
 
 
-def is_pose2sim_trial(path: str | os.PathLike) -> bool:
-    """Whether ``path`` is a folder holding ``pose-associated/`` or ``pose/`` (and so is read as a trial)."""
-    p = Path(path)
+def _holds_pose(p: Path) -> bool:
     return p.is_dir() and any((p / f).is_dir() for f in POSE_FOLDERS)
+
+
+def _pose_folder_of_trial(p: Path) -> bool:
+    """``p`` is a trial's ``pose/`` (or ``pose-associated/``) with Pose2Sim settings or calibration around."""
+    trial = p.parent
+    return (p.is_dir() and p.name in POSE_FOLDERS and not _holds_pose(p)
+            and ((trial / "Config.toml").is_file() or any(_calibration_dir(up) is not None
+                                                          for up in (trial.parent, trial.parent.parent))))
+
+
+def is_pose2sim_trial(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is read as a Pose2Sim trial: a folder holding ``pose-associated/`` or ``pose/``,
+    or one of those folders inside a trial (to read, say, the raw ``pose/`` rather than ``pose-associated/``)."""
+    p = Path(path)
+    return _holds_pose(p) or _pose_folder_of_trial(p)
 
 
 def _merge(base: dict, over: dict) -> dict:
@@ -90,7 +103,8 @@ def read_pose2sim_trial(path: str | os.PathLike) -> Pose2SimTrial:
     Parameters
     ----------
     path : path-like
-        The trial folder (holding ``pose-associated/`` or ``pose/``).
+        The trial folder (holding ``pose-associated/`` or ``pose/``), or one of those two
+        folders inside it (that one is read).
 
     Returns
     -------
@@ -103,9 +117,12 @@ def read_pose2sim_trial(path: str | os.PathLike) -> Pose2SimTrial:
         mapping for, a bad ``frame_rate``, or several calibration files (each names the file).
     """
     trial = Path(path)
-    if not is_pose2sim_trial(trial):
+    if _pose_folder_of_trial(trial):
+        trial, keypoints = trial.parent, trial
+    elif _holds_pose(trial):
+        keypoints = next(trial / f for f in POSE_FOLDERS if (trial / f).is_dir())
+    else:
         raise InputError(str(trial), f"a Pose2Sim trial folder holding one of {list(POSE_FOLDERS)}", "none of them")
-    keypoints = next(trial / f for f in POSE_FOLDERS if (trial / f).is_dir())
     # the session is the first folder above the trial that holds a calibration folder
     session, calib_dir = None, None
     for up in (trial.parent, trial.parent.parent):
