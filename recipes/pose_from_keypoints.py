@@ -126,7 +126,7 @@ def parse_args(argv=None):
 def match_cameras(rig, sources, what: str):
     """Rig sorted by camera name, and the sources (folders or files) in its order (by name, number or order)."""
     from toolkit.cameras import Rig
-    from toolkit.io.keypoint_formats import match_cameras as match
+    from toolkit.io.keypoint_files import match_cameras as match
 
     cams = sorted(rig, key=lambda c: c.name)
     order, how = match([c.name for c in cams], list(sources), what)
