@@ -63,7 +63,8 @@ from toolkit.errors import InputError  # noqa: E402
 
 #: --format names accepted, mapped to the names of toolkit.skeleton.mappings ("auto": found from the files).
 FORMATS = {"auto": None, "body_25b": "body_25b", "body_25": "body_25", "coco17": "coco_17", "coco_17": "coco_17",
-           "coco_18": "coco_18", "coco": "coco_18", "halpe_26": "halpe_26", "coco_133": "coco_133"}
+           "coco_18": "coco_18", "coco": "coco_18", "halpe_26": "halpe_26", "coco_133": "coco_133",
+           "blazepose_33": "blazepose_33"}
 #: Frame rate assumed when neither --fps, a Pose2Sim Config.toml nor --videos gives one (said so in the outputs).
 ASSUMED_FPS = 30.0
 #: Video file suffixes looked for in --videos.

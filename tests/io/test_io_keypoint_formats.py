@@ -68,7 +68,7 @@ def _expected14(fmt, p):
     return to_skeleton14(p[None], fmt, confidence=True)[0]
 
 
-@pytest.mark.parametrize("fmt", ["body_25", "body_25b", "coco_18", "coco_17", "halpe_26", "coco_133"])
+@pytest.mark.parametrize("fmt", ["body_25", "body_25b", "coco_18", "coco_17", "halpe_26", "coco_133", "blazepose_33"])
 def test_openpose_layout_every_format_detected(tmp_path, fmt):
     rng = np.random.default_rng(1)
     cams = []

@@ -31,7 +31,8 @@ __all__ = ["POSE_MODELS", "Pose2SimTrial", "is_pose2sim_trial", "read_pose2sim_t
 #: Pose2Sim ``pose_model`` names (upper case) -> keypoint formats of toolkit.skeleton.mappings.
 POSE_MODELS = {"BODY_25B": "body_25b", "BODY_25": "body_25", "COCO": "coco_18", "COCO_18": "coco_18",
                "COCO_17": "coco_17", "BODY": "coco_17", "HALPE_26": "halpe_26", "BODY_WITH_FEET": "halpe_26",
-               "COCO_133": "coco_133", "WHOLE_BODY": "coco_133", "COCO_133_WRIST": "coco_133"}
+               "COCO_133": "coco_133", "WHOLE_BODY": "coco_133", "COCO_133_WRIST": "coco_133",
+               "BLAZEPOSE": "blazepose_33"}
 #: Keypoint folders of a trial, in order of preference.
 POSE_FOLDERS = ("pose-associated", "pose")
 

@@ -14,7 +14,7 @@ COCO's, 17 UpperNeck, 18 HeadTop, 19-24 the feet; Pose2Sim's demo
 ``Config.toml`` lists the same ids under the names Neck and Head), the COCO
 keypoint task (17 keypoints), the HALPE full-body dataset (26 keypoints, as
 AlphaPose, RTMPose and Pose2Sim order them), COCO-WholeBody (133: COCO's 17,
-six foot, 68 face and 2 x 21 hand keypoints), and the CMU motion-capture BVH conversions
+six foot, 68 face and 2 x 21 hand keypoints), MediaPipe Pose's 33 landmarks, and the CMU motion-capture BVH conversions
 (31 joints in file order, then their 7 ``End Site`` points named
 ``<parent>_end``, as returned by ``BvhMotion.positions(end_sites=True)``).
 
@@ -31,7 +31,7 @@ from toolkit.errors import InputError
 from toolkit.skeleton.skeleton import JOINTS_14
 
 __all__ = ["KEYPOINTS", "MAPPINGS", "FORMATS", "BODY_25", "BODY_25B", "COCO_17", "COCO_18", "HALPE_26",
-           "COCO_133", "CMU_BVH", "CMU_BVH_TO_14", "SKELETON14_BVH_TO_14", "DETECTOR_FORMATS",
+           "COCO_133", "BLAZEPOSE_33", "CMU_BVH", "CMU_BVH_TO_14", "SKELETON14_BVH_TO_14", "DETECTOR_FORMATS",
            "POSE2SIM_MARKERS", "to_skeleton14", "mapping_table"]
 
 #: OpenPose BODY_25 keypoints, in output order.
@@ -63,6 +63,14 @@ COCO_133 = COCO_17 + ("left_big_toe", "left_small_toe", "left_heel", "right_big_
                       "right_heel") + tuple(f"face_{i}" for i in range(68)) \
     + tuple(f"left_hand_{i}" for i in range(21)) + tuple(f"right_hand_{i}" for i in range(21))
 
+#: MediaPipe Pose (BlazePose) landmarks, in order (Pose2Sim's ``BLAZEPOSE``).
+BLAZEPOSE_33 = ("nose", "left_eye_inner", "left_eye", "left_eye_outer", "right_eye_inner", "right_eye",
+                "right_eye_outer", "left_ear", "right_ear", "mouth_left", "mouth_right", "left_shoulder",
+                "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist", "left_pinky",
+                "right_pinky", "left_index", "right_index", "left_thumb", "right_thumb", "left_hip", "right_hip",
+                "left_knee", "right_knee", "left_ankle", "right_ankle", "left_heel", "right_heel",
+                "left_foot_index", "right_foot_index")
+
 #: Joints of the CMU motion-capture BVH conversions (e.g. ``01_01.bvh``), file
 #: order, then the end sites.
 CMU_BVH = ("Hips", "LHipJoint", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase", "RHipJoint",
@@ -74,10 +82,10 @@ CMU_BVH = ("Hips", "LHipJoint", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase
            "RFingers_end", "RThumb_end")
 
 KEYPOINTS = {"body_25": BODY_25, "body_25b": BODY_25B, "coco_17": COCO_17, "cmu_bvh": CMU_BVH,
-             "coco_18": COCO_18, "halpe_26": HALPE_26, "coco_133": COCO_133}
+             "coco_18": COCO_18, "halpe_26": HALPE_26, "coco_133": COCO_133, "blazepose_33": BLAZEPOSE_33}
 FORMATS = tuple(KEYPOINTS)
 #: The formats of 2D keypoint detectors (all of :data:`FORMATS` but the motion-capture skeleton).
-DETECTOR_FORMATS = ("body_25", "body_25b", "coco_18", "coco_17", "halpe_26", "coco_133")
+DETECTOR_FORMATS = ("body_25", "body_25b", "coco_18", "coco_17", "halpe_26", "coco_133", "blazepose_33")
 
 #: Our 14 joints under Pose2Sim's marker names (its BODY_25B / HALPE_26 skeletons), in the order Pose2Sim
 #: writes them in its .trc files.  Pose2Sim's ``Neck`` and ``Head`` are the detector's neck and head-top
@@ -154,6 +162,7 @@ MAPPINGS = {
 }
 
 MAPPINGS["coco_133"] = MAPPINGS["coco_17"]
+MAPPINGS["blazepose_33"] = MAPPINGS["coco_17"]   # the same names for the ears, eyes, nose and limbs
 
 #: CMU BVH names -> 14 joints, as single weight sets (for ``bvh_to_skeleton14``).
 CMU_BVH_TO_14 = {j: dict(MAPPINGS["cmu_bvh"][j][0]) for j in JOINTS_14}
