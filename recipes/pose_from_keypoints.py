@@ -124,14 +124,12 @@ def parse_args(argv=None):
     return args
 
 
-def match_cameras(rig, sources, what: str):
-    """Rig sorted by camera name, and the sources (folders or files) in its order (by name, number or order)."""
-    from toolkit.cameras import Rig
-    from toolkit.io.keypoint_files import match_cameras as match
+def match_videos(rig, files, what: str):
+    """The video files in the order of the rig's cameras (by name, number or order)."""
+    from toolkit.io.keypoint_files import match_cameras
 
-    cams = sorted(rig, key=lambda c: c.name)
-    order, how = match([c.name for c in cams], list(sources), what)
-    return Rig(tuple(cams)), [sources[i] for i in order], how
+    order, _ = match_cameras(rig.names, list(files), what)
+    return [files[i] for i in order]
 
 
 def run(args) -> int:
@@ -139,9 +137,8 @@ def run(args) -> int:
     from tqdm import tqdm
 
     from toolkit.anthropometry import AnthropometricConstraints
-    from toolkit.io import VideoReader, atomic_save_npz, atomic_write_text, read_calibration
-    from toolkit.io.keypoint_formats import camera_sources, read_keypoints
-    from toolkit.io.pose2sim import is_pose2sim_trial, read_pose2sim_trial
+    from toolkit.io import VideoReader, atomic_save_npz, atomic_write_text
+    from toolkit.io.keypoint_session import open_keypoint_session
     from toolkit.io.trajectories import skeleton14_trajectories, write_trajectories
     from toolkit.filtering import ButterworthFilter
     from toolkit.multiview import MultiViewConfig, MultiViewTracker, keypoints_to_candidates, stack_selections
@@ -149,29 +146,18 @@ def run(args) -> int:
     from toolkit.skeleton.mappings import to_skeleton14
 
     flips = () if args.flips.strip() == "none" else tuple(f.strip() for f in args.flips.split(",") if f.strip())
-    trial = read_pose2sim_trial(args.keypoints) if is_pose2sim_trial(args.keypoints) else None
-    kp_root = trial.keypoints if trial is not None else args.keypoints
-    calibration = args.calibration or (trial.calibration if trial is not None else None)
-    if calibration is None:
-        raise InputError("--calibration", "a calibration file (or a Pose2Sim trial whose session has one)",
-                         f"none given and none found for {args.keypoints}")
-    rig = read_calibration(calibration)
-    rig, sources, matched = match_cameras(rig, camera_sources(kp_root), f"{kp_root}: camera sources")
+    session = open_keypoint_session(args.keypoints, args.calibration, FORMATS[args.format], args.fps,
+                                    max_frames=args.max_frames)
+    rig, sources, matched, keypoints = session.rig, session.sources, session.matching, session.keypoints
     videos = None
     if args.videos is not None:
         if not args.videos.is_dir():
             raise InputError(str(args.videos), "a folder of videos", "no such folder")
         files = sorted(p for p in args.videos.iterdir() if p.suffix.lower() in VIDEO_SUFFIXES)
-        _, files, _ = match_cameras(rig, files, f"{args.videos}: video files")
+        files = match_videos(rig, files, f"{args.videos}: video files")
         videos = [VideoReader(p) for p in files]
-    declared, declared_by = FORMATS[args.format], "--format"
-    if declared is None and trial is not None and trial.pose_model is not None:
-        declared, declared_by = trial.pose_model, "[pose] pose_model of the Pose2Sim Config.toml"
-    keypoints = read_keypoints(sources, declared, declared_by, max_frames=args.max_frames)
     fmt, frame_numbers, kp = keypoints.format.fmt, keypoints.frames, keypoints.keypoints
-    fps, fps_from = args.fps, "--fps"
-    if fps is None and trial is not None and trial.frame_rate is not None:
-        fps, fps_from = trial.frame_rate, "Pose2Sim Config.toml"
+    fps, fps_from = session.fps, session.fps_from
     if fps is None and videos:
         fps, fps_from = float(videos[0].fps), f"video {videos[0].path.name}"
     if fps is None:
@@ -242,7 +228,8 @@ def run(args) -> int:
                 extra["joints_filtered"], names, frame_numbers, fps, {**meta, "filter": lowpass.describe()}),
                 args.export)
         atomic_write_text(args.out / "poses3d.json", json.dumps({
-            **meta, "frame_rate_hz": fps, "keypoints": str(kp_root), "calibration": str(calibration),
+            **meta, "frame_rate_hz": fps, "keypoints": str(session.keypoints_root),
+            "calibration": str(session.calibration),
             "cameras": {c.name: str(f) for c, f in zip(rig, sources)}, "camera_matching": matched,
             "frames_without_file": {c.name: int(m) for c, m in zip(rig, keypoints.missing.sum(1))},
             "frames_with_nobody": {c.name: int(m) for c, m in zip(rig, keypoints.empty.sum(1))},

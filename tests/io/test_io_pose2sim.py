@@ -49,7 +49,7 @@ def test_trial_without_participant_level_and_auto_rate(tmp_path):
     assert t.frame_rate is None and t.pose_model is None and t.calibration is not None
 
 
-@pytest.mark.parametrize("cfg,match", [("[pose]\npose_model = 'BLAZEPOSE'\n", "pose_model"),
+@pytest.mark.parametrize("cfg,match", [("[pose]\npose_model = 'BODY_135'\n", "pose_model"),
                                        ("[project]\nframe_rate = -3\n", "frame_rate"),
                                        ("[project\n", "Config.toml")])
 def test_bad_settings_name_the_file(tmp_path, cfg, match):
@@ -73,3 +73,33 @@ def test_demo_session():
     t = read_pose2sim_trial(trial)
     assert t.keypoints.name == "pose-associated" and t.calibration.name == "Calib_qualisys.toml"
     assert t.pose_model == "body_25b" and t.frame_rate == 60.0 and len(t.reference_trc) == 3
+
+
+def test_keypoint_session_from_a_trial(tmp_path):
+    """open_keypoint_session: the session's calibration, the Config's format and rate, cameras by name."""
+    import json
+
+    import numpy as np
+
+    from toolkit.cameras import Camera, Rig
+    from toolkit.io import write_calibration
+    from toolkit.io.keypoint_session import open_keypoint_session
+
+    trial = _session(tmp_path, session_cfg="[project]\nframe_rate = 50\n[pose]\npose_model = 'COCO_17'\n")
+    (tmp_path / "S00_Calibration" / "Calib_board.toml").unlink()
+    rig = Rig(tuple(Camera.look_at(f"cam_{i:02d}", [4 * np.cos(a), 4 * np.sin(a), 1.5], [0, 0, 1],
+                                   size=(640, 480), focal_px=600.0) for i, a in ((1, 0.0), (2, 1.5))))
+    write_calibration(tmp_path / "S00_Calibration" / "Calib_scene.toml", rig)
+    kp = np.tile([100.0, 200.0, 0.9], 17).tolist()
+    for cam in ("cam02_json", "cam01_json"):
+        (trial / "pose" / cam).mkdir(parents=True, exist_ok=True)
+        for t in range(2):
+            (trial / "pose" / cam / f"x.{t:04d}.json").write_text(json.dumps({"people": [{"pose_keypoints_2d": kp}]}))
+    s = open_keypoint_session(trial)
+    assert s.rig.names == ["cam_01", "cam_02"] and [p.name for p in s.sources] == ["cam01_json", "cam02_json"]
+    assert s.matching == "by name" and s.calibration.name == "Calib_scene.toml"
+    assert s.keypoints.format.fmt == "coco_17" and "pose_model" in s.keypoints.format.reason
+    assert (s.fps, s.fps_from) == (50.0, "Pose2Sim Config.toml") and s.keypoints.keypoints.shape == (2, 2, 17, 3)
+    assert open_keypoint_session(trial, fps=25.0).fps_from == "--fps"
+    with pytest.raises(InputError, match="calibration"):
+        open_keypoint_session(trial / "pose" / "cam01_json" / "..")  # a plain folder: no calibration known
