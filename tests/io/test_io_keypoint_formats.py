@@ -12,6 +12,7 @@ import pytest
 from toolkit.errors import InputError
 from toolkit.io.keypoint_formats import (body25_evidence, camera_sources, detect_format, match_cameras,
                                          read_camera_detections, read_keypoints)
+from toolkit.skeleton import JOINTS_14
 from toolkit.skeleton.mappings import KEYPOINTS, to_skeleton14
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -82,9 +83,16 @@ def test_openpose_layout_every_format_detected(tmp_path, fmt):
     assert got.format.fmt == fmt and got.keypoints.shape == (2, 6, len(KEYPOINTS[fmt]), 3)
     assert got.frames.tolist() == list(range(6)) and not got.missing.any() and not got.empty.any()
     np.testing.assert_array_equal(got.keypoints[0, 0], cams[0].people[0][0])
-    # the 14 joints land where the figure has them (head = mean of the ears)
+    # every limb joint of the 14 lands where the figure has it: no left/right or index mix-up
     j14 = to_skeleton14(got.keypoints, fmt, confidence=True)
-    assert np.all(np.abs(j14[0, 0, 2, :2] - FIGURE["LShoulder"]) < 4 * JITTER_PX)
+    for j, name in enumerate(JOINTS_14):
+        if name in ("head", "neck"):
+            continue
+        side, part = name.split("_")
+        expected = FIGURE[side.upper() + part.capitalize()]
+        assert np.all(np.abs(j14[0, 0, j, :2] - expected) < 4 * JITTER_PX), name
+    head = 0.5 * (np.array(FIGURE["LEar"]) + np.array(FIGURE["REar"]))
+    assert np.all(np.abs(j14[0, 0, JOINTS_14.index("head"), :2] - head) < 4 * JITTER_PX)
 
 
 def test_body25_and_body25b_told_apart_on_the_same_figure(tmp_path):
