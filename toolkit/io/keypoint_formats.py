@@ -26,9 +26,12 @@ __all__ = ["LAYOUTS", "PER_FRAME_LAYOUTS", "CameraDetections", "KeypointInput", 
            "detect_format", "select_person", "read_keypoints"]
 
 #: BODY_25 versus BODY_25B: the median log ratio of :func:`body25_evidence` must pass this
-#: (a factor 3 either way; the Pose2Sim demo's BODY_25B detections measure +2.1 to +2.5, the
-#: same detections rewritten as BODY_25 about -2, docs/keypoint_formats.md).
+#: (a factor 3 either way; the Pose2Sim demo's BODY_25B detections measure +1.7 to +2.5, the
+#: same detections rewritten as BODY_25 about -4.6, docs/keypoint_formats.md).
 BODY25_LOG_RATIO = float(np.log(3.0))
+#: Pixels added to both distances of a relation (a keypoint written exactly at a midpoint
+#: is strong evidence, not a division by zero).
+BODY25_EPS_PX = 1.0
 #: ... on at least this many detections with the keypoints it needs,
 BODY25_MIN_DETECTIONS = 3
 #: ... and this share of them must agree in sign.
@@ -122,7 +125,8 @@ BODY25_RELATIONS = ((1, (2, 5), 1, 0), (24, 11, 24, 16), (21, 14, 21, 15), (8, (
 
 
 def body25_evidence(cameras: list[CameraDetections]) -> np.ndarray:
-    """Per detection of 25 keypoints, the median of log(|a - b| / |c - d|) over :data:`BODY25_RELATIONS`.
+    """Per detection of 25 keypoints, the median of log((|a - b| + e) / (|c - d| + e)) over
+    :data:`BODY25_RELATIONS` (``e`` = :data:`BODY25_EPS_PX`).
 
     Negative when the keypoints sit like BODY_25's (keypoint 1 half-way between the
     shoulders, heels next to keypoints 11 and 14), positive when they sit like BODY_25B's
@@ -149,8 +153,7 @@ def body25_evidence(cameras: list[CameraDetections]) -> np.ndarray:
                     if any(q is None for q in pts):
                         continue
                     num, den = np.linalg.norm(pts[0] - pts[1]), np.linalg.norm(pts[2] - pts[3])
-                    if num > 0 and den > 0:
-                        vals.append(np.log(num / den))
+                    vals.append(np.log((num + BODY25_EPS_PX) / (den + BODY25_EPS_PX)))
                 if vals:
                     out.append(float(np.median(vals)))
     return np.array(out)
