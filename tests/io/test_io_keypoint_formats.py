@@ -288,3 +288,14 @@ def test_pose2sim_demo_detected_as_body25b_and_not_as_body25():
     cams = [CameraDetections(Path(f"c{c}"), "openpose", ("x",) * 20, got.frames, tuple(kp[c, :, None]))
             for c in range(4)]
     assert detect_format(cams).fmt == "body_25"
+
+
+def test_openpose_reader_rejects_negative_confidence_too(tmp_path):
+    from toolkit.io.openpose import read_openpose_json
+
+    p = figure("body_25b")
+    p[3, 2] = -1.0
+    write_openpose(tmp_path / "cam01", {0: [p]})
+    with pytest.raises(InputError, match="confidences >= 0") as e:
+        read_openpose_json(tmp_path / "cam01" / "cam.0000.json", 25)
+    assert "cam.0000.json" in str(e.value) and "keypoint 3" in str(e.value)
