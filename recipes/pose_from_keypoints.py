@@ -30,7 +30,8 @@ Writes into ``--out``:
 * ``poses3d.npz``: ``joints`` (T, 14, 3) metres in the calibration's world frame
   (NaN = no estimate), ``names`` (14,), ``frames`` (T,) frame numbers,
   ``success`` (T,), ``cost`` (T,) mean ray distance in metres,
-  ``violations`` (T,) number of broken anthropometric constraints;
+  ``violations`` (T,) number of broken anthropometric constraints, ``frame_rate``
+  (Hz); with ``--filter-cutoff`` also ``joints_filtered`` (T, 14, 3) and ``filter``;
 * ``offsets.npz``: ``offsets`` (T, n_cams, 2) pixels, ``camera_names``;
 * ``poses2d.npz``: per camera ``<camera>`` (T, 14, 2) offset-corrected joints
   and ``<camera>_raw`` (T, 14, 2) as detected (flips applied);
