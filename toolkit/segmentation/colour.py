@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.mixture import GaussianMixture
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
 from toolkit.errors import InputError
 
@@ -33,6 +33,19 @@ COLOUR_SPACES = ("rgb", "lab", "hsv", "chroma")
 #: thousand 3-vectors) and thread start-up dominated (measured: 2.6 s per frame
 #: with the default pools against 0.2 s with one thread on 2 cores).
 _THREADS = 1
+_POOLS = None
+
+
+def _one_thread():
+    """Context manager limiting BLAS / OpenMP to :data:`_THREADS` threads.
+
+    The controller is built once: ``threadpool_limits`` scans the loaded
+    libraries on every call (about 25 ms each, more than a small mixture fit).
+    """
+    global _POOLS
+    if _POOLS is None:
+        _POOLS = ThreadpoolController()
+    return _POOLS.limit(limits=_THREADS)
 
 
 def colour_features(image: np.ndarray, space: str) -> np.ndarray:
@@ -103,7 +116,7 @@ class PartColourModels:
         f = np.asarray(features, np.float64)
         out = np.full((len(f), self.n_parts), -np.inf)
         if len(f):
-            with threadpool_limits(limits=_THREADS):
+            with _one_thread():
                 for p, g in self.models.items():
                     out[:, p - 1] = g.score_samples(f)
         return out
@@ -175,7 +188,7 @@ def fit_part_models(features: np.ndarray, labels: np.ndarray, n_parts: int, *, n
         g = GaussianMixture(k, covariance_type=covariance_type, reg_covar=reg_covar, max_iter=50,
                             random_state=int(rng.integers(2**31)))
         # an EM run stopped at max_iter still gives a usable model (the best initialisation is kept)
-        with threadpool_limits(limits=_THREADS), warnings.catch_warnings():
+        with _one_thread(), warnings.catch_warnings():
             warnings.simplefilter("ignore", ConvergenceWarning)
             g.fit(f[idx])
         models[p] = g
