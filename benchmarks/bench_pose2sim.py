@@ -10,7 +10,7 @@ OpenPose keypoints (``pose-associated/``, BODY_25B) with and without per-view
 offsets, then prints:
 
 * per joint, the distance (mm) between our 3D joints and Pose2Sim's own
-  triangulation (``pose-3d/*_0-100.trc``, the unfiltered one; 21 markers in
+  triangulation (``pose-3d/*.trc``, the unfiltered one; 21 markers in
   metres, Y-up, world = (trc Z, trc X, trc Y), checked here by projecting);
 * the reprojection error (px) against the OpenPose keypoints of our joints and
   of Pose2Sim's, on the joints both have, and of ours against the
@@ -42,7 +42,8 @@ from toolkit.io.openpose import read_openpose_cameras  # noqa: E402
 from toolkit.skeleton import JOINTS_14  # noqa: E402
 from toolkit.skeleton.mappings import BODY_25B, to_skeleton14  # noqa: E402
 
-TRIAL = Path("pose2sim_demo/S00_P00_SingleParticipant/S00_P00_T01_BalancingTrial")
+TRIALS = (Path("pose2sim_demo/S00_P00_SingleParticipant/S00_P00_T00_StaticTrial"),
+          Path("pose2sim_demo/S00_P00_SingleParticipant/S00_P00_T01_BalancingTrial"))
 CALIB = Path("pose2sim_demo/S00_Calibration/Calib_qualisys.toml")
 #: Our joints and the .trc markers that name the same point.
 PAIRS = [(f"{s.lower()}_{n}", f"{s}{n.capitalize()}") for s in "LR"
@@ -76,16 +77,23 @@ def main(argv=None) -> int:
     ap.add_argument("--max-frames", type=int, default=None)
     ap.add_argument("--out", type=Path, default=None, help="keep the recipe outputs here")
     args = ap.parse_args(argv)
-    trial, calib = args.realdata / TRIAL, args.realdata / CALIB
-    if not trial.is_dir() or not calib.is_file():
+    calib = args.realdata / CALIB
+    if not all((args.realdata / t).is_dir() for t in TRIALS) or not calib.is_file():
         print(f"Pose2Sim demo not found under {args.realdata}; skipping (set TOOLKIT_REALDATA).")
         return 0
+    for t in TRIALS:
+        print(f"\n======== {t.name} ========")
+        bench_trial(args.realdata / t, calib, args)
+    return 0
+
+
+def bench_trial(trial: Path, calib: Path, args) -> None:
 
     rig = read_calibration(calib)
     rig = Rig(tuple(sorted(rig, key=lambda c: c.name)))
     _, frames, kp = read_openpose_cameras(trial / "pose-associated", len(BODY_25B), max_frames=args.max_frames)
     kp14 = to_skeleton14(kp, "body_25b", confidence=True, min_confidence=MIN_CONFIDENCE)
-    names, trc = read_trc(next((trial / "pose-3d").glob("*_0-100.trc")))
+    names, trc = read_trc(next(p for p in sorted((trial / "pose-3d").glob("*.trc")) if "filt" not in p.name))
     trc = trc[: len(frames)][..., [2, 0, 1]]  # Y-up trc -> our z-up world: (Z, X, Y)
     trc_kp = {n: i for i, n in enumerate(names)}
 
@@ -104,12 +112,15 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         base = args.out or Path(tmp)
         runs = {}
-        for label, extra in (("ours (offsets)", []), ("ours (no offsets)", ["--no-offsets"])):
+        for label, extra in (("ours (defaults)", []), ("ours (per-frame offsets)", ["--offsets", "frame"]),
+                             ("ours (no offsets)", ["--no-offsets"])):
             out = base / label.replace(" ", "_").replace("(", "").replace(")", "")
             dt = run_recipe(calib, trial / "pose-associated", out, args.max_frames, extra)
             p3 = np.load(out / "poses3d.npz")
-            runs[label] = dict(joints=p3["joints"], offsets=np.load(out / "offsets.npz")["offsets"],
-                               seconds=dt, cost=p3["cost"])
+            off = np.load(out / "offsets.npz")
+            flips = np.load(out / "flips.npz")["flips"]
+            runs[label] = dict(joints=p3["joints"], offsets=off["offsets"], seconds=dt, cost=p3["cost"],
+                               mode=str(off["mode"]), reason=str(off["reason"]), flips=int((flips != "").sum()))
 
     T = len(frames)
     print(f"\nPose2Sim demo, {T} frames, {len(rig)} cameras ({', '.join(rig.names)})")
@@ -143,14 +154,13 @@ def main(argv=None) -> int:
             corr = obs + np.transpose(np.nan_to_num(r["offsets"]), (1, 0, 2))[:, :, None, :]
             e = np.linalg.norm(rig.project(r["joints"][:, idx]) - corr, axis=-1)
             print(f"{k + ', corrected keypoints':<32}{np.nanmedian(e):>8.1f} / {np.nanpercentile(e, 90):.1f}")
-    r = runs["ours (offsets)"]
-    off = np.nanmedian(r["offsets"], axis=0)
-    print("\nMedian offset per camera (px): " + ", ".join(f"{c} ({o[0]:+.1f}, {o[1]:+.1f})"
-                                                       for c, o in zip(rig.names, off)))
     for k, r in runs.items():
-        print(f"{k}: mean ray distance {1000 * np.nanmean(r['cost']):.1f} mm, "
+        off = np.nanmedian(r["offsets"], axis=0)
+        print(f"\n{k}: offsets {r['mode']} (median per camera, px: " + ", ".join(
+            f"{c} ({o[0]:+.1f}, {o[1]:+.1f})" for c, o in zip(rig.names, off)) + f"); {r['flips']} view-frames flipped")
+        print(f"  why: {r['reason']}")
+        print(f"  mean ray distance {1000 * np.nanmean(r['cost']):.1f} mm, "
               f"{1000 * r['seconds'] / T:.0f} ms per frame (whole recipe run incl. start-up)")
-    return 0
 
 
 if __name__ == "__main__":

@@ -19,10 +19,14 @@ names, else by sorted order; the keypoint format is found from the files
 (``--format auto``) or checked against the one given.  Frames missing in a camera
 are marked missing, files without people are empty frames; bad files raise an
 error naming them.  Keypoints are mapped to the 14-joint skeleton, joints
-below ``--min-confidence`` are dropped, and every frame is triangulated with
-the multi-view stage of source 000 §2.1 (one candidate per view plus its
-left/right flips, per-view 2D offsets by Levenberg-Marquardt, the previous
-frame's offsets as the starting point), then checked against the
+below ``--min-confidence`` are dropped, and the sequence is triangulated by
+``toolkit.multiview.keypoint_sequence`` (docs/stage1_multiview.md, "Keypoints"):
+the detector's left/right labels are kept unless flipping a view's joints
+explains the rays decisively better (never every view: that is the mirror of
+the labels); one 2D offset per camera is estimated over the whole sequence and
+kept only when offsets fitted on half of the joints lower the reprojection
+error of the other half (a calibration error does, a detector's bias does not);
+per-frame offsets with ``--offsets frame``.  Every frame is checked against the
 anthropometric constraints (reported, not enforced).
 
 Writes into ``--out``:
@@ -32,7 +36,11 @@ Writes into ``--out``:
   ``success`` (T,), ``cost`` (T,) mean ray distance in metres,
   ``violations`` (T,) number of broken anthropometric constraints, ``frame_rate``
   (Hz); with ``--filter-cutoff`` also ``joints_filtered`` (T, 14, 3) and ``filter``;
-* ``offsets.npz``: ``offsets`` (T, n_cams, 2) pixels, ``camera_names``;
+* ``offsets.npz``: ``offsets`` (T, n_cams, 2) pixels, ``camera_names``, ``mode``
+  (the offsets used: sequence, frame or none), ``sequence_offsets`` (n_cams, 2)
+  (estimated, also when rejected) and ``reason`` (why they were kept or rejected);
+* ``flips.npz``: ``flips`` (T, n_cams) the left/right flip applied per frame and
+  camera ("" = the detector's labels), ``camera_names``, ``frames``;
 * ``poses2d.npz``: per camera ``<camera>`` (T, 14, 2) offset-corrected joints
   and ``<camera>_raw`` (T, 14, 2) as detected (flips applied);
 * ``poses3d.trc``, ``poses3d.c3d``, ``poses3d.csv`` (``--export``): the joints under
@@ -74,6 +82,7 @@ VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv")
 
 def parse_args(argv=None):
     from toolkit.multiview import FLIP_MODES, MAX_OFFSET_PX, MIN_JOINT_CONFIDENCE, MIN_VIEW_CONFIDENCE
+    from toolkit.multiview.keypoint_sequence import OFFSET_MODES
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
@@ -101,10 +110,14 @@ def parse_args(argv=None):
                     help=f"drop joints below this confidence (default {MIN_JOINT_CONFIDENCE})")
     ap.add_argument("--min-view-confidence", type=float, default=MIN_VIEW_CONFIDENCE,
                     help=f"drop a view whose mean confidence is below this (default {MIN_VIEW_CONFIDENCE})")
-    ap.add_argument("--flips", default="all",
-                    help=f"left/right flips tried per view, comma-separated among {','.join(FLIP_MODES)}, "
-                         "or 'none' (default all)")
-    ap.add_argument("--no-offsets", action="store_true", help="do not optimise per-view 2D offsets")
+    ap.add_argument("--flips", default=",".join(FLIP_MODES),
+                    help=f"left/right flips tested per view and frame, comma-separated among {','.join(FLIP_MODES)}, "
+                         "or 'none'; a flip is applied only when it explains the rays decisively better than the "
+                         f"detector's labels, and never to every view (default {','.join(FLIP_MODES)})")
+    ap.add_argument("--offsets", choices=OFFSET_MODES, default="sequence",
+                    help="per-camera 2D offsets: one per camera over the sequence, kept only when they generalise "
+                         "across joints (default); per frame (the silhouette stage's); or none")
+    ap.add_argument("--no-offsets", action="store_true", help="same as --offsets none")
     ap.add_argument("--max-offset-px", type=float, default=MAX_OFFSET_PX,
                     help=f"bound on each offset component in pixels (default {MAX_OFFSET_PX:g})")
     ap.add_argument("--no-robust", action="store_true", help="keep views and rays whose rays disagree")
@@ -142,7 +155,8 @@ def run(args) -> int:
     from toolkit.io.keypoint_session import open_keypoint_session
     from toolkit.io.trajectories import skeleton14_trajectories, write_trajectories
     from toolkit.filtering import ButterworthFilter
-    from toolkit.multiview import MultiViewConfig, MultiViewTracker, keypoints_to_candidates, stack_selections
+    from toolkit.multiview import MultiViewConfig, keypoints_to_candidates
+    from toolkit.multiview.keypoint_sequence import KeypointConfig, triangulate_keypoint_sequence
     from toolkit.skeleton import SKELETON_14
     from toolkit.skeleton.mappings import to_skeleton14
 
@@ -173,8 +187,9 @@ def run(args) -> int:
     kp14 = to_skeleton14(kp, fmt, confidence=True, min_confidence=args.min_confidence)  # (n_cams, T, 14, 3)
     n_cams, n_frames = kp14.shape[:2]
     constraints = AnthropometricConstraints(check_ground=not args.no_ground_check)
-    config = MultiViewConfig(flips=flips, optimise_offsets=not args.no_offsets, robust=not args.no_robust,
-                             max_offset_px=args.max_offset_px, constraints=constraints)
+    config = KeypointConfig(flips=flips, offsets="none" if args.no_offsets else args.offsets,
+                            multiview=MultiViewConfig(flips=(), robust=not args.no_robust,
+                                                      max_offset_px=args.max_offset_px, constraints=constraints))
     args.out.mkdir(parents=True, exist_ok=True)
     observer = None
     if not args.no_recording:
@@ -190,30 +205,40 @@ def run(args) -> int:
             print(f"  {cam.name}: {int(keypoints.missing[c].sum())} frames without a file, "
                   f"{int(keypoints.empty[c].sum())} with nobody (marked missing)")
 
-    tracker = MultiViewTracker(rig, config, observer)
-    selections = [None] * n_frames
     status, t0 = "complete", time.perf_counter()
+    nan = np.full((n_cams, n_frames, 14, 2), np.nan)
+    arrays = {"joints": np.full((n_frames, 14, 3), np.nan), "success": np.zeros(n_frames, bool),
+              "cost": np.full(n_frames, np.nan), "offsets": np.zeros((n_frames, n_cams, 2)), "poses2d": nan,
+              "poses2d_raw": nan, "flips": np.full((n_frames, n_cams), "", dtype=object)}
+    seq, viol = None, [()] * n_frames
     try:
-        for t in tqdm(range(n_frames), desc="triangulating", unit="frame", disable=args.quiet):
-            if videos is not None:
+        if videos is not None:
+            for t in tqdm(range(n_frames), desc="video frames", unit="frame", disable=args.quiet):
                 for cam, vid in zip(rig, videos):
                     if int(frame_numbers[t]) < len(vid):
                         observer.report("image", camera=cam.name, image=vid.read(int(frame_numbers[t])), frame=t)
-            cand, w = keypoints_to_candidates(kp14[:, t], args.min_confidence, args.min_view_confidence)
-            sel = tracker.step(cand, w, frame=t)
-            selections[t] = sel
-            if observer is not None:
-                observer.report("scalar", name="anthropometry/violations", value=len(sel.violations), frame=t)
+        cand = [keypoints_to_candidates(kp14[:, t], args.min_confidence, args.min_view_confidence)
+                for t in range(n_frames)]
+        pts = np.stack([c[0][:, 0] for c in cand], axis=1)  # (n_cams, T, 14, 2)
+        wts = np.stack([c[1][:, 0] for c in cand], axis=1)
+        seq = triangulate_keypoint_sequence(pts, rig, config, weights=wts, observer=observer)
+        arrays = {"joints": seq.joints3d, "success": seq.success, "cost": seq.cost, "offsets": seq.offsets,
+                  "poses2d": seq.poses2d, "poses2d_raw": seq.poses2d_raw, "flips": seq.flips}
+        viol = seq.violations
+        if seq.interrupted:
+            status = "interrupted"
+        if observer is not None:
+            for t in range(n_frames):
+                observer.report("scalar", name="anthropometry/violations", value=len(viol[t]), frame=t)
     except KeyboardInterrupt:
         status = "interrupted"
     except BaseException:
         status = "failed"
         raise
     finally:
-        done = sum(s is not None for s in selections)
-        arrays = stack_selections(selections, n_cams)
+        done = int(np.sum(arrays["success"])) if seq is not None and seq.interrupted else (n_frames if seq is not None else 0)
         names = np.array(SKELETON_14.joint_names)
-        violations = np.array([len(s.violations) if s is not None else -1 for s in selections])
+        violations = np.array([len(v) if seq is not None else -1 for v in viol])
         meta = {"source": "pose_from_keypoints", "keypoint_format": f"{fmt} ({keypoints.format.reason})",
                 "frame_rate": f"{fps:g} Hz ({fps_from})", "status": status}
         extra = {}
@@ -241,12 +266,18 @@ def run(args) -> int:
                                 "trc": "Y up: (X, Y, Z) = world (y, z, x), metres",
                                 "c3d": "the TRC's axes, millimetres"},
             "files": [p.name for p in exported]}, indent=2) + "\n")
-        atomic_save_npz(args.out / "offsets.npz", offsets=arrays["offsets"], camera_names=np.array(rig.names))
+        decision = seq.offset_decision if seq is not None else None
+        atomic_save_npz(args.out / "offsets.npz", offsets=arrays["offsets"], camera_names=np.array(rig.names),
+                        mode=np.array(decision.mode if decision else "none"),
+                        sequence_offsets=decision.offsets if decision else np.zeros((n_cams, 2)),
+                        reason=np.array(decision.reason if decision else status))
+        atomic_save_npz(args.out / "flips.npz", flips=arrays["flips"].astype(str), camera_names=np.array(rig.names),
+                        frames=frame_numbers)
         atomic_save_npz(args.out / "poses2d.npz", names=names,
                         **{c: arrays["poses2d"][i] for i, c in enumerate(rig.names)},
                         **{f"{c}_raw": arrays["poses2d_raw"][i] for i, c in enumerate(rig.names)})
-        lines = [f"frame {int(frame_numbers[t])}: " + ("; ".join(s.violations) if s.violations else "ok")
-                 for t, s in enumerate(selections) if s is not None]
+        lines = [f"frame {int(frame_numbers[t])}: " + ("; ".join(v) if v else "ok")
+                 for t, v in enumerate(viol) if seq is not None]
         atomic_write_text(args.out / "anthropometry.txt", "\n".join(lines) + "\n")
         if observer is not None:
             observer.close()
@@ -256,6 +287,11 @@ def run(args) -> int:
         ok = arrays["success"]
         print(f"{status}: {done}/{n_frames} frames processed in {dt:.1f} s ({1000 * dt / max(done, 1):.0f} ms/frame), "
               f"{int(ok.sum())} with a 3D estimate")
+        if decision is not None:
+            print(f"  offsets: {decision.mode} ({decision.reason})")
+            flipped = (arrays["flips"] != "").sum(axis=0)
+            print("  left/right flips applied (frames per camera): "
+                  + ", ".join(f"{c} {int(n)}" for c, n in zip(rig.names, flipped)))
         if ok.any():
             off = np.nanmean(np.linalg.norm(arrays["offsets"][ok], axis=-1), axis=0)
             print("  mean |offset| per camera (px): " + ", ".join(f"{c} {o:.1f}" for c, o in zip(rig.names, off)))
@@ -265,6 +301,7 @@ def run(args) -> int:
         for p in exported:
             print(f"  trajectories:  {p}")
         print(f"  offsets:       {args.out / 'offsets.npz'}")
+        print(f"  flips:         {args.out / 'flips.npz'}")
         print(f"  2D joints:     {args.out / 'poses2d.npz'}")
         print(f"  anthropometry: {args.out / 'anthropometry.txt'}")
         if observer is not None:

@@ -126,18 +126,18 @@ def test_missing_inputs(tmp_path, capsys):
 
 def test_interrupted_run_keeps_earlier_frames(tmp_path, monkeypatch):
     _, poses, kp_root = make_scene(tmp_path, n_frames=4)
-    import toolkit.multiview as mv
+    import toolkit.multiview.keypoint_sequence as ks
 
     calls = {"n": 0}
-    real_step = mv.MultiViewTracker.step
+    real_select = ks.select_multiview
 
-    def step(self, *a, **k):
+    def select(*a, **k):  # Ctrl-C while the third frame is triangulated
         calls["n"] += 1
         if calls["n"] == 3:
             raise KeyboardInterrupt
-        return real_step(self, *a, **k)
+        return real_select(*a, **k)
 
-    monkeypatch.setattr(mv.MultiViewTracker, "step", step)
+    monkeypatch.setattr(ks, "select_multiview", select)
     out = tmp_path / "out"
     code = run(["--calibration", tmp_path / "calib.toml", "--keypoints", kp_root, "--out", out,
                 "--no-recording", "--quiet"])
