@@ -11,7 +11,7 @@ import pytest
 from toolkit.anthropometry.proportions import BodyProportions
 from toolkit.cameras import Camera
 from toolkit.motion import generate_motion
-from toolkit.synthetic.body import BodyModel
+from toolkit.synthetic.body import BodyModel, BodyShape, dress
 
 
 @dataclass
@@ -22,12 +22,21 @@ class Frame:
     camera: Camera
 
 
-def make_frame(seed: int, size=(480, 360), distance: float = 4.5, motion: str = "wave", t: int = 20) -> Frame:
-    """Render a sampled person (its own outfit) by ray casting, with baked shading and a textured backdrop."""
+def make_frame(seed: int, size=(480, 360), distance: float = 4.5, motion: str = "wave", t: int = 20,
+               kit=None) -> Frame:
+    """Render a sampled person (its own outfit) by ray casting, with baked shading and a textured backdrop.
+
+    ``kit`` (RGB in [0, 1]): a low-contrast outfit, shirt (with its print) and trousers drawn close to
+    this colour, in front of a backdrop of the same colour.
+    """
     rng = np.random.default_rng(seed)
     props = BodyProportions.from_height(1.75)
     joints = generate_motion(motion, props, 40, 25.0, rng=rng)[t]
-    body = BodyModel.sample(props, rng)
+    shape = BodyShape.sample(props, rng)
+    if kit is not None:
+        kit = np.asarray(kit, float)
+        shape = dress(shape, near=kit[None], trousers_rgb=np.clip(0.85 * kit, 0, 1), rng=seed)
+    body = BodyModel(shape, rng)
     mesh = body.mesh(joints)
     centre = joints.mean(0)
     ang = rng.uniform(0, 2 * np.pi)
@@ -48,7 +57,8 @@ def make_frame(seed: int, size=(480, 360), distance: float = 4.5, motion: str = 
     parts[hit] = mesh.triangle_parts[pid[hit]]
     shaded = mesh.shaded_colors()
     tri_col = shaded[mesh.triangles].mean(1)
-    img = rng.uniform(0.3, 0.7, 3) + 0.15 * rng.standard_normal((h, w, 3))  # noisy backdrop
+    back = rng.uniform(0.3, 0.7, 3) if kit is None else kit
+    img = back + (0.15 if kit is None else 0.05) * rng.standard_normal((h, w, 3))  # noisy backdrop
     img[hit] = tri_col[pid[hit]] + 0.02 * rng.standard_normal((hit.sum(), 3))
     return Frame(np.clip(img * 255, 0, 255).astype(np.uint8), parts, joints, cam)
 
