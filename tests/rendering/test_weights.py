@@ -56,6 +56,26 @@ def test_grazing_fade_back_facing_and_at_source():
     assert grazing_fade(n, p, np.array([0.01, 5.0, 0.0]), src)[0, 0] == 0.0  # edge-on
 
 
+def test_back_faces_fade_and_mirrored_angle():
+    from toolkit.rendering.weights import back_view_angles
+
+    src = np.array([[5.0, 0.0, 1.0]])
+    p = np.zeros((1, 1, 3))
+    n = np.array([[[1.0, 0.0, 0.0]]])
+    behind = np.array([-5.0, 0.0, 1.0])  # the source mirrored through the plane x = 0
+    assert grazing_fade(n, p, behind, src, side="back")[0, 0] == 1.0
+    assert grazing_fade(n, p, src[0], src, side="back")[0, 0] == 0.0  # in front: no back face
+    # the back face seen from the mirrored source looks like the front from the source: beta = 0
+    assert back_view_angles(np.zeros((1, 3)), n, p, behind, src)[0, 0] < EXACT
+    # 40 degrees round from the mirrored position: beta = 40 degrees
+    a = np.radians(180.0 - 40.0)
+    v = np.array([5.0 * np.cos(a), 5.0 * np.sin(a), 0.0])
+    src0 = np.array([[5.0, 0.0, 0.0]])
+    assert abs(back_view_angles(np.zeros((1, 3)), n, p, v, src0)[0, 0] - np.radians(40.0)) < 1e-9
+    with pytest.raises(InputError, match="side"):
+        grazing_fade(n, p, src[0], src, side="top")
+
+
 def test_bad_input_is_named():
     with pytest.raises(InputError, match="anchors"):
         camera_weights(np.zeros(3), np.zeros(3), _rig_centres())

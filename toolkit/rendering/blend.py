@@ -160,10 +160,11 @@ def fan_weights(model: BillboardModel, camera: Camera, config: BlendConfig = Ble
       faces a source on the other side), their back faces are drawn instead
       (``config.back_faces``), weighted by
       :func:`~toolkit.rendering.weights.back_view_angles`;
-    * the fades are divided by the fan's largest (``config.normalise_fade``):
-      the best-placed billboard of a part is always opaque, the others fade
-      relative to it, so a part seen only at grazing angles (two cameras far
-      apart, a high view) is not drawn half transparent; a fan seen exactly
+    * with ``config.normalise_fade``, the fan's nearest camera is the one with
+      the largest faded weight ``omega * fade`` and the fades are divided by
+      its fade: the billboard eq. 10 takes its alpha from is opaque, the
+      others fade relative to it, so a part seen only at grazing angles (two
+      cameras far apart, a high view) is not drawn half transparent; a fan seen exactly
       edge-on by every billboard keeps the least foreshortened one.
     """
     names = model.rig.names
@@ -193,13 +194,16 @@ def fan_weights(model: BillboardModel, camera: Camera, config: BlendConfig = Ble
         if back.any():
             fade = np.where(back, fade_b, fade)
             beta = np.where(back, back_view_angles(anchors, normals, points, camera.center, model.rig.centers), beta)
-    if config.normalise_fade:
-        top = fade.max(axis=1, keepdims=True)
-        fade = np.where(top > 0, fade / np.maximum(top, 1e-12), fade)
     om = omega(beta, config.angle_sigma)
     # the nearest camera among those that draw in the fan (else among those that have a billboard)
     usable = np.where(np.any(fade > 0, axis=1, keepdims=True), fade > 0, present)
-    nearest = np.argmax(np.where(usable, om, -1.0), axis=1)
+    if config.normalise_fade:
+        # the camera with the largest faded weight is the fan's nearest, and opaque (eq. 10 takes its alpha)
+        nearest = np.argmax(np.where(usable, om * fade, -1.0), axis=1)
+        top = fade[np.arange(n_f), nearest][:, None]
+        fade = np.where(top > 0, np.clip(fade / np.maximum(top, 1e-12), 0.0, 1.0), fade)
+    else:
+        nearest = np.argmax(np.where(usable, om, -1.0), axis=1)
     # eqs. 8-10 are ratios of omega within a fan: relative to the nearest camera's, so that a fan seen
     # only by cameras far from V (omega ~ 1e-13 at 140 degrees) is not lost to the "no weight" threshold
     om = om / np.maximum(om[np.arange(n_f), nearest], 1e-300)[:, None]
@@ -295,8 +299,8 @@ def view_widths(fan, centers: dict, eye: np.ndarray, ridge: float = WIDTH_RIDGE)
     th = np.array([angle(centers[bb.camera]) for bb in fan.billboards])
     X = np.column_stack([np.ones_like(th), np.cos(2 * th), np.sin(2 * th)])
     y = (w / 2) ** 2
-    reg = np.diag([0.0, ridge, ridge]) * float(np.mean(y)) ** 0  # (B, C) in the units of y: dimensionless weight
-    c = np.linalg.solve(X.T @ X + reg * len(w) + 1e-12 * np.eye(3), X.T @ y)
+    reg = np.diag([0.0, ridge, ridge]) * len(w)  # (B, C) have the units of y: a dimensionless weight
+    c = np.linalg.solve(X.T @ X + reg + 1e-12 * np.eye(3), X.T @ y)
     tv = angle(eye)
     yv = float(c @ [1.0, np.cos(2 * tv), np.sin(2 * tv)])
     wv = 2 * np.sqrt(max(yv, 0.0))
@@ -306,8 +310,7 @@ def view_widths(fan, centers: dict, eye: np.ndarray, ridge: float = WIDTH_RIDGE)
 
 def stretch_across(pose: np.ndarray, billboard: Billboard, factor: float) -> np.ndarray:
     """``pose`` followed by a stretch of the turned billboard across its bone by ``factor`` (about the bone)."""
-    u = pose[:3, :3] @ billboard.axes[0]
-    u = u - (u @ (pose[:3, :3] @ (billboard.axis[1] - billboard.axis[0]))) * 0.0
+    u = pose[:3, :3] @ billboard.axes[0]  # across the bone, unit
     S = np.eye(4)
     S[:3, :3] += (factor - 1.0) * np.outer(u, u)
     S[:3, 3] = -(factor - 1.0) * (u @ billboard.axis[0]) * u

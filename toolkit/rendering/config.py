@@ -38,9 +38,10 @@ class BlendConfig:
         faces (the fallback that keeps the subject in reverse-angle views) instead
         of nothing.
     normalise_fade : bool
-        Divide each fan's fades by its largest, so the best-placed billboard of
-        a part is opaque and a part seen only at grazing angles is not drawn
-        half transparent.
+        Take each fan's nearest camera as the one with the largest
+        ``omega * fade`` and divide the fan's fades by its fade, so the
+        billboard whose alpha eq. 10 uses is opaque and a part seen only at
+        grazing angles is not drawn half transparent.
     face_view : bool
         Turn each planar billboard about its bone to face the view
         (:func:`toolkit.rendering.blend.facing_pose`), so parts keep their width
