@@ -111,8 +111,10 @@ def test_joints_scored_in_too_few_views_keep_their_start(scene):
     assert st.status == "few_views" and np.array_equal(st.position, J[WRIST])
     assert "1 view" in st.reason and any("fewer than 2" in d["text"] for d in obs.of_kind("text"))
     # min_views = 1 searches anyway; the full scorer (both cameras see both billboards) searches by default
-    assert optimize_joint(weak, J, WRIST, config=OptimizeConfig(min_views=1)).status == "moved"
-    assert optimize_joint(PositionScorer(two.images, two.labels, two.rig), J, WRIST).status == "moved"
+    # (one camera pair: a move needs min_pairs = 1, see test_optimize_decisive.py)
+    one_pair = OptimizeConfig(min_pairs=1)
+    assert optimize_joint(weak, J, WRIST, config=OptimizeConfig(min_views=1, min_pairs=1)).status == "moved"
+    assert optimize_joint(PositionScorer(two.images, two.labels, two.rig), J, WRIST, config=one_pair).status == "moved"
     with pytest.raises(InputError, match="min_views"):
         OptimizeConfig(min_views=0)
 

@@ -126,12 +126,57 @@ class _Source:
 
 @dataclass(frozen=True)
 class PartScore:
-    """Score of one bone: ``value`` in [0, 1] (NaN when no camera pair sees it in any view),
-    ``per_view`` (n_views,) NaN where undefined, ``n_billboards`` per view."""
+    """Score of one bone.
+
+    Attributes
+    ----------
+    value : float
+        In [0, 1]; NaN when no camera pair sees the bone in any view.
+    per_view : ndarray of shape (n_views,)
+        The pair-weighted score per evaluated view (eqs. 3-5), NaN where undefined.
+    n_billboards : ndarray of shape (n_views,), int
+        Billboards drawn per view.
+    per_pair : ndarray of shape (n_views, n_cams, n_cams) or None
+        Eq. 3 per view and camera pair ``(i, k)``, ``i < k`` (unweighted: Σ s(p) / #active
+        pixels), 0 for a pair the visibility set counts but whose billboards this pose
+        made degenerate, NaN for pairs not evaluated in that view (upper triangle only).
+        ``per_view`` is the ω(β)-weighted mean of these.  The joint search uses
+        them to check that independent camera pairs agree on a move.
+    """
 
     value: float
     per_view: np.ndarray
     n_billboards: np.ndarray
+    per_pair: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class MoveEvidence:
+    """A joint move split into what each view and each camera pair says (:meth:`PositionScorer.move_evidence`).
+
+    Attributes
+    ----------
+    view_gain : ndarray of shape (n_views,)
+        Rise of the view's score summed over the joint's adjacent bones; NaN for
+        views that score none of them.
+    pair_gain : ndarray of shape (n_cams, n_cams)
+        Rise of the unweighted pair score (eq. 3), averaged over the views that
+        evaluate the pair and summed over the adjacent bones; upper triangle
+        ``(i, k)``, ``i < k``; NaN for pairs that score none of them.
+    """
+
+    view_gain: np.ndarray
+    pair_gain: np.ndarray
+
+    @property
+    def n_views(self) -> int:
+        """Views that score at least one of the joint's bones."""
+        return int(np.isfinite(self.view_gain).sum())
+
+    @property
+    def n_pairs(self) -> int:
+        """Camera pairs that score at least one of the joint's bones."""
+        return int(np.isfinite(self.pair_gain).sum())
 
 
 class PositionScorer:
@@ -298,10 +343,11 @@ class PositionScorer:
         mid = ends.mean(axis=0)
         nv, nc = len(self.views), len(self.rig)
         per_view = np.full(nv, np.nan)
+        per_pair = np.full((nv, nc, nc), np.nan)
         counts = np.zeros(nv, int)
         used = [ci for ci in range(nc) if vis[:, ci].any()]
         if len(used) < 2:
-            return PartScore(float("nan"), per_view, counts)
+            return PartScore(float("nan"), per_view, counts, per_pair)
         bbs = {ci: self._billboard(ci, part, ends) for ci in used}
         rows = {ci: self._plane_row(ci, r[0].normal, r[0].origin) for ci, r in bbs.items() if r is not None}
         for vi, view in enumerate(self.views):
@@ -361,6 +407,7 @@ class PositionScorer:
                     c1, c2 = cams[i], cams[k]
                     om = self._pair_w[c1, c2]
                     den += om
+                    per_pair[vi, c1, c2] = 0.0
                     if c1 not in act or c2 not in act:
                         continue  # a degenerate billboard: the pair scores 0
                     a1, a2 = act[c1], act[c2]
@@ -374,12 +421,64 @@ class PositionScorer:
                         continue
                     d = rgb[c1][both].astype(np.int32) - rgb[c2][both]
                     eps = np.sqrt(np.einsum("ij,ij->i", d, d).astype(np.float32)) * (cfg.eps_gain / RGB_DIAGONAL)
-                    num += om * float(n_both - np.minimum(eps, 1.0).sum()) / n_either
+                    per_pair[vi, c1, c2] = float(n_both - np.minimum(eps, 1.0).sum()) / n_either
+                    num += om * per_pair[vi, c1, c2]
             if den > 0:
                 per_view[vi] = num / den
         ok = np.isfinite(per_view)
         value = float(per_view[ok].mean()) if ok.any() else float("nan")
-        return PartScore(value, per_view, counts)
+        return PartScore(value, per_view, counts, per_pair)
+
+    def move_evidence(self, joints: np.ndarray, joint: int, position: np.ndarray,
+                      visibility: dict | None = None) -> "MoveEvidence":
+        """How each evaluated view and each camera pair judges moving ``joint`` to ``position``.
+
+        The joint score is a mean over views of pair-weighted means over camera
+        pairs; a rise of it can come from one view or one pair alone (a label
+        error in one camera, a billboard seen almost edge-on).  This splits the
+        rise into its parts, so that a search can ask whether independent
+        evidence agrees.
+
+        Parameters
+        ----------
+        joints : ndarray of shape (14, 3)
+            Current pose, metres.
+        joint : int
+        position : ndarray of shape (3,)
+            Candidate position of ``joint``, metres.
+        visibility : dict of int to ndarray (n_views, n_cams) bool, optional
+            Per adjacent part, as for :meth:`joint_score` (default: that of ``joints``).
+
+        Returns
+        -------
+        MoveEvidence
+        """
+        J0 = np.array(joints, float)
+        if J0.shape != (self.skeleton.n_joints, 3):
+            raise InputError("joints", f"an array of shape ({self.skeleton.n_joints}, 3)", f"shape {J0.shape}")
+        x = np.asarray(position, float)
+        if x.shape != (3,) or not np.all(np.isfinite(x)):
+            raise InputError("position", "a finite array of shape (3,)", f"{x!r}")
+        J1 = J0.copy()
+        J1[joint] = x
+        parts = self.adjacent_parts(joint)
+        vis = visibility if visibility is not None else {p: self.visibility(J0, p) for p in parts}
+        nv, nc = len(self.views), len(self.rig)
+        view_gain = np.zeros(nv)
+        view_seen = np.zeros(nv, bool)
+        pair_gain = np.full((nc, nc), np.nan)
+        for p in parts:
+            a, b = self.part_score(J0, p, vis.get(p)), self.part_score(J1, p, vis.get(p))
+            ok = np.isfinite(a.per_view) & np.isfinite(b.per_view)
+            view_gain[ok] += b.per_view[ok] - a.per_view[ok]
+            view_seen |= ok
+            d = b.per_pair - a.per_pair  # (n_views, n_cams, n_cams), NaN where the pair is not evaluated
+            seen = np.isfinite(d)
+            n = seen.sum(axis=0)
+            mean = np.where(n > 0, np.nansum(d, axis=0) / np.maximum(n, 1), np.nan)
+            pair_gain = np.where(np.isfinite(mean), np.nan_to_num(pair_gain) + mean, pair_gain)
+        self.n_evaluations += 2
+        return MoveEvidence(np.where(view_seen, view_gain, np.nan), pair_gain)
 
     def adjacent_parts(self, joint: int) -> list[int]:
         """0-based indices of the parts whose fans move with ``joint``."""

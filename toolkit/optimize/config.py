@@ -20,6 +20,13 @@ SOURCE_SWEEPS = 4
 MIN_GAIN = 0.03
 
 
+#: A view may lose this much of a joint's score under a move and still count as agreeing with it:
+#: the resampling noise of one view's score (``docs/stage3_billboards.md``).
+VIEW_NOISE = 0.005
+#: Camera pairs that must each raise a joint's score for a move to be kept (two independent
+#: pieces of evidence; with one pair, two cameras, every view compares the same two images).
+MIN_AGREEING_PAIRS = 2
+
 #: Weight of the pull towards the start (score units at one ``prior_sigma_m``), :class:`OptimizeConfig`.
 PRIOR_WEIGHT = 0.05
 
@@ -57,6 +64,17 @@ class OptimizeConfig:
         midway between them scores: one synthetic viewpoint whose maxima lie
         5-14 cm from the truth (``docs/stage3_billboards.md``), so such joints
         keep their start.  1 searches them anyway.
+    decisive : bool
+        Keep a move only when the evidence for it is decisive (beyond the
+        ``min_gain`` margin): every evaluated view that scores the joint's bones
+        agrees (loses at most ``view_noise``) and at least ``min_pairs`` camera
+        pairs each raise the joint's score (:meth:`PositionScorer.move_evidence`).
+        A move that fails ends with status ``"not_decisive"`` and the joint
+        keeps its position.  False: the source's rule (the best candidate wins).
+    view_noise : float
+        :data:`VIEW_NOISE`.
+    min_pairs : int
+        :data:`MIN_AGREEING_PAIRS`; 1 lets a single camera pair (two cameras) move joints.
     prior_weight, prior_sigma_m : float
         A quadratic pull towards where each joint started the optimisation:
         candidates compete on ``score - prior_weight * (d / prior_sigma_m)^2``,
@@ -78,6 +96,9 @@ class OptimizeConfig:
     min_gain: float = MIN_GAIN
     tie_tol: float = 0.005
     min_views: int = 2
+    decisive: bool = True
+    view_noise: float = VIEW_NOISE
+    min_pairs: int = MIN_AGREEING_PAIRS
     prior_weight: float = PRIOR_WEIGHT
     prior_sigma_m: float = 0.05
 
@@ -88,6 +109,9 @@ class OptimizeConfig:
         if not (np.isfinite(self.prior_weight) and self.prior_weight >= 0 and self.prior_sigma_m > 0):
             raise InputError("OptimizeConfig.prior_weight/prior_sigma_m", "weight >= 0 and sigma > 0",
                              f"{self.prior_weight}, {self.prior_sigma_m}")
+        if self.min_pairs < 1 or not (np.isfinite(self.view_noise) and self.view_noise >= 0):
+            raise InputError("OptimizeConfig.min_pairs/view_noise", "min_pairs >= 1 and view_noise >= 0",
+                             f"{self.min_pairs}, {self.view_noise}")
         if self.min_views < 1:
             raise InputError("OptimizeConfig.min_views", "an integer >= 1", repr(self.min_views))
         if self.grid_radius < 1 or self.keep_best < 1 or self.max_sweeps < 1:

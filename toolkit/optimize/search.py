@@ -31,7 +31,7 @@ from toolkit.optimize.config import OptimizeConfig
 from toolkit.optimize.rules import joint_rule_reasons
 
 #: Status values of :class:`JointStep`.
-STATUSES = ("moved", "kept", "all_invalid", "unscorable", "few_views")
+STATUSES = ("moved", "kept", "not_decisive", "all_invalid", "unscorable", "few_views")
 
 
 @dataclass(frozen=True)
@@ -242,10 +242,59 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
     # one nearest the start, so that unobservable directions keep the previous estimate
     near = np.flatnonzero(S_valid >= S_valid.max() - config.tie_tol)
     b = int(near[np.argmin(np.linalg.norm(P[near] - x0, axis=1))])
-    if S_valid[b] > start_score - penalty(x0) + config.min_gain or not start_valid[0]:
+    if not start_valid[0]:  # a start that breaks a rule: any valid candidate is better
         return JointStep(joint, P[b].copy(), float(S[b]), start_score, n_eval, n_rej, "moved")
+    if S_valid[b] > start_score - penalty(x0) + config.min_gain:
+        why = decisive_reason(scorer, J, joint, P[b], vis, config) if config.decisive else ""
+        if not why:
+            return JointStep(joint, P[b].copy(), float(S[b]), start_score, scorer.n_evaluations - n0, n_rej,
+                             "moved")
+        why = f"{name}: kept: a gain of {S[b] - start_score:.3f} {why}"
+        obs.report("text", name="optimize/kept", text=why, frame=frame)
+        return JointStep(joint, x0, start_score, start_score, scorer.n_evaluations - n0, n_rej, "not_decisive",
+                         why)
     return JointStep(joint, x0, start_score, start_score, n_eval, n_rej, "kept",
                      f"{name}: no candidate scores higher")
+
+
+def decisive_reason(scorer: PositionScorer, joints: np.ndarray, joint: int, position: np.ndarray,
+                    visibility: dict, config: OptimizeConfig = OptimizeConfig()) -> str:
+    """Why moving ``joint`` to ``position`` is not decisive, or ``""`` when it is.
+
+    The joint score averages views and camera pairs, so a rise can come from one
+    of them alone: one view that sees a billboard almost edge-on, or one camera
+    whose part labels are off.  A move is decisive when independent evidence
+    agrees: every evaluated view that scores the joint's bones loses at most
+    ``config.view_noise`` and at least ``config.min_pairs`` camera pairs each
+    raise the joint's score (:meth:`PositionScorer.move_evidence`).
+
+    Parameters
+    ----------
+    scorer : PositionScorer
+    joints : ndarray of shape (14, 3)
+        Current pose, metres.
+    joint : int
+    position : ndarray of shape (3,)
+        The best candidate, metres.
+    visibility : dict of int to ndarray (n_views, n_cams) bool
+        The views and billboards the search compared the candidates on.
+    config : OptimizeConfig
+
+    Returns
+    -------
+    str
+        Empty when decisive; otherwise the reason, e.g. ``"rests on 1 camera pair (2 needed)"``.
+    """
+    ev = scorer.move_evidence(joints, joint, position, visibility)
+    g = ev.view_gain[np.isfinite(ev.view_gain)]
+    losing = int(np.sum(g < -config.view_noise))
+    if losing:
+        return f"is contradicted by {losing} of {g.size} views (down by up to {-g.min():.3f})"
+    pairs = ev.pair_gain[np.isfinite(ev.pair_gain)]
+    rising = int(np.sum(pairs > 0))
+    if rising < config.min_pairs:
+        return f"rests on {rising} of {pairs.size} camera pairs ({config.min_pairs} needed)"
+    return ""
 
 
 def optimize_pose(scorer: PositionScorer, joints: np.ndarray,
