@@ -179,6 +179,14 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
                "(the cameras see each other's billboards edge-on)")
         obs.report("text", name="optimize/kept", text=why, frame=frame)
         return JointStep(joint, x0, start, start, scorer.n_evaluations - n0, 0, "few_views", why)
+    n_pairs = _scoring_pairs(vis)
+    if config.decisive and n_pairs < config.min_pairs and start_valid[0]:
+        # no move could be decisive: skip the search (two cameras: one pair, every view compares
+        # the same two images)
+        why = (f"{name}: kept: its bones are scored by {n_pairs} camera pair(s), a decisive move needs "
+               f"{config.min_pairs}")
+        obs.report("text", name="optimize/kept", text=why, frame=frame)
+        return JointStep(joint, x0, start, start, scorer.n_evaluations - n0, 0, "not_decisive", why)
     start_score = start if start_valid[0] else 0.0
     prior_w = config.prior_weight / config.prior_sigma_m ** 2 if anchor is not None else 0.0
 
@@ -255,6 +263,16 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
                          why)
     return JointStep(joint, x0, start_score, start_score, n_eval, n_rej, "kept",
                      f"{name}: no candidate scores higher")
+
+
+def _scoring_pairs(visibility: dict) -> int:
+    """Camera pairs ``(i, k)`` whose billboards of one of the bones are both used in some view."""
+    pairs = set()
+    for v in visibility.values():
+        for row in np.asarray(v, bool):
+            cams = np.flatnonzero(row)
+            pairs.update(itertools.combinations(cams.tolist(), 2))
+    return len(pairs)
 
 
 def decisive_reason(scorer: PositionScorer, joints: np.ndarray, joint: int, position: np.ndarray,
