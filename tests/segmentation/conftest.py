@@ -20,6 +20,7 @@ class Frame:
     parts: np.ndarray  # (H, W) uint8 ground truth
     joints3d: np.ndarray  # (14, 3)
     camera: Camera
+    plate: np.ndarray = None  # (H, W, 3) uint8: the backdrop alone
 
 
 def make_frame(seed: int, size=(480, 360), distance: float = 4.5, motion: str = "wave", t: int = 20,
@@ -59,8 +60,9 @@ def make_frame(seed: int, size=(480, 360), distance: float = 4.5, motion: str = 
     tri_col = shaded[mesh.triangles].mean(1)
     back = rng.uniform(0.3, 0.7, 3) if kit is None else kit
     img = back + (0.15 if kit is None else 0.05) * rng.standard_normal((h, w, 3))  # noisy backdrop
+    plate = np.clip(img * 255, 0, 255).astype(np.uint8)
     img[hit] = tri_col[pid[hit]] + 0.02 * rng.standard_normal((hit.sum(), 3))
-    return Frame(np.clip(img * 255, 0, 255).astype(np.uint8), parts, joints, cam)
+    return Frame(np.clip(img * 255, 0, 255).astype(np.uint8), parts, joints, cam, plate)
 
 
 @pytest.fixture(scope="session")

@@ -36,6 +36,7 @@ from toolkit.cameras import Camera
 from toolkit.errors import InputError
 from toolkit.observe import as_observer
 from toolkit.segmentation.colour import COLOUR_SPACES, PartColourModels, colour_features, fit_part_models
+from toolkit.segmentation.plate import refine_silhouette
 from toolkit.segmentation.prior import (
     colour_confusion,
     colour_evidence,
@@ -104,6 +105,13 @@ class SegmentationConfig:
         confident pixels are the template thinned *and* cut by the
         silhouette, so near a part's border the thinning, not the part,
         decides which part is nearest.
+    plate_min_contrast : float
+        With a background plate: smallest distance (feature units; RGB in
+        [0, 1]) between the subject's colour and the plate's for a border
+        pixel to be judged (:mod:`toolkit.segmentation.plate`).
+    plate_ring_px : int
+        With a background plate: width of the ring outside the silhouette
+        whose subject-like pixels join it, pixels.
     spatial_sigma_fraction : float
         ``posterior`` rule: standard deviation of the template's placement
         error, as a fraction of the subject's image height
@@ -135,6 +143,8 @@ class SegmentationConfig:
     thin_thick_fraction: float = THIN_THICK_FRACTION
     closing_fraction: float = 0.008
     spatial_anchor: str = "template"
+    plate_min_contrast: float = 0.1
+    plate_ring_px: int = 1
     spatial_sigma_fraction: float = 0.03
     colour_cap: float = 3.0
     colour_evidence: str = "ratio"
@@ -282,7 +292,7 @@ def _label_posterior(feats, sil, confident, uncertain, labels, template_labels, 
 def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarray | None, camera: Camera,
                   template: Template, config: SegmentationConfig = SegmentationConfig(), observer=None, *,
                   offset=None, joints2d: np.ndarray | None = None, database: PoseDatabase | None = None,
-                  frame: int | None = None) -> SegmentationResult:
+                  frame: int | None = None, plate: np.ndarray | None = None) -> SegmentationResult:
     """Segment the subject's silhouette into body parts.
 
     Parameters
@@ -309,6 +319,12 @@ def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarra
         For joints missing in ``joints3d`` (default: the motion-library database).
     frame : int, optional
         Frame index put on the observer's reports.
+    plate : ndarray of shape (H, W, 3), uint8 RGB, optional
+        The background alone (clean plate or stage 1's background model).
+        When given, the silhouette's border is checked against it and the
+        parts' colours (:mod:`toolkit.segmentation.plate`): plate-like pixels
+        leave it, subject-like pixels of its outer ring join it; the labels
+        then cover the refined silhouette.
 
     Returns
     -------
@@ -327,6 +343,10 @@ def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarra
     if sil.shape != img.shape[:2]:
         raise InputError("segment_frame: silhouette", f"shape {img.shape[:2]}", f"shape {sil.shape}")
     sil = sil.astype(bool)
+    if plate is not None:
+        plate = np.asarray(plate)
+        if plate.shape != img.shape or plate.dtype != np.uint8:
+            raise InputError("segment_frame: plate", f"a {img.shape} uint8 RGB image", f"shape {plate.shape} {plate.dtype}")
     if (camera.height, camera.width) != img.shape[:2]:
         raise InputError("segment_frame: camera", f"image size {img.shape[1::-1]}", f"size {camera.size}")
     cam = camera if offset is None else camera_with_offset(camera, offset)
@@ -367,6 +387,16 @@ def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarra
     models = fit_part_models(feats[conf_b], proj.thin[by, bx][conf_b], n_parts, n_components=config.n_components,
                              min_pixels=config.min_pixels, max_pixels=config.max_pixels,
                              reg_covar=config.reg_covar, space=config.colour_space, rng=config.seed)
+
+    # 3b. the silhouette's border against the background plate (toolkit.segmentation.plate)
+    if plate is not None and sil.any():
+        sil = sil.copy()
+        sil[by, bx] = refine_silhouette(sil[by, bx], feats, colour_features(plate[by, bx], config.colour_space),
+                                        models, config.plate_min_contrast, config.plate_ring_px)
+        confident &= sil
+        uncertain = sil & ~confident
+        labels[~sil] = 0
+        conf_b = confident[by, bx]
 
     # 4. uncertain pixels
     unc_b = uncertain[by, bx]
