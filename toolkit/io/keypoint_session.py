@@ -10,7 +10,7 @@ found from the files) and the frame rate (given, or the Pose2Sim ``frame_rate``)
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from toolkit.cameras import Rig
@@ -60,7 +60,7 @@ class KeypointSession:
 
 
 def open_keypoint_session(keypoints: str | os.PathLike, calibration: str | os.PathLike | None = None,
-                          fmt: str | None = None, fps: float | None = None, person: str = "most_confident",
+                          fmt: str | None = None, fps: float | None = None, person: str = "consensus",
                           max_frames: int | None = None) -> KeypointSession:
     """Read the keypoints and calibration of a folder or a Pose2Sim trial.
 
@@ -76,7 +76,10 @@ def open_keypoint_session(keypoints: str | os.PathLike, calibration: str | os.Pa
     fps : float, optional
         The frame rate; default: the Pose2Sim ``frame_rate``.
     person : str
-        How to pick one person per frame (toolkit.io.keypoint_formats.select_person).
+        How to pick one person per frame: ``"consensus"`` (default), the person most cameras
+        agree on (``toolkit.multiview.tracking.main_person``: detections grouped across views
+        by ray distance and linked over time; the detections as given when no view holds
+        more than one), or a per-view policy of toolkit.io.keypoint_formats.select_person.
     max_frames : int, optional
         Keep only the first frames.
 
@@ -103,9 +106,16 @@ def open_keypoint_session(keypoints: str | os.PathLike, calibration: str | os.Pa
     declared_by = "--format"
     if fmt is None and trial is not None and trial.pose_model is not None:
         fmt, declared_by = trial.pose_model, "[pose] pose_model of the Pose2Sim Config.toml"
-    data = read_keypoints(list(sources), fmt, declared_by, person=person, max_frames=max_frames)
+    data = read_keypoints(list(sources), fmt, declared_by, person="most_confident" if person == "consensus" else person,
+                          max_frames=max_frames)
     fps_from = "--fps" if fps is not None else None
     if fps is None and trial is not None and trial.frame_rate is not None:
         fps, fps_from = trial.frame_rate, "Pose2Sim Config.toml"
+    if person == "consensus":
+        from toolkit.multiview.tracking import DEFAULT_FPS, TrackingConfig, frame_detections, main_person
+
+        dets = frame_detections(data.cameras, data.frames, data.keypoints.shape[2])
+        data = replace(data, keypoints=main_person(dets, Rig(tuple(cams)),
+                                                   TrackingConfig(fps=fps if fps is not None else DEFAULT_FPS)))
     return KeypointSession(rig=Rig(tuple(cams)), sources=sources, matching=matching, calibration=calib,
                            keypoints_root=root, trial=trial, keypoints=data, fps=fps, fps_from=fps_from)
