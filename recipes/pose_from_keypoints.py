@@ -54,6 +54,14 @@ Writes into ``--out``:
 * ``recording.rrd``: rerun recording of the rig, images (with ``--videos``),
   keypoints, rays, closest points, 3D joints, offsets and costs.
 
+Without ``--multi-person`` the person triangulated is the one most cameras agree on
+(toolkit.multiview.tracking.main_person: a bystander more confidently detected in one view is
+not it).  With ``--multi-person`` every person found (detections grouped across views by
+ray distance, tracked over time; a bystander seen by one camera only, or outside the
+capture volume, is not a person; docs/multi_person.md) gets ``OUT/person_<k>/`` with the
+files above, ``OUT/people.json`` lists them, and ``OUT/recording.rrd`` holds them all, each
+under ``person_<k>/`` in its own colour.
+
 Results are written at the end, also after an error or Ctrl-C (frames not
 processed are NaN).
 """
@@ -123,6 +131,11 @@ def parse_args(argv=None):
     ap.add_argument("--no-robust", action="store_true", help="keep views and rays whose rays disagree")
     ap.add_argument("--no-ground-check", action="store_true",
                     help="skip the ground rule of the anthropometric check (world frame not z-up at ground 0)")
+    ap.add_argument("--multi-person", action="store_true",
+                    help="every person found (detections associated across views by ray distance and tracked "
+                         "over time; a bystander seen by one camera only is not a person) goes to "
+                         "OUT/person_<k>/ with the files below; OUT/people.json lists them and OUT/recording.rrd "
+                         "shows each in its own colour (default: the person most cameras agree on)")
     ap.add_argument("--no-recording", action="store_true", help="do not write recording.rrd")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
     args = ap.parse_args(argv)
@@ -146,7 +159,11 @@ def match_videos(rig, files, what: str):
     return [files[i] for i in order]
 
 
-def run(args) -> int:
+def run(args, session=None, observer=None) -> int:
+    """Triangulate one person (``session``: given by :func:`run_people`, else read; ``observer``: a
+    shared recording, else ``recording.rrd`` of its own)."""
+    if args.multi_person and session is None:
+        return run_people(args)
     import numpy as np
     from tqdm import tqdm
 
@@ -161,7 +178,7 @@ def run(args) -> int:
     from toolkit.skeleton.mappings import to_skeleton14
 
     flips = () if args.flips.strip() == "none" else tuple(f.strip() for f in args.flips.split(",") if f.strip())
-    session = open_keypoint_session(args.keypoints, args.calibration, FORMATS[args.format], args.fps,
+    session = session or open_keypoint_session(args.keypoints, args.calibration, FORMATS[args.format], args.fps,
                                     max_frames=args.max_frames)
     rig, sources, matched, keypoints = session.rig, session.sources, session.matching, session.keypoints
     videos = None
@@ -191,8 +208,8 @@ def run(args) -> int:
                             multiview=MultiViewConfig(flips=(), robust=not args.no_robust,
                                                       max_offset_px=args.max_offset_px, constraints=constraints))
     args.out.mkdir(parents=True, exist_ok=True)
-    observer = None
-    if not args.no_recording:
+    own_observer = observer is None
+    if own_observer and not args.no_recording:
         from toolkit.viz import RerunObserver
         observer = RerunObserver(application_id="pose_from_keypoints", path=args.out / "recording.rrd",
                                  camera_names=rig.names)
@@ -279,7 +296,7 @@ def run(args) -> int:
         lines = [f"frame {int(frame_numbers[t])}: " + ("; ".join(v) if v else "ok")
                  for t, v in enumerate(viol) if seq is not None]
         atomic_write_text(args.out / "anthropometry.txt", "\n".join(lines) + "\n")
-        if observer is not None:
+        if observer is not None and own_observer:
             observer.close()
         for v in videos or ():
             v.close()
@@ -304,9 +321,66 @@ def run(args) -> int:
         print(f"  flips:         {args.out / 'flips.npz'}")
         print(f"  2D joints:     {args.out / 'poses2d.npz'}")
         print(f"  anthropometry: {args.out / 'anthropometry.txt'}")
-        if observer is not None:
+        if observer is not None and own_observer:
             print(f"  recording:     {args.out / 'recording.rrd'}   (open with: rerun {args.out / 'recording.rrd'})")
     return 130 if status == "interrupted" else 0
+
+
+def run_people(args) -> int:
+    """``--multi-person``: every person found, each triangulated by :func:`run` on its own keypoints."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from toolkit.io import atomic_write_text
+    from toolkit.io.keypoint_session import open_keypoint_session
+    from toolkit.multiview.tracking import DEFAULT_FPS, TrackingConfig, frame_detections, track_people
+    from toolkit.observe import PrefixedObserver
+    from toolkit.skeleton import SKELETON_14
+
+    session = open_keypoint_session(args.keypoints, args.calibration, FORMATS[args.format], args.fps,
+                                    max_frames=args.max_frames)
+    kin, rig = session.keypoints, session.rig
+    detections = frame_detections(kin.cameras, kin.frames, kin.keypoints.shape[2])
+    people = track_people(detections, rig, TrackingConfig(fps=args.fps or session.fps or DEFAULT_FPS))
+    args.out.mkdir(parents=True, exist_ok=True)
+    observer = None
+    if not args.no_recording:
+        from toolkit.viz import RerunObserver
+        from toolkit.viz.style import SKELETON_COLORS
+        observer = RerunObserver(application_id="pose_from_keypoints", path=args.out / "recording.rrd",
+                                 camera_names=rig.names)
+        observer.report("rig", rig=rig, static=True)
+        observer.report("skeleton", skeleton=SKELETON_14)
+    views = people.views
+    print(f"{people.n_people} people found in {len(kin.frames)} frames (seen by two cameras or more, in the "
+          "capture volume, tracked over time)")
+    summary, code = [], 0
+    try:
+        for k in range(people.n_people):
+            name = f"person_{k}"
+            seen = views[k] > 0
+            print(f"{name}: frames {int(kin.frames[seen][0])}-{int(kin.frames[seen][-1])} ({int(seen.sum())} frames), "
+                  f"median {float(np.median(views[k][seen])):g} cameras")
+            summary.append({"person": name, "frames": int(seen.sum()), "first_frame": int(kin.frames[seen][0]),
+                            "last_frame": int(kin.frames[seen][-1]),
+                            "cameras_per_frame_median": float(np.median(views[k][seen]))})
+            one = replace(session, keypoints=replace(kin, keypoints=people.keypoints(detections, k)))
+            sub = argparse.Namespace(**{**vars(args), "out": args.out / name, "multi_person": False,
+                                        "videos": args.videos if k == 0 else None})
+            obs = None if observer is None else PrefixedObserver(
+                observer, name, SKELETON_COLORS[k % len(SKELETON_COLORS)])
+            code = run(sub, session=one, observer=obs) or code
+    finally:
+        atomic_write_text(args.out / "people.json", json.dumps({
+            "people": summary, "frames": len(kin.frames), "cameras": rig.names,
+            "rule": "detections grouped across views by ray distance (toolkit.multiview.association), tracked "
+                    "over time (toolkit.multiview.tracking); seen by two cameras or more, in the capture volume"},
+            indent=2) + "\n")
+        if observer is not None:
+            observer.close()
+            print(f"  recording:     {args.out / 'recording.rrd'}   (open with: rerun {args.out / 'recording.rrd'})")
+    return code
 
 
 def main(argv=None) -> int:

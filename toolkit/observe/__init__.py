@@ -65,6 +65,32 @@ class MultiObserver:
             o.report(kind, **data)
 
 
+class PrefixedObserver:
+    """Forwards reports under ``prefix/`` (one person of several), joints in one colour.
+
+    Parameters
+    ----------
+    observer : Observer
+    prefix : str
+        Put before every report's ``name`` (its kind when it has none); ``rig``, ``skeleton``
+        and ``image`` reports pass unchanged.
+    color : tuple of int, optional
+        RGB given to ``joints2d`` / ``joints3d`` reports without one.
+    """
+
+    UNCHANGED = frozenset({"rig", "skeleton", "image"})
+
+    def __init__(self, observer: Observer, prefix: str, color=None):
+        self.observer, self.prefix, self.color = observer, prefix.strip("/"), color
+
+    def report(self, kind: str, **data: Any) -> None:
+        if kind not in self.UNCHANGED:
+            data["name"] = f"{self.prefix}/{data.get('name') or kind}"
+            if kind in ("joints2d", "joints3d") and self.color is not None:
+                data.setdefault("color", self.color)
+        self.observer.report(kind, **data)
+
+
 def as_observer(observer: Observer | None) -> Observer:
     """``observer`` itself, or a :class:`NullObserver` when ``None``."""
     return NullObserver() if observer is None else observer
@@ -79,8 +105,9 @@ REPORT_KINDS: dict[str, str] = {
     "mask": "camera: str; mask: (H, W) bool or uint8; name: str",
     "labels": "camera: str; labels: (H, W) uint8 part ids (0 background); name: str; skeleton optional (default SKELETON_14)",
     "depth": "camera: str; depth: (H, W) float metres (0 = none); name: str",
-    "joints2d": "camera: str; joints: (J, 2) pixels, NaN missing; name: str; skeleton: Skeleton",
-    "joints3d": "joints: (J, 3) metres; name: str; skeleton: Skeleton",
+    "joints2d": "camera: str; joints: (J, 2) pixels, NaN missing; name: str; skeleton: Skeleton; "
+                "color: (3,) uint8 optional (bones drawn in it: one colour per person)",
+    "joints3d": "joints: (J, 3) metres; name: str; skeleton: Skeleton; color: (3,) uint8 optional",
     "points3d": "points: (N, 3) metres; colors: (N, 3) uint8 optional; radii optional; name: str",
     "rays": "origins: (N, 3); ends: (N, 3) metres; name: str; colors optional",
     "scalar": "name: str; value: float",

@@ -21,6 +21,7 @@ Conventions at this edge:
 
 from __future__ import annotations
 
+import dataclasses
 import uuid
 from collections.abc import Mapping
 from pathlib import Path
@@ -121,6 +122,7 @@ class RerunObserver:
         self._cam_roots: dict[str, str] = {}
         self._skeleton_ids: dict[str, int] = {}
         self._skeletons: dict[str, Skeleton] = {}
+        self._skeleton_colors: dict[str, tuple] = {}  # classes of a skeleton drawn in a given colour
         self._contexts: set[str] = set()
         self._handlers = {
             "rig": self._rig, "skeleton": self._skeleton, "image": self._image, "mask": self._mask,
@@ -247,10 +249,21 @@ class RerunObserver:
             self._log(path, rr.AnnotationContext(classes), static=True)
             self._contexts.add(path)
 
-    def _skeleton_class(self, skeleton: Skeleton, class_id: int | None = None) -> int:
-        """Class id of ``skeleton``, registering it (root annotation context) on first use."""
+    def _skeleton_class(self, skeleton: Skeleton, class_id: int | None = None, color=None) -> int:
+        """Class id of ``skeleton``, registering it (root annotation context) on first use.
+
+        With ``color`` (RGB uint8), a class of its own whose bones are drawn in that colour
+        (one per person of a multi-person recording).
+        """
         if not isinstance(skeleton, Skeleton):
             raise InputError("report: skeleton", "a toolkit.skeleton.Skeleton", f"{type(skeleton).__name__}")
+        if color is not None:
+            key = f"{skeleton.name} {tuple(int(c) for c in color)}"
+            if key not in self._skeleton_ids:
+                self._skeleton_colors[key] = tuple(int(c) for c in color)
+                skeleton = dataclasses.replace(skeleton, name=key)
+            else:
+                skeleton = self._skeletons[key]
         known = self._skeleton_ids.get(skeleton.name)
         if known is not None and (class_id is None or class_id == known):
             return known
@@ -268,7 +281,7 @@ class RerunObserver:
         classes = []
         for i, (name, cid) in enumerate(self._skeleton_ids.items()):
             sk = self._skeletons[name]
-            color = SKELETON_COLORS[i % len(SKELETON_COLORS)]
+            color = self._skeleton_colors.get(name, SKELETON_COLORS[i % len(SKELETON_COLORS)])
             classes.append(rr.ClassDescription(
                 info=rr.AnnotationInfo(id=cid, label=sk.name, color=color),
                 keypoint_annotations=[rr.AnnotationInfo(id=j, label=jn, color=_side_color(jn))
@@ -287,7 +300,8 @@ class RerunObserver:
             if len(joints) != getattr(sk, "n_joints", len(joints)):
                 raise InputError(f"report {kind!r}: joints", f"{sk.n_joints} joints of skeleton {sk.name}",
                                  f"{len(joints)}")
-            cls = self._skeleton_class(sk)
+            color = _colors(kind, data, "color", 1)
+            cls = self._skeleton_class(sk, color=None if color is None else color[0, :3])
         ok = np.all(np.isfinite(joints), axis=1)
         return joints[ok], ids[ok], cls
 
