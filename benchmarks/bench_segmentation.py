@@ -6,6 +6,8 @@ Usage::
     python benchmarks/bench_segmentation.py                   # all scenes, every 4th frame
     python benchmarks/bench_segmentation.py --quick           # one broadcast, one studio scene
     python benchmarks/bench_segmentation.py --sweep           # colour spaces, components, radii
+    python benchmarks/bench_segmentation.py --zoo 16          # randomised scenes: median, worst decile
+    python benchmarks/bench_segmentation.py --zoo 16 --masks stage1   # with stage 1's silhouettes
 
 Scenes (1280x720, 24 frames) are generated once into ``--cache`` and stage 1
 (``recipes/pose_from_silhouettes.py``) is run once on each.  Silhouettes are
@@ -23,6 +25,17 @@ sources:
 Per source it prints the per-part and mean IoU against ``groundtruth/parts``
 of: the template projection alone, the confident pixels only, the full GMM
 labelling, and the labels after the closing; plus the median time per view.
+
+``--zoo N`` draws N short scenes (4 frames) from ``--zoo-seed``: 2-4 cameras,
+broadcast (subject 80-300 px) and studio, 960x540 to 1920x1080, 0-10 px
+calibration error, 30-150 degrees between cameras, every motion, 40 % of the
+kits like the pitch or the backdrop; stage 1 runs once on each.  Per labelling
+variant (the default, the source's distance to confident pixels, the
+background plate, the posterior rule) it prints each scene's mean part IoU
+(mean over the views of the mean over the parts present, as
+``benchmarks/bench_zoo.py``) and the median and worst decile over the scenes,
+from stage-1 joints with ground-truth (``--masks gt``) or stage-1
+(``--masks stage1``) silhouettes, and writes them to ``--json``.
 """
 
 from __future__ import annotations
@@ -79,6 +92,104 @@ def prepare(cache: Path, scene) -> tuple[Path, Path]:
         subprocess.run([sys.executable, str(ROOT / "recipes" / "pose_from_silhouettes.py"), str(ds), "--out",
                         str(s1), "--quiet", "--no-recording"], check=True, stdout=subprocess.DEVNULL)
     return ds, s1
+
+
+ZOO_MOTIONS = ("walk", "run", "jump", "kick", "turn", "wave", "crouch", "idle")
+ZOO_RESOLUTIONS = ((960, 540), (1280, 720), (1920, 1080))
+#: Labelling variants compared on the zoo: (name, config fields, use the background plate).
+ZOO_VARIANTS = (("default", {}, False),
+                ("source_anchor", {"spatial_anchor": "confident"}, False),
+                ("plate", {}, True),
+                ("posterior", {"rule": "posterior"}, False))
+
+
+def zoo_specs(n: int, seed: int, frames: int = 4) -> list[tuple[str, str]]:
+    """``n`` scene specs ``(name, toml)`` drawn from ``seed`` (see the module docstring)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        studio = rng.random() < 0.3
+        cams = int(rng.integers(2, 5))
+        w, h = ZOO_RESOLUTIONS[int(rng.integers(3))]
+        motion = ZOO_MOTIONS[i % 8] if i < 8 else ZOO_MOTIONS[int(rng.integers(8))]
+        err = 0.0 if studio else float(np.round(rng.uniform(0, 10), 1))
+        like = rng.random() < 0.4
+        lo = float(np.round(rng.uniform(30, 110)))
+        px = None if studio else float(np.round(rng.uniform(80, 300)))
+        name = f"z{i:02d}_{'studio' if studio else 'bc'}{cams}_{motion}" + ("_lb" if like else "")
+        text = (f'name = "{name}"\nseed = {1000 + i}\nframes = {frames}\nfps = 25\n[subject]\nheight_m = 1.75\n'
+                f'motion = "{motion}"\noutfit = "{"like_background" if like else "random"}"\n[cameras]\n'
+                f'count = {cams}\nlayout = "{"studio" if studio else "broadcast"}"\nresolution = [{w}, {h}]\n'
+                f'calibration_error_px = {err}\nspacing_deg = [{lo}, {min(lo + 40, 150)}]\n'
+                + (f'subject_px = {px}\n' if px else '') + '[novel]\ncount = 0\n')
+        out.append((name, text))
+    return out
+
+
+def prepare_spec(cache: Path, name: str, text: str) -> tuple[Path, Path]:
+    """Generate a zoo scene and run stage 1 once; returns (dataset, stage-1 output)."""
+    ds, s1 = cache / "zoo" / name, cache / "zoo_stage1" / name
+    if not (ds / "groundtruth").is_dir():
+        print(f"generating {name} ...", flush=True)
+        shutil.rmtree(s1, ignore_errors=True)
+        generate_scene(parse_spec(text, f"{name}.toml"), ds, progress=False).close()
+    if not (s1 / "poses3d.npz").is_file():
+        print(f"stage 1 on {name} ...", flush=True)
+        subprocess.run([sys.executable, str(ROOT / "recipes" / "pose_from_silhouettes.py"), str(ds), "--out",
+                        str(s1), "--quiet", "--no-recording"], check=True, stdout=subprocess.DEVNULL)
+    return ds, s1
+
+
+def stage1_masks(ds: Dataset, camera: str) -> list:
+    """Stage 1's silhouettes of one camera, every frame (median background fitted on the clean plate)."""
+    from toolkit.foreground import BackgroundConfig, ForegroundConfig, ForegroundExtractor
+
+    ex = ForegroundExtractor(ForegroundConfig(background=BackgroundConfig(method="median"))).fit([ds.background(camera)])
+    prev, out = None, []
+    for t in range(ds.n_frames):
+        img = ds.frame(camera, t)
+        sil = ex.extract(img, prev)
+        prev = (img, sil.mask) if sil.usable else None
+        out.append(sil.mask)
+    return out
+
+
+def run_zoo(args, template: Template) -> int:
+    """The ``--zoo`` mode: every variant on every scene; prints the table and writes ``--json``."""
+    import json
+
+    rows = {}
+    for name, text in zoo_specs(args.zoo, args.zoo_seed):
+        dsp, s1 = prepare_spec(args.cache, name, text)
+        ds = Dataset.open(dsp)
+        masks = {c: stage1_masks(ds, c) for c in ds.camera_names} if args.masks == "stage1" else None
+        per = {v[0]: [] for v in ZOO_VARIANTS}
+        times = {v[0]: [] for v in ZOO_VARIANTS}
+        for t, c, cam, J, x in views(ds, s1, "stage1", args.every, 0.0, None):
+            if not np.isfinite(J).all():
+                continue
+            img, gt = ds.frame(c, t), ds.gt_parts(c, t)
+            sil = gt > 0 if masks is None else masks[c][t]
+            for vname, fields_, use_plate in ZOO_VARIANTS:
+                t0 = time.perf_counter()
+                r = segment_frame(img, sil, J, cam, template, replace(SegmentationConfig(), **fields_),
+                                  plate=ds.background(c) if use_plate else None)
+                times[vname].append(time.perf_counter() - t0)
+                per[vname].append(float(np.nanmean(part_iou(r.labels, gt))))
+        rows[name] = {v: float(np.mean(per[v])) for v in per}
+        rows[name]["seconds_per_view"] = {v: float(np.median(times[v])) for v in times}
+        print(f"{name:22s} " + " ".join(f"{v} {rows[name][v]:.3f}" for v in per), flush=True)
+    summary = {}
+    for vname, _, _ in ZOO_VARIANTS:
+        v = np.array([r[vname] for r in rows.values()])
+        summary[vname] = {"median": float(np.median(v)), "worst_decile": float(np.percentile(v, 10)),
+                          "mean": float(v.mean())}
+        print(f"{vname:14s} median {summary[vname]['median']:.3f}  worst decile "
+              f"{summary[vname]['worst_decile']:.3f}  mean {summary[vname]['mean']:.3f}")
+    if args.json is not None:
+        args.json.write_text(json.dumps({"masks": args.masks, "zoo_seed": args.zoo_seed, "scenes": rows,
+                                         "summary": summary}, indent=1))
+    return 0
 
 
 def views(ds: Dataset, s1: Path, source: str, every: int, noise: float, rng):
@@ -155,7 +266,13 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="one broadcast and one studio scene")
     ap.add_argument("--scenes", default=None, help="comma-separated scene names (default: all)")
     ap.add_argument("--sweep", action="store_true", help="colour space, components, radii, rules (noisy source)")
+    ap.add_argument("--zoo", type=int, default=0, help="randomised scenes (see the module docstring)")
+    ap.add_argument("--zoo-seed", type=int, default=2026)
+    ap.add_argument("--masks", choices=("gt", "stage1"), default="gt", help="--zoo: silhouettes used")
+    ap.add_argument("--json", type=Path, default=None, help="--zoo: write the figures here")
     args = ap.parse_args(argv)
+    if args.zoo:
+        return run_zoo(args, Template(1.75))
     scenes = [SCENES[0], SCENES[3]] if args.quick else SCENES
     if args.scenes:
         scenes = [s for s in SCENES if s[0] in args.scenes.split(",")]

@@ -93,14 +93,15 @@ def refine_silhouette(silhouette: np.ndarray, features: np.ndarray, plate_featur
     """
     sil = np.asarray(silhouette, bool)
     if features.shape[:2] != sil.shape or plate_features.shape != features.shape:
-        raise InputError("refine_silhouette: features, plate_features", f"(H, W, D) arrays with (H, W) = {sil.shape}",
-                         f"{features.shape} and {plate_features.shape}")
+        raise InputError("refine_silhouette: features, plate_features",
+                         f"(H, W, D) arrays with (H, W) = {sil.shape}", f"{features.shape} and {plate_features.shape}")
     means = component_means(models)
     if len(means) == 0 or not sil.any():
         return sil.copy()
     ring = np.zeros_like(sil)
     if ring_px > 0:
-        ring = cv2.dilate(sil.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * ring_px + 1,) * 2)) > 0
+        k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * ring_px + 1,) * 2)
+        ring = cv2.dilate(sil.astype(np.uint8), k) > 0
         ring &= ~sil
     cand = sil | ring
     a = plate_alpha(features[cand], plate_features[cand], means, min_contrast)

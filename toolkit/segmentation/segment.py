@@ -346,7 +346,8 @@ def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarra
     if plate is not None:
         plate = np.asarray(plate)
         if plate.shape != img.shape or plate.dtype != np.uint8:
-            raise InputError("segment_frame: plate", f"a {img.shape} uint8 RGB image", f"shape {plate.shape} {plate.dtype}")
+            raise InputError("segment_frame: plate", f"a {img.shape} uint8 RGB image",
+                             f"shape {plate.shape} {plate.dtype}")
     if (camera.height, camera.width) != img.shape[:2]:
         raise InputError("segment_frame: camera", f"image size {img.shape[1::-1]}", f"size {camera.size}")
     cam = camera if offset is None else camera_with_offset(camera, offset)
