@@ -7,6 +7,8 @@ from dataclasses import dataclass
 from toolkit.errors import InputError
 from toolkit.rendering.weights import ANGLE_SIGMA, ATTENUATION_SIGMA_M, FADE_RATIO_HIGH, FADE_RATIO_LOW
 
+#: Angle off its normal up to which a billboard is drawn where its source put it, degrees.
+TURN_FREE_DEG = 0.0
 #: Where the back copy of a turned billboard sits, in part depths behind the bone (0.5: the part's back
 #: surface when the bone runs through its middle).
 THICKNESS = 0.5
@@ -46,6 +48,10 @@ class BlendConfig:
         Turn each planar billboard about its bone to face the view
         (:func:`toolkit.rendering.blend.facing_pose`), so parts keep their width
         between and behind the sources; at a source camera nothing turns.
+    turn_free_deg : float
+        Billboards seen at most this far off their normal are not turned;
+        farther ones are turned only down to it, degrees
+        (:func:`toolkit.rendering.blend.facing_pose`).
     view_width : bool
         With ``face_view``, stretch each turned billboard across its bone to
         the part's width from the view, predicted by an elliptic
@@ -79,6 +85,7 @@ class BlendConfig:
     back_faces: bool = True
     normalise_fade: bool = True
     face_view: bool = True
+    turn_free_deg: float = TURN_FREE_DEG
     view_width: bool = False
     thickness: float = THICKNESS
     binary_alpha: bool = True
