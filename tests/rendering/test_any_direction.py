@@ -108,3 +108,23 @@ def test_facing_pose_turns_about_the_bone_towards_the_view(pair):
             # it now faces the view (front or back), turned by at most 90 degrees
             assert abs(abs(n @ across) / np.linalg.norm(across) - 1.0) < 1e-9
             assert n @ b.normal >= -POSE_TOL
+
+
+def test_turn_free_angle_and_part_ratios(pair):
+    from toolkit.errors import InputError
+
+    model, novel, _ = pair
+    for b in model.billboards:
+        for cam in novel.values():
+            assert np.allclose(facing_pose(b, cam.center, free_deg=90.0), np.eye(4), atol=1e-9)  # never turned
+            T, T30 = facing_pose(b, cam.center), facing_pose(b, cam.center, free_deg=30.0)
+            full = np.degrees(np.arccos(np.clip((np.trace(T[:3, :3]) - 1) / 2, -1, 1)))
+            part = np.degrees(np.arccos(np.clip((np.trace(T30[:3, :3]) - 1) / 2, -1, 1)))
+            assert abs(part - max(full - 30.0, 0.0)) < 1e-6
+    cfg = BlendConfig(part_depth_ratios=(("torso", 0.8),), turn_free_deg=10.0)
+    assert abs(cfg.free_angles_deg()[2] - np.degrees(np.arccos(0.8))) < 1e-9  # torso: part id 2
+    assert BlendConfig().free_angles_deg() == {}
+    with pytest.raises(InputError, match="part_depth_ratios"):
+        BlendConfig(part_depth_ratios=(("tail", 0.5),))
+    with pytest.raises(InputError, match="part_depth_ratios"):
+        BlendConfig(part_depth_ratios=(("torso", 1.5),))

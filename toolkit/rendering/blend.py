@@ -435,6 +435,7 @@ def composite(model: BillboardModel, camera: Camera, warper: Warper, config: Ble
     drawn = []
     centers = dict(zip(names, model.rig.centers))
     eye = camera.center
+    free_deg = config.free_angles_deg()
     bx0, by0, bx1, by1 = w_img, h_img, 0, 0  # box of everything drawn
     for i in order:
         fan = model.fans[i]
@@ -445,7 +446,7 @@ def composite(model: BillboardModel, camera: Camera, warper: Warper, config: Ble
             j = names.index(b.camera)
             if cw.fade[i, j] <= 0 or (weight[i, j] <= 0 and j != cw.nearest[i]):
                 continue
-            pose = facing_pose(b, eye, config.turn_free_deg) if config.face_view else None
+            pose = facing_pose(b, eye, free_deg.get(b.part, config.turn_free_deg)) if config.face_view else None
             if pose is not None and config.view_width:  # the part's width from this view, not the source's
                 k = 1.0 + (widths.get(b.camera, 1.0) - 1.0) * (1.0 - float(omega(cw.beta[i, j], config.angle_sigma)))
                 pose = stretch_across(pose, b, k)
