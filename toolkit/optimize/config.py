@@ -20,8 +20,8 @@ SOURCE_SWEEPS = 4
 MIN_GAIN = 0.03
 
 
-#: A view may lose this much of a joint's score under a move and still count as agreeing with it:
-#: the resampling noise of one view's score (``docs/stage3_billboards.md``).
+#: A view confirms a move when the joint's score in that view rises by more than this: the
+#: resampling noise of one view's score (``docs/stage3_billboards.md``).
 VIEW_NOISE = 0.005
 #: Camera pairs that must each raise a joint's score for a move to be kept (two independent
 #: pieces of evidence; with one pair, two cameras, every view compares the same two images).
@@ -67,7 +67,7 @@ class OptimizeConfig:
     decisive : bool
         Keep a move only when the evidence for it is decisive (beyond the
         ``min_gain`` margin): every evaluated view that scores the joint's bones
-        agrees (loses at most ``view_noise``) and at least ``min_pairs`` camera
+        confirms it (rises by more than ``view_noise``) and at least ``min_pairs`` camera
         pairs each raise the joint's score (:meth:`PositionScorer.move_evidence`).
         A move that fails ends with status ``"not_decisive"`` and the joint
         keeps its position.  False: the source's rule (the best candidate wins).

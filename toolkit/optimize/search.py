@@ -282,9 +282,9 @@ def decisive_reason(scorer: PositionScorer, joints: np.ndarray, joint: int, posi
     The joint score averages views and camera pairs, so a rise can come from one
     of them alone: one view that sees a billboard almost edge-on, or one camera
     whose part labels are off.  A move is decisive when independent evidence
-    agrees: every evaluated view that scores the joint's bones loses at most
-    ``config.view_noise`` and at least ``config.min_pairs`` camera pairs each
-    raise the joint's score (:meth:`PositionScorer.move_evidence`).
+    agrees: every evaluated view that scores the joint's bones rises by more than
+    ``config.view_noise`` (the resampling noise) and at least ``config.min_pairs``
+    camera pairs each raise the joint's score (:meth:`PositionScorer.move_evidence`).
 
     Parameters
     ----------
@@ -301,13 +301,14 @@ def decisive_reason(scorer: PositionScorer, joints: np.ndarray, joint: int, posi
     Returns
     -------
     str
-        Empty when decisive; otherwise the reason, e.g. ``"rests on 1 camera pair (2 needed)"``.
+        Empty when decisive; otherwise the reason, e.g. ``"rests on 1 of 3 camera pairs (2 needed)"``.
     """
     ev = scorer.move_evidence(joints, joint, position, visibility)
     g = ev.view_gain[np.isfinite(ev.view_gain)]
-    losing = int(np.sum(g < -config.view_noise))
-    if losing:
-        return f"is contradicted by {losing} of {g.size} views (down by up to {-g.min():.3f})"
+    weak = int(np.sum(g <= config.view_noise))
+    if weak:
+        return (f"is not confirmed by {weak} of {g.size} views (their gains {np.round(np.sort(g)[:weak], 3).tolist()}, "
+                f"{config.view_noise} needed)")
     pairs = ev.pair_gain[np.isfinite(ev.pair_gain)]
     rising = int(np.sum(pairs > 0))
     if rising < config.min_pairs:
