@@ -86,7 +86,8 @@ def run_scene(n_people: int, n_bystanders: int, n_cams: int, err: float, seed: i
 
 
 def demo(root: Path, out: Path) -> None:
-    spec = importlib.util.spec_from_file_location("pose_from_keypoints", REPO_ROOT / "recipes" / "pose_from_keypoints.py")
+    recipe = REPO_ROOT / "recipes" / "pose_from_keypoints.py"
+    spec = importlib.util.spec_from_file_location("pose_from_keypoints", recipe)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     from toolkit.io.keypoint_files import read_camera_detections
@@ -114,7 +115,8 @@ def demo(root: Path, out: Path) -> None:
             multi = np.load(out / trial_name / "multi" / people[0] / "poses3d.npz")["joints"]
             d = 1000 * np.linalg.norm(multi - single, axis=-1)
             line += (f"; person_0 vs single-person result: median {np.nanmedian(d):.2f} mm, "
-                     f"largest {np.nanmax(d):.2f} mm, frames with joints {int(np.isfinite(multi).all(-1).any(-1).sum())}"
+                     f"largest {np.nanmax(d):.2f} mm, frames with joints "
+                     f"{int(np.isfinite(multi).all(-1).any(-1).sum())}"
                      f"/{len(multi)}")
         print(line, flush=True)
 
@@ -149,7 +151,8 @@ def main(argv=None) -> int:
             orc = np.concatenate([r["oracle"] for r in sel])
             sw = np.concatenate([r["switches"] for r in sel])
             print(f"  {sc[0]} people, {sc[1]} bystanders, {sc[2]} cams, {err:.0f} px: MPJPE {np.nanmedian(mp):.1f} / "
-                  f"{np.nanmax(mp):.1f} (oracle {np.nanmedian(orc):.1f} / {np.nanmax(orc):.1f}); switches {int(sw.sum())} / {int(sw.max())}; missed "
+                  f"{np.nanmax(mp):.1f} (oracle {np.nanmedian(orc):.1f} / {np.nanmax(orc):.1f}); "
+                  f"switches {int(sw.sum())} / {int(sw.max())}; missed "
                   f"{int(sum(r['missed'].sum() for r in sel))}; false people {sum(r['false'] for r in sel)} "
                   f"({len(sel)} scenes)")
     root = Path(os.environ.get("TOOLKIT_REALDATA", REPO_ROOT.parent / "shared" / "realdata")) / "pose2sim_demo"
