@@ -167,3 +167,17 @@ def test_frame_detections_aligns_cameras_on_frame_numbers():
     out = frame_detections([Cam([0, 2], [p, 2 * p]), Cam([1], [3 * p])], np.array([0, 1, 2]), 14)
     assert [[len(d) for d in fr] for fr in out] == [[1, 0], [0, 1], [1, 0]]
     assert out[2][0][0, 0, 0] == 2.0
+
+
+def test_ghost_of_two_one_view_bystanders_is_dropped():
+    """Seed 0: the rays of two bystanders, each seen by one camera, meet frame after frame in a small
+    floating figure the other cameras do not show; it is a person only without that rule."""
+    scene = make_crowd(3, 2, 4, 30, 25.0, 4.0, rng=0)
+    det = detect_crowd(scene, rng=0)
+    loose = track_people(det.detections, scene.measured_rig,
+                         TrackingConfig(fps=scene.fps, max_unexplained_share=1.0))
+    assert score_people(loose.joints3d, scene, det).false_people == 1
+    tracks = track_people(det.detections, scene.measured_rig, TrackingConfig(fps=scene.fps))
+    assert score_people(tracks.joints3d, scene, det).false_people == 0
+    ghost = [fa.unexplained for fa in tracks.frames if len(fa.unexplained)]
+    assert max(int(u.max()) for u in ghost) >= 1
