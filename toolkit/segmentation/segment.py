@@ -111,7 +111,14 @@ class SegmentationConfig:
         pixel to be judged (:mod:`toolkit.segmentation.plate`).
     plate_ring_px : int
         With a background plate: width of the ring outside the silhouette
-        whose subject-like pixels join it, pixels.
+        whose subject-like pixels join it, pixels (0: measured best).
+    plate_fill_template : bool
+        With a background plate: pixels of the thinned template outside the
+        silhouette join it unless their colour says plate (where kit and plate
+        are alike, the template decides).
+    plate_leave_alpha, plate_join_alpha : float
+        With a background plate: opacity below which a silhouette pixel
+        leaves, and at or above which a candidate pixel joins.
     spatial_sigma_fraction : float
         ``posterior`` rule: standard deviation of the template's placement
         error, as a fraction of the subject's image height
@@ -144,7 +151,10 @@ class SegmentationConfig:
     closing_fraction: float = 0.008
     spatial_anchor: str = "template"
     plate_min_contrast: float = 0.1
-    plate_ring_px: int = 1
+    plate_ring_px: int = 0
+    plate_fill_template: bool = True
+    plate_leave_alpha: float = 0.5
+    plate_join_alpha: float = 0.5
     spatial_sigma_fraction: float = 0.03
     colour_cap: float = 3.0
     colour_evidence: str = "ratio"
@@ -393,7 +403,9 @@ def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarra
     if plate is not None and sil.any():
         sil = sil.copy()
         sil[by, bx] = refine_silhouette(sil[by, bx], feats, colour_features(plate[by, bx], config.colour_space),
-                                        models, config.plate_min_contrast, config.plate_ring_px)
+                                        models, config.plate_min_contrast, config.plate_ring_px,
+                                        proj.thin[by, bx] > 0 if config.plate_fill_template else None,
+                                        config.plate_leave_alpha, config.plate_join_alpha)
         confident &= sil
         uncertain = sil & ~confident
         labels[~sil] = 0
