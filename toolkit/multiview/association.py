@@ -10,14 +10,16 @@ closest points lie in front of both cameras.  It is the 3D form of the
 epipolar distance and needs no keypoint format: any detector's keypoints are
 compared keypoint by keypoint.
 
-Detections are then grouped (:func:`associate_frame`) by average-linkage
-clustering with a cannot-link rule: a group holds at most one detection per
-view, two groups merge when the mean of their cross ray distances is at most
-:data:`MAX_RAY_DISTANCE_M` and none of them exceeds
-:data:`MAX_RAY_DISTANCE_FACTOR` times that, lowest first.  With three or more
-views a "ghost" (person A in one view paired with person B in another, whose
-rays may meet by chance) is refused by the third view; with two views the
-lower ray distance wins.  A group seen by fewer than ``min_views`` cameras
+Detections are then grouped (:func:`associate_frame`): a group holds at most
+one detection per view; from every pair of detections whose ray distance is
+at most :data:`MAX_RAY_DISTANCE_M` a group is grown, view by view, with the
+detection whose mean ray distance to the group's is lowest, at most
+:data:`MAX_RAY_DISTANCE_M`, none of them above :data:`MAX_RAY_DISTANCE_FACTOR`
+times that.  The group seen by the most views (then with the lowest mean ray
+distance) is kept, its detections leave, and the others are grown again.  A
+"ghost" (person A in one view paired with person B in another, whose rays
+may meet by chance, closer than A's own) gathers no third view and loses to
+the groups that do; with two views the lower ray distance wins.  A group seen by fewer than ``min_views`` cameras
 (a bystander seen by one camera only) is not a person, and neither is one
 outside the **capture volume**: its keypoints must lie in the field of view of
 more than :data:`CAPTURE_VOLUME_SHARE` of the cameras (whether they detected
@@ -263,29 +265,47 @@ def associate_frame(detections, rig: Rig, config: AssociationConfig = Associatio
             C[start[a]:start[a + 1], start[b]:start[b + 1]] = D
             C[start[b]:start[b + 1], start[a]:start[a + 1]] = D.T
     thr, hard = config.max_ray_distance_m, config.max_ray_distance_m * config.max_ray_distance_factor
-    clusters = [[n] for n in range(N)]
+    view_of = np.array([v for v, _ in nodes], int)
 
-    def linkage(A, B):
-        if {nodes[a][0] for a in A} & {nodes[b][0] for b in B}:
-            return np.inf  # one detection per view
-        c = C[np.ix_(A, B)]
-        fin = np.isfinite(c)
-        if not fin.any() or (c[fin] > hard).any():
-            return np.inf
-        return float(c[fin].mean())
+    def grow(members):
+        """Add, view by view (closest first), the detection agreeing best with the members."""
+        members = list(members)
+        while True:
+            free = np.flatnonzero(~np.isin(view_of, view_of[members]) & available)
+            if not len(free):
+                return members
+            c = C[np.ix_(members, free)]
+            fin = np.isfinite(c)
+            n = fin.sum(0)
+            mean = np.where(n > 0, np.where(fin, c, 0).sum(0) / np.maximum(n, 1), np.inf)
+            ok = (n > 0) & (mean <= thr) & ~(np.where(fin, c, 0) > hard).any(0)
+            if not ok.any():
+                return members
+            members.append(int(free[np.argmin(np.where(ok, mean, np.inf))]))
 
-    while len(clusters) > 1:
-        best, pair = np.inf, None
-        for i in range(len(clusters)):
-            for j in range(i + 1, len(clusters)):
-                l = linkage(clusters[i], clusters[j])
-                if l < best:
-                    best, pair = l, (i, j)
-        if pair is None or best > thr:
+    def group_cost(members):
+        c = C[np.ix_(members, members)]
+        fin = np.isfinite(c) & ~np.eye(len(members), dtype=bool)
+        return float(c[fin].mean()) if fin.any() else np.inf
+
+    # hypotheses grown from every agreeing pair; the one seen by most views (then the lowest ray
+    # distance) is taken, its detections leave, and the rest are grown again
+    available = np.ones(N, bool)
+    clusters = []
+    while True:
+        pairs = [(a, b) for a in np.flatnonzero(available) for b in np.flatnonzero(available)
+                 if a < b and view_of[a] != view_of[b] and C[a, b] <= thr]
+        best, best_key = None, None
+        for a, b in pairs:
+            g = grow([a, b])
+            key = (-len(g), group_cost(g))
+            if best_key is None or key < best_key:
+                best, best_key = g, key
+        if best is None:
             break
-        i, j = pair
-        clusters[i] = clusters[i] + clusters[j]
-        del clusters[j]
+        clusters.append(best)
+        available[best] = False
+    clusters += [[n] for n in np.flatnonzero(available)]
 
     people, unassigned = [], []
     for cl in clusters:
