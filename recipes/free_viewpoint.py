@@ -152,6 +152,8 @@ def main(argv=None) -> int:
             if db is None:
                 from toolkit.silhouettes import SilhouetteDatabase
                 db = SilhouetteDatabase.load(args.db)
+        # clean plates of the source cameras (a broadcast crew records the empty pitch): segmentation uses them
+        source_plates = {c: p for c in names if (p := ds.background(c)) is not None} if todo else {}
         stopped = ""
         t_start = time.perf_counter()
         try:
@@ -164,7 +166,7 @@ def main(argv=None) -> int:
                 t0 = time.perf_counter()
                 t = est.frame
                 images = {c: ds.frame(c, t) for c in names}
-                res = processor.process(t, images, masks, est)
+                res = processor.process(t, images, masks, est, plates=source_plates)
                 for c in names:
                     atomic_write_png(out / "parts" / c / frame_filename(t), res.labels[c])
                 scores = {}
