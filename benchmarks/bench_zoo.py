@@ -117,9 +117,11 @@ def scene(cache: Path, name: str, text: str) -> Path:
 
     key = hashlib.sha1(text.encode()).hexdigest()[:8]
     out = cache / f"{name}_{key}"
-    if not (out / "calibration.toml").exists() or not (out / "groundtruth" / "scene_info.json").exists():
+    done = out / ".complete"  # written last: a generation stopped half-way is redone
+    if not done.exists():
         shutil.rmtree(out, ignore_errors=True)
         generate_scene(parse_spec(text, f"{name}.toml"), out, progress=False).close()
+        done.write_text(text)
     return out
 
 
