@@ -14,8 +14,9 @@ Detections are then grouped (:func:`associate_frame`): a group holds at most
 one detection per view; from every pair of detections whose ray distance is
 at most :data:`MAX_RAY_DISTANCE_M` a group is grown, view by view, with the
 detection whose mean ray distance to the group's is lowest, at most
-:data:`MAX_RAY_DISTANCE_M`, none of them above :data:`MAX_RAY_DISTANCE_FACTOR`
-times that.  The group seen by the most views (then with the lowest mean ray
+:data:`MAX_RAY_DISTANCE_M` and at most :data:`JOIN_RATIO` times the group's own
+plus :data:`JOIN_MARGIN_M`, none of them above :data:`MAX_RAY_DISTANCE_FACTOR`
+times :data:`MAX_RAY_DISTANCE_M`.  The group seen by the most views (then with the lowest mean ray
 distance) is kept, its detections leave, and the others are grown again.  A
 "ghost" (person A in one view paired with person B in another, whose rays
 may meet by chance, closer than A's own) gathers no third view and loses to
@@ -69,6 +70,12 @@ SHOULD_SEE_SHARE = 0.9
 #: A camera "shows" a person when one of its detections covers this share of the box the
 #: person's keypoints project to (the person itself, or someone in front of it).
 EXPLAINED_OVERLAP = 0.25
+#: A detection joins a group when its mean ray distance to the members is at most this many times
+#: the members' own ...
+JOIN_RATIO = 2.0
+#: ... plus this (metres): a view where the person is hidden must not lend it someone else
+#: (a bystander's rays passing 12 cm from a group whose own agree to 2 cm).
+JOIN_MARGIN_M = 0.03
 #: Rays closer to parallel than this (|sin| of their angle) do not tell where they meet.
 MIN_RAY_SINE = 1e-3
 
@@ -278,7 +285,8 @@ def associate_frame(detections, rig: Rig, config: AssociationConfig = Associatio
             fin = np.isfinite(c)
             n = fin.sum(0)
             mean = np.where(n > 0, np.where(fin, c, 0).sum(0) / np.maximum(n, 1), np.inf)
-            ok = (n > 0) & (mean <= thr) & ~(np.where(fin, c, 0) > hard).any(0)
+            limit = min(thr, JOIN_RATIO * group_cost(members) + JOIN_MARGIN_M)
+            ok = (n > 0) & (mean <= limit) & ~(np.where(fin, c, 0) > hard).any(0)
             if not ok.any():
                 return members
             members.append(int(free[np.argmin(np.where(ok, mean, np.inf))]))
@@ -306,6 +314,7 @@ def associate_frame(detections, rig: Rig, config: AssociationConfig = Associatio
         clusters.append(best)
         available[best] = False
     clusters += [[n] for n in np.flatnonzero(available)]
+    clusters = _refine(clusters, C, view_of, thr, hard)
 
     people, unassigned = [], []
     for cl in clusters:
@@ -339,6 +348,56 @@ def associate_frame(detections, rig: Rig, config: AssociationConfig = Associatio
     joints = np.array([p[2] for p in kept], float).reshape(-1, K, 3)
     return FrameAssociation(groups, cost, joints, tuple(sorted(unassigned)),
                             np.array(outside, int).reshape(-1, V), np.array([p[3] for p in kept], int))
+
+
+def _mean_cost(C: np.ndarray, d: int, members, hard: float) -> float:
+    """Mean finite ray distance of detection ``d`` to ``members``; inf if none or one above ``hard``."""
+    if not len(members):
+        return np.inf
+    c = C[d, members]
+    fin = np.isfinite(c)
+    if not fin.any() or (c[fin] > hard).any():
+        return np.inf
+    return float(c[fin].mean())
+
+
+def _refine(clusters: list, C: np.ndarray, view_of: np.ndarray, thr: float, hard: float) -> list:
+    """Move a detection to another group (lacking its view) whose members it agrees with better.
+
+    Growing the group seen by most views first can give it another person's detection in a
+    view where its own is missing (occluded), at the 5-7 cm that separate people at one
+    height; that detection agrees better with its own person's group and moves there.
+    """
+    clusters = [list(c) for c in clusters]
+    for _ in range(len(view_of)):
+        moved = False
+        for gi in range(len(clusters)):
+            for d in list(clusters[gi]):
+                rest = [m for m in clusters[gi] if m != d]
+                cur = _mean_cost(C, d, rest, hard)
+                best, target = cur, None
+                if len(rest) >= 2:
+                    c = C[np.ix_(rest, rest)]
+                    fin = np.isfinite(c) & ~np.eye(len(rest), dtype=bool)
+                    own = float(c[fin].mean()) if fin.any() else np.inf
+                    if cur > min(thr, JOIN_RATIO * own + JOIN_MARGIN_M):  # it does not belong: leaves
+                        best, target = np.inf, -1
+                for hi, H in enumerate(clusters):
+                    if hi == gi or not H or (view_of[H] == view_of[d]).any():
+                        continue
+                    c = _mean_cost(C, d, H, hard)
+                    if c <= thr and c < best:
+                        best, target = c, hi
+                if target is not None:
+                    clusters[gi].remove(d)
+                    if target < 0:
+                        clusters.append([d])
+                    else:
+                        clusters[target].append(d)
+                    moved = True
+        if not moved:
+            break
+    return [c for c in clusters if c]
 
 
 def _boxes(det: np.ndarray, min_confidence: float | None) -> np.ndarray:
