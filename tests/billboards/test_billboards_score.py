@@ -102,12 +102,15 @@ def test_scorer_rejects_bad_input(planar_scene, scorer):
 
 
 def test_score_evaluation_is_fast(planar_scene, scorer):
-    """One joint evaluation (3 cameras, 6 views) stays in the millisecond range (benchmarks measure 1280x720)."""
+    """One joint evaluation (3 cameras, 6 views) stays in the millisecond range (benchmarks measure 1280x720).
+
+    CPU time of this process, not wall-clock time: other jobs on a shared machine must not fail it.
+    """
     import time
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     for _ in range(20):
         scorer.joint_score(planar_scene.joints, WRIST)
-    assert (time.perf_counter() - t0) / 20 < 0.05
+    assert (time.process_time() - t0) / 20 < 0.05
 
 
 #: Principal-point errors of the measured cameras in the offsets test, pixels (measured
