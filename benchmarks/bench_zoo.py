@@ -191,7 +191,8 @@ def scene_figures(name: str, dataset: Path, metrics: dict, metrics_nos3: dict | 
     e1, e3 = metrics["pose_stage1"]["mpjpe_m"] * 1000, metrics["pose"]["mpjpe_m"] * 1000
     row = {
         "scene": name, "layout": info["layout"], "cameras": len(info["subject_height_px"]),
-        "spacing_deg": info.get("camera_spacing_deg", [])[:-1] if info["layout"] == "broadcast"
+        # neighbouring cameras' azimuth gaps; a broadcast arc leaves out its largest gap (the open side)
+        "spacing_deg": sorted(info.get("camera_spacing_deg", []))[:-1] if info["layout"] == "broadcast"
         else info.get("camera_spacing_deg", []),
         "subject_px": float(np.median(list(info["subject_height_px"].values()))),
         "calibration_error_px": info["calibration_error_px_target"], "motion": info["motion"],
