@@ -41,6 +41,7 @@ novel view) to ``OUT/worst_<k>_<scene>.png``.
 from __future__ import annotations
 
 import argparse
+import functools
 import hashlib
 import json
 import shutil
@@ -125,15 +126,22 @@ def scene(cache: Path, name: str, text: str) -> Path:
     return out
 
 
-def run_pipeline(dataset: Path, out: Path, frames: int, optimize: bool, reuse: bool) -> dict:
-    """``free_viewpoint.py`` with its default options (stage 3 on or off); its metrics.json."""
+@functools.cache
+def _free_viewpoint():
+    """The recipe module, loaded once."""
     import importlib.util
 
-    if not reuse:
-        shutil.rmtree(out, ignore_errors=True)
     spec = importlib.util.spec_from_file_location("free_viewpoint", REPO / "recipes" / "free_viewpoint.py")
     fv = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(fv)
+    return fv
+
+
+def run_pipeline(dataset: Path, out: Path, frames: int, optimize: bool, reuse: bool) -> dict:
+    """``free_viewpoint.py`` with its default options (stage 3 on or off); its metrics.json."""
+    if not reuse:
+        shutil.rmtree(out, ignore_errors=True)
+    fv = _free_viewpoint()
     args = [str(dataset), "--out", str(out), "--max-frames", str(frames), "--no-recording", "--quiet",
             "--replace-stale"] + ([] if optimize else ["--no-optimize"])
     rc = fv.main(args)

@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from toolkit.errors import InputError
-from toolkit.io.openpose import _frame_number, _json_files
+from toolkit.io.openpose import _frame_number, frame_files
 
 __all__ = ["LAYOUTS", "PER_FRAME_LAYOUTS", "CameraDetections", "read_camera_detections", "camera_sources",
            "match_cameras", "normalise_name"]
@@ -295,19 +295,7 @@ def read_camera_detections(path: str | os.PathLike, max_frames: int | None = Non
     """
     p = Path(path)
     if p.is_dir():
-        files = _json_files(p)
-        if not files:
-            raise InputError(str(p), "keypoint JSON files (*.json), one per frame", "none")
-        if max_frames is not None:
-            files = files[:max_frames]
-        numbers = [_frame_number(f.name) for f in files]
-        if all(n is not None for n in numbers):
-            dup = sorted({n for n in numbers if numbers.count(n) > 1})
-            if dup:
-                raise InputError(str(p), "one JSON file per frame number", f"duplicated frame numbers {dup[:5]}")
-            frames = np.array(numbers, int)
-        else:
-            frames = np.arange(len(files))
+        files, frames = frame_files(p, "keypoint JSON files (*.json), one per frame", max_frames)
         layouts, people = set(), []
         for f in files:
             data = _load_json(f)

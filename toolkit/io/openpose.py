@@ -126,6 +126,27 @@ def read_openpose_json(path: str | os.PathLike, n_keypoints: int | None = None,
     return out
 
 
+def frame_files(folder: Path, what: str, max_frames: int | None = None) -> tuple[list[Path], np.ndarray]:
+    """A folder's per-frame JSON files in frame order and their frame numbers.
+
+    Frame numbers come from the file names (the last number in each), else the
+    files' order.  Raises InputError naming the folder when it holds no JSON
+    file (``what`` says what was expected) or two files claim one frame number.
+    """
+    files = _json_files(folder)
+    if not files:
+        raise InputError(str(folder), what, "none")
+    if max_frames is not None:
+        files = files[:max_frames]
+    numbers = [_frame_number(f.name) for f in files]
+    if not all(n is not None for n in numbers):
+        return files, np.arange(len(files))
+    dup = sorted({n for n in numbers if numbers.count(n) > 1})
+    if dup:
+        raise InputError(str(folder), "one JSON file per frame number", f"duplicated frame numbers {dup[:5]}")
+    return files, np.array(numbers, int)
+
+
 def _json_files(folder: Path) -> list[Path]:
     if not folder.is_dir():
         raise InputError(str(folder), "a folder of OpenPose JSON files", "no such folder")
@@ -161,19 +182,7 @@ def read_openpose_folder(folder: str | os.PathLike, n_keypoints: int, person: st
         file (named).
     """
     d = Path(folder)
-    files = _json_files(d)
-    if not files:
-        raise InputError(str(d), "OpenPose JSON files (*.json)", "none")
-    if max_frames is not None:
-        files = files[:max_frames]
-    numbers = [_frame_number(f.name) for f in files]
-    if all(n is not None for n in numbers):
-        frames = np.array(numbers, int)
-        dup = sorted({n for n in numbers if numbers.count(n) > 1})
-        if dup:
-            raise InputError(str(d), "one JSON file per frame number", f"duplicated frame numbers {dup[:5]}")
-    else:
-        frames = np.arange(len(files))
+    files, frames = frame_files(d, "OpenPose JSON files (*.json)", max_frames)
     kps = np.stack([read_openpose_json(f, n_keypoints, person) for f in files])
     return OpenPoseFolder(folder=d, files=tuple(f.name for f in files), frames=frames, keypoints=kps)
 

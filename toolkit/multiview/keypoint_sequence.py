@@ -267,7 +267,7 @@ def decide_flips(points2d: np.ndarray, weights: np.ndarray, rig: Rig, noise_px: 
     perms = {f: flip_permutation(skeleton, f) for f in config.flips}
     used_views = [v for v in range(V) if (w[v] > 0).any()]
     for _ in range(2 * len(used_views)):  # never every view: that is the mirror of the labels as given
-        X, e = triangulate_batch(rig, pts[:, None], w[:, None])
+        _, e = triangulate_batch(rig, pts[:, None], w[:, None])
         options = []
         for f, perm in perms.items():
             moved = perm != np.arange(len(perm))
