@@ -24,6 +24,7 @@ from toolkit.io.calibration import (
 )
 from toolkit.io.dataset import Dataset, DatasetLayout, DatasetWriter
 from toolkit.io.frames import depth_to_mm, frame_filename, mm_to_depth, read_png
+from toolkit.io.pose2sim_import import ImportResult, import_pose2sim_trial
 from toolkit.io.video import (
     VideoInfo,
     VideoReader,
@@ -56,6 +57,8 @@ __all__ = [
     "frame_filename",
     "mm_to_depth",
     "read_png",
+    "ImportResult",
+    "import_pose2sim_trial",
     "VideoInfo",
     "VideoReader",
     "VideoWriter",

@@ -7,6 +7,8 @@
       videos/<camera>.mp4              one per camera, all with the same frame count
       scene.toml                       optional: the scene spec that generated the data
       scene.rrd                        optional: a rerun recording
+      keypoints/<camera>/              optional: a detector's 2D keypoints, one JSON file per frame
+      masks/<camera>/NNNNNN.png        optional: subject masks from elsewhere, uint8, non-zero = subject
       groundtruth/                     only for synthetic data
         calibration.toml               true cameras (same names as the measured ones)
         joints3d.npz                   joints (T, J, 3) metres, world z up; names (J,)
@@ -174,9 +176,23 @@ class Dataset:
             infos[first].fps,
             {n: i.size for n, i in infos.items()},
         )
+        ds._validate_inputs()
         if ds.has_groundtruth:
             ds._validate_groundtruth()
         return ds
+
+    def _validate_inputs(self) -> None:
+        """The optional ``keypoints/`` and ``masks/`` folders: one folder per camera, frames named."""
+        L = self.layout
+        if L.keypoints_dir.exists():
+            if not L.keypoints_dir.is_dir():
+                raise InputError(str(L.keypoints_dir), "a folder of one keypoint folder per camera", "a file")
+            for p in sorted(L.keypoints_dir.iterdir()):
+                if p.name.startswith("."):
+                    continue
+                if not p.is_dir() or p.name not in self.rig.names:
+                    raise InputError(str(p), f"a folder named after a camera {self.rig.names}", f"{p.name!r}")
+        self._validate_frame_folders(L.masks_dir, self.rig.names)
 
     def _validate_groundtruth(self) -> None:
         L = self.layout
@@ -430,6 +446,41 @@ class Dataset:
         if max_frames < 1:
             raise InputError("--max-frames", "a positive number of frames", str(max_frames))
         return min(int(max_frames), self.n_frames)
+
+    # -- optional inputs: keypoints and masks
+    @property
+    def has_keypoints(self) -> bool:
+        """Whether ``keypoints/`` holds a folder for at least one camera."""
+        return any(self.keypoint_dir(c) is not None for c in self.rig.names)
+
+    def keypoint_dir(self, camera: str) -> Path | None:
+        """``keypoints/<camera>/`` (a detector's JSON files, one per frame), or None when absent."""
+        camera_of(self.rig, camera, f"{self.root}: camera")
+        p = self.layout.keypoint_dir(camera)
+        return p if p.is_dir() else None
+
+    @property
+    def has_masks(self) -> bool:
+        """Whether ``masks/`` (subject masks from elsewhere) exists."""
+        return self.layout.masks_dir.is_dir()
+
+    def mask(self, camera: str, i: int) -> np.ndarray | None:
+        """The given subject mask ``masks/<camera>/NNNNNN.png`` as ``(H, W)`` bool, or None when absent.
+
+        Raises
+        ------
+        InputError
+            A mask of another size than the camera's.
+        """
+        cam = camera_of(self.rig, camera, f"{self.root}: camera")
+        path = self.layout.input_mask(camera, self._index(i))
+        if not path.is_file():
+            return None
+        img = read_png(path, channels=1, dtype=np.uint8)
+        if img.shape[:2] != (cam.height, cam.width):
+            raise InputError(str(path), f"an image of {cam.width}x{cam.height} (camera {camera!r})",
+                             f"{img.shape[1]}x{img.shape[0]}")
+        return img > 0
 
     # -- optional files
     def background(self, camera: str) -> np.ndarray | None:

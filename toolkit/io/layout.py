@@ -62,6 +62,7 @@ class DatasetLayout:
     SCENE_TOML = "scene.toml"
     FIELD_MODEL = "field_model.json"
     SCENE_RRD = "scene.rrd"
+    KEYPOINTS = "keypoints"
 
     def __post_init__(self):
         object.__setattr__(self, "root", Path(self.root))
@@ -74,6 +75,24 @@ class DatasetLayout:
     @property
     def calibration(self) -> Path:
         return self.root / self.CALIBRATION
+
+    @property
+    def keypoints_dir(self) -> Path:
+        """``keypoints/``: optional 2D keypoints of a detector, one folder per camera."""
+        return self.root / self.KEYPOINTS
+
+    def keypoint_dir(self, camera: str) -> Path:
+        """``keypoints/<camera>/``: one JSON file per frame (OpenPose or MMPose per image)."""
+        return self.keypoints_dir / camera
+
+    @property
+    def masks_dir(self) -> Path:
+        """``masks/``: optional subject masks from elsewhere (not ``groundtruth/masks/``)."""
+        return self.root / self.MASKS
+
+    def input_mask(self, camera: str, index: int) -> Path:
+        """``masks/<camera>/NNNNNN.png``: a given subject mask (uint8, non-zero = subject)."""
+        return self.masks_dir / camera / frame_filename(index)
 
     @property
     def videos(self) -> Path:

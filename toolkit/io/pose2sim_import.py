@@ -1,0 +1,329 @@
+"""A Pose2Sim trial turned into the project's dataset layout.
+
+:func:`import_pose2sim_trial` reads a trial (its ``videos/``, its ``pose/`` or
+``pose-associated/`` keypoints and the session's calibration, found by
+:func:`toolkit.io.pose2sim.read_pose2sim_trial`) and writes::
+
+    OUT/
+      calibration.toml          the calibration's cameras, sizes set to the videos' (see below)
+      videos/<camera>.mp4       links to the trial's videos (or copies; re-encoded only to trim them)
+      keypoints/<camera>/       links to (or copies of) the per-frame OpenPose JSON files, names kept
+      import.json               what was found and what was done (written last)
+
+Cameras keep the calibration's names; the videos and keypoint folders are matched
+to them with :func:`toolkit.io.keypoint_files.match_cameras` (by name:
+``cam01.mp4`` and ``cam01_json`` are ``cam_01``; else by the numbers in the names;
+else by sorted order, which is reported).  Mismatches are handled and reported,
+never ignored:
+
+* **Counts.** Fewer (or more) videos or keypoint folders than cameras, or keypoint
+  folders that name no camera (nor video), are errors.
+* **Frame sizes.** A video whose size differs from its camera's calibrated size by
+  at most :data:`PAD_TOLERANCE_PX` pixels in each direction is taken as the same
+  image cropped or padded at the right and bottom (what codecs do to reach a
+  multiple of 8 or 16 pixels): the intrinsics are kept (so the principal point
+  stays where the calibration measured it) and the size is set to the video's.  A
+  video that is the calibrated image resized (same aspect ratio) gets the camera
+  scaled (:meth:`toolkit.cameras.Camera.scaled`).  Anything else is an error.  The
+  Pose2Sim demo states 1088x1920 for its four cameras where the videos of
+  ``cam01`` and ``cam02`` are 1080x1920: their size becomes 1080x1920, K is kept.
+* **Frame counts.** Videos and keypoint folders are trimmed to their common length
+  (the shortest video, and the last keypoint frame + 1 of the shortest keypoint
+  folder); a video longer than that is re-encoded (``mp4v``) to its first frames,
+  keypoint files beyond it are left out.
+* **Frame rates.** Videos with different rates are an error; a ``frame_rate`` of
+  the Pose2Sim settings unlike the videos' is reported (the videos' is kept).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+
+from toolkit.cameras import Camera, Rig
+from toolkit.errors import InputError
+from toolkit.io.atomic import atomic_path, atomic_write_text, temp_path
+from toolkit.io.calibration import read_calibration, write_calibration_toml
+from toolkit.io.keypoint_files import camera_sources, match_cameras
+from toolkit.io.layout import FPS_RELATIVE_TOLERANCE, DatasetLayout
+from toolkit.io.openpose import frame_files
+from toolkit.io.pose2sim import POSE_FOLDERS, read_pose2sim_trial
+from toolkit.io.video import VideoReader, VideoWriter, probe_video
+
+__all__ = ["IMPORT_JSON", "PAD_TOLERANCE_PX", "VIDEO_SUFFIXES", "ImportResult", "fit_camera_to_video",
+           "import_pose2sim_trial"]
+
+#: Largest size difference (pixels, per direction) read as codec padding or cropping at the
+#: right / bottom edge: encoders pad frames to multiples of 8 or 16 pixels.
+PAD_TOLERANCE_PX = 16
+#: Relative aspect-ratio difference below which a video of another size is the calibrated image resized.
+ASPECT_TOLERANCE = 2e-3
+#: Suffixes of the trial's video files (case-insensitive).
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
+#: The import's report, written last into the dataset folder.
+IMPORT_JSON = "import.json"
+
+
+@dataclass(frozen=True)
+class ImportResult:
+    """What :func:`import_pose2sim_trial` did.
+
+    Attributes
+    ----------
+    out : Path
+        The dataset folder written.
+    rig : Rig
+        The cameras written to ``calibration.toml``.
+    n_frames : int
+        Frames of every video (and the keypoint frames kept: numbers below it).
+    report : dict
+        The content of ``import.json``.
+    messages : list of str
+        One line per mismatch found and what was done about it (also in ``report``).
+    """
+
+    out: Path
+    rig: Rig
+    n_frames: int
+    report: dict
+    messages: list[str]
+
+
+def fit_camera_to_video(cam: Camera, video_size: tuple[int, int], where: str) -> tuple[Camera, str | None]:
+    """The camera ``cam`` for frames of ``video_size``, and what was changed (``None``: nothing).
+
+    Parameters
+    ----------
+    cam : Camera
+        As calibrated.
+    video_size : tuple of int
+        ``(width, height)`` of the video's frames, pixels.
+    where : str
+        The video, for messages.
+
+    Returns
+    -------
+    camera : Camera
+        ``cam`` itself when the sizes agree; ``cam`` with ``size = video_size`` and K unchanged when
+        the sizes differ by at most :data:`PAD_TOLERANCE_PX` per direction (padding or cropping at
+        the right / bottom); ``cam.scaled(f)`` when the video is the calibrated image resized by f.
+    message : str or None
+
+    Raises
+    ------
+    InputError
+        Any other size, or a principal point outside the video's frame.
+    """
+    (cw, ch), (vw, vh) = cam.size, tuple(int(v) for v in video_size)
+    if (cw, ch) == (vw, vh):
+        return cam, None
+    if abs(cw - vw) <= PAD_TOLERANCE_PX and abs(ch - vh) <= PAD_TOLERANCE_PX:
+        cx, cy = cam.K[0, 2], cam.K[1, 2]
+        if not (0 <= cx < vw and 0 <= cy < vh):
+            raise InputError(where, f"frames holding camera {cam.name!r}'s principal point ({cx:.1f}, {cy:.1f})",
+                             f"{vw}x{vh}")
+        return cam.replace(size=(vw, vh)), (
+            f"{cam.name}: the calibration states {cw}x{ch}, the video {where} is {vw}x{vh}: read as the same "
+            f"image padded or cropped at the right/bottom (at most {PAD_TOLERANCE_PX} px); kept K (principal "
+            f"point {cx:.2f}, {cy:.2f} px) and set the size to {vw}x{vh}")
+    f = vw / cw
+    if abs(vh / ch - f) <= ASPECT_TOLERANCE * f:
+        scaled = cam.scaled(f)
+        if scaled.size == (vw, vh):
+            return scaled, (f"{cam.name}: the calibration states {cw}x{ch}, the video {where} is {vw}x{vh}: "
+                            f"read as the image resized by {f:.6g}; scaled K by it")
+    raise InputError(where, f"frames of {cw}x{ch} (camera {cam.name!r} of the calibration), the same padded or "
+                            f"cropped by at most {PAD_TOLERANCE_PX} px, or resized", f"{vw}x{vh}")
+
+
+def _videos(trial: Path) -> list[Path]:
+    folder = trial / "videos"
+    if not folder.is_dir():
+        raise InputError(str(folder), "the trial's videos, one per camera", "no such folder")
+    vids = sorted((p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")
+                   and p.suffix.lower() in VIDEO_SUFFIXES), key=lambda p: p.name)
+    if not vids:
+        raise InputError(str(folder), f"one video per camera ({', '.join(VIDEO_SUFFIXES)})", "no video")
+    return vids
+
+
+def _stem(p: Path) -> str:
+    name = p.stem if p.is_file() else p.name
+    for tail in ("_json", "-json", ".json"):
+        if name.lower().endswith(tail):
+            return name[: -len(tail)]
+    return name
+
+
+def _match(names: list[str], sources: list[Path], what: str, kind: str) -> tuple[list[Path], str]:
+    if len(sources) != len(names):
+        few = "fewer" if len(sources) < len(names) else "more"
+        raise InputError(what, f"one {kind} per calibration camera {names} ({len(names)})",
+                         f"{few} {kind}s: {len(sources)} ({[s.name for s in sources]})")
+    order, how = match_cameras(names, sources, what)
+    return [sources[i] for i in order], how
+
+
+def _link_or_copy(src: Path, dst: Path, copy: bool) -> None:
+    """``dst`` becomes a copy of ``src`` or a symbolic link to it (absolute), atomically."""
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    if copy:
+        with atomic_path(dst) as tmp:
+            shutil.copyfile(src, tmp)
+        return
+    tmp = temp_path(dst)
+    tmp.unlink()
+    try:
+        os.symlink(src.resolve(), tmp)
+        os.replace(tmp, dst)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def _trim_video(src: Path, dst: Path, n_frames: int, fps: float) -> None:
+    with VideoReader(src) as reader, VideoWriter(dst, fps) as writer:
+        for t, rgb in enumerate(reader):
+            if t >= n_frames:
+                break
+            writer.write(rgb)
+
+
+def import_pose2sim_trial(trial: str | os.PathLike, out: str | os.PathLike, *,
+                          calibration: str | os.PathLike | None = None, pose: str | None = None,
+                          copy: bool = False, overwrite: bool = False) -> ImportResult:
+    """Write a Pose2Sim trial as a dataset folder (module docstring).
+
+    Parameters
+    ----------
+    trial : path-like
+        The trial folder (``videos/``, ``pose/`` and/or ``pose-associated/``).
+    out : path-like
+        The dataset folder to write; it must not exist or be empty unless ``overwrite``.
+    calibration : path-like, optional
+        A calibration file (TOML or OpenCV YAML) instead of the session's ``Calib*.toml``.
+    pose : {"pose", "pose-associated"}, optional
+        The keypoint folder to import; by default ``pose-associated`` when there, else ``pose``.
+    copy : bool
+        Copy the videos and keypoint files instead of linking to them.
+    overwrite : bool
+        Write into a non-empty ``out`` (files of the import are replaced).
+
+    Returns
+    -------
+    ImportResult
+
+    Raises
+    ------
+    InputError
+        Naming the file or folder at fault: no trial, no calibration (neither found nor given), no
+        videos, fewer (or more) videos or keypoint folders than cameras, keypoint folders that
+        name no camera, video sizes that are not the calibrated ones (padded, cropped or resized),
+        videos of different frame rates, an ``out`` that is not empty, an unknown ``pose``.
+    """
+    trial = Path(trial)
+    if not trial.is_dir():
+        raise InputError(str(trial), "a Pose2Sim trial folder", "no such folder")
+    if pose is not None:
+        if pose not in POSE_FOLDERS:
+            raise InputError("pose", f"one of {list(POSE_FOLDERS)}", repr(pose))
+        if not (trial / pose).is_dir():
+            raise InputError(str(trial / pose), "the trial's keypoint folder asked for", "no such folder")
+        info = read_pose2sim_trial(trial / pose)
+    else:
+        info = read_pose2sim_trial(trial)
+    calib_path = Path(calibration) if calibration is not None else info.calibration
+    if calib_path is None:
+        raise InputError(str(trial), "a calibration: S00_Calibration/Calib*.toml in the session above the trial, "
+                                     "or one given (--calibration)", "none found")
+    rig_in = read_calibration(calib_path)
+    names = rig_in.names
+    messages: list[str] = []
+
+    videos, how_v = _match(names, _videos(trial), str(trial / "videos"), "video")
+    folders = camera_sources(info.keypoints)
+    if any(not f.is_dir() for f in folders):
+        raise InputError(str(info.keypoints), "one folder of per-frame JSON files per camera",
+                         f"{[f.name for f in folders]}")
+    folders, how_k = _match(names, folders, str(info.keypoints), "keypoint folder")
+    if how_k == "by order":
+        # folder names that mention no camera: they may name the videos instead (front_json, front.mp4)
+        order, how_kv = match_cameras([v.stem for v in videos], folders, str(info.keypoints))
+        if how_kv == "by order" and how_v != "by order":
+            raise InputError(str(info.keypoints), f"keypoint folders named after the cameras {names} or their "
+                                                  f"videos {[v.name for v in videos]}",
+                             f"folders that match none: {[f.name for f in folders]}")
+        folders, how_k = [folders[i] for i in order], f"{how_kv}, through the videos' names"
+    for how, what in ((how_v, "videos"), (how_k, "keypoint folders")):
+        if how.startswith("by order"):
+            messages.append(f"{what} matched to the cameras by sorted order (their names name no camera)")
+
+    probes = [probe_video(v) for v in videos]
+    fps = probes[0].fps
+    for v, p in zip(videos, probes):
+        if abs(p.fps - fps) > FPS_RELATIVE_TOLERANCE * fps:
+            raise InputError(str(trial / "videos"), "videos of one frame rate",
+                             f"{videos[0].name} at {fps:g} fps, {v.name} at {p.fps:g} fps")
+    if info.frame_rate is not None and abs(info.frame_rate - fps) > FPS_RELATIVE_TOLERANCE * fps:
+        messages.append(f"the Pose2Sim settings say frame_rate = {info.frame_rate:g}, the videos run at {fps:g} fps: "
+                        f"kept the videos'")
+    cams = []
+    for cam, v, p in zip(rig_in, videos, probes):
+        fitted, msg = fit_camera_to_video(cam, p.size, str(v))
+        cams.append(fitted)
+        if msg:
+            messages.append(msg)
+    rig = Rig(tuple(cams))
+
+    kp_files = [frame_files(f, "per-frame OpenPose JSON files") for f in folders]
+    kp_lengths = [int(nums.max()) + 1 for _, nums in kp_files]
+    n_frames = min([p.n_frames for p in probes] + kp_lengths)
+    lengths = {f"video {v.name}": p.n_frames for v, p in zip(videos, probes)}
+    lengths.update({f"keypoints {f.name}": n for f, n in zip(folders, kp_lengths)})
+    if len(set(lengths.values())) > 1:
+        messages.append(f"frame counts differ ({', '.join(f'{k}: {n}' for k, n in lengths.items())}): "
+                        f"trimmed to the common length {n_frames}")
+
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(str(out), "a dataset folder to write", "a file")
+    if out.is_dir() and any(out.iterdir()) and not overwrite:
+        raise InputError(str(out), "a new or empty folder (else overwrite)", "a folder with files")
+    layout = DatasetLayout(out)
+    layout.root.mkdir(parents=True, exist_ok=True)
+    (layout.root / IMPORT_JSON).unlink(missing_ok=True)  # a dataset without import.json is unfinished
+    write_calibration_toml(layout.calibration, rig, metadata={"source": str(calib_path.resolve())})
+    cameras = []
+    for cam, v, p, folder, (files, nums) in zip(rig, videos, probes, folders, kp_files):
+        dst = layout.video(cam.name)
+        if p.n_frames > n_frames:
+            _trim_video(v, dst, n_frames, fps)
+            video_action = f"re-encoded (mp4v) to its first {n_frames} frames"
+        else:
+            _link_or_copy(v, dst, copy)
+            video_action = "copied" if copy else "linked"
+        kept = [(f, int(n)) for f, n in zip(files, nums) if n < n_frames]
+        kdir = layout.keypoint_dir(cam.name)
+        for f, _ in kept:
+            _link_or_copy(f, kdir / f.name, copy)
+        src = rig_in[cam.name]
+        cameras.append({
+            "name": cam.name, "video": str(v.resolve()), "video_action": video_action,
+            "keypoints": str(folder.resolve()), "keypoint_files": len(kept),
+            "keypoint_files_left_out": len(files) - len(kept),
+            "calibrated_size": list(src.size), "video_size": list(p.size), "size": list(cam.size),
+            "video_frames": p.n_frames, "keypoint_frames": int(nums.max()) + 1,
+        })
+    report = {
+        "trial": str(trial.resolve()), "calibration": str(calib_path.resolve()),
+        "keypoints": str(info.keypoints.resolve()), "pose_model": info.pose_model,
+        "settings_frame_rate": info.frame_rate, "fps": fps, "n_frames": n_frames,
+        "files": "copied" if copy else "linked", "videos_matched": how_v, "keypoints_matched": how_k,
+        "cameras": cameras, "messages": messages,
+    }
+    atomic_write_text(layout.root / IMPORT_JSON, json.dumps(report, indent=2) + "\n")
+    return ImportResult(out=layout.root, rig=rig, n_frames=n_frames, report=report, messages=messages)
