@@ -33,6 +33,15 @@ OFFSET_PRIOR_PX = SOURCE_MAX_OFFSET_PX
 #: database's 2D joint errors instead (1-3 px on cameras with no error left), which shifted
 #: stage 1's body and, applied by stage 3, every billboard (docs/stage1_multiview.md).
 REFINED_OFFSET_PRIOR_PX = 1.5
+#: Prior standard deviation of the offsets' gauge component, pixels: the part of the offsets
+#: that a 3D translation of the body would also explain (:func:`~toolkit.multiview.offsets.gauge_basis`).
+#: For far (broadcast) cameras that direction is exactly flat and the offset prior alone picks
+#: the smallest offsets; for near (studio, 3.5-5 m) cameras perspective makes it only nearly
+#: flat, and the 2-5 px errors of the database's 2D joints pulled all views' offsets 10-16 px
+#: the same way (the body moved 5-8 cm; zoo seed 13 studio scene with its true calibration:
+#: 12 mm MPJPE without offsets, 53-75 mm with them).  A tight prior on that component leaves
+#: the body where the rays put it (docs/stage1_multiview.md, "The offset gauge").
+GAUGE_PRIOR_PX = 1.0
 #: Standard deviation of a 2D joint, pixels, used to weigh the offset prior against the data.
 KEYPOINT_SIGMA_PX = 2.0
 #: Combinations refined by Levenberg-Marquardt, best first by their cost without offset
@@ -102,6 +111,9 @@ class MultiViewConfig:
         Per-camera overrides of ``offset_prior_px`` by camera name, e.g. the
         cameras refined on the field lines (:data:`REFINED_OFFSET_PRIOR_PX`,
         :meth:`with_offset_priors`).
+    gauge_prior_px : float
+        Standard deviation of the prior on the offsets' gauge component (the image shifts of
+        a 3D translation of the body), pixels (``inf``: none, only ``offset_prior_px``).
     keypoint_sigma_px : float
         Standard deviation of a 2D joint, pixels.
     reference_view : int or None
@@ -146,6 +158,7 @@ class MultiViewConfig:
     max_offset_px: float = MAX_OFFSET_PX
     offset_prior_px: float = OFFSET_PRIOR_PX
     camera_offset_prior_px: tuple[tuple[str, float], ...] = ()
+    gauge_prior_px: float = GAUGE_PRIOR_PX
     keypoint_sigma_px: float = KEYPOINT_SIGMA_PX
     reference_view: int | None = None
     refine_top: int = REFINE_TOP
@@ -193,6 +206,9 @@ class MultiViewConfig:
         if not self.offset_prior_px > 0:
             raise InputError("MultiViewConfig.offset_prior_px", "a value > 0 (inf: no prior)",
                              repr(self.offset_prior_px))
+        if not self.gauge_prior_px > 0:
+            raise InputError("MultiViewConfig.gauge_prior_px", "a value > 0 (inf: no gauge prior)",
+                             repr(self.gauge_prior_px))
         try:
             pri = tuple((str(n), float(v)) for n, v in self.camera_offset_prior_px)
         except (TypeError, ValueError):
