@@ -70,6 +70,24 @@ def main(argv=None) -> int:
     ap.add_argument("--replace-stale", action="store_true",
                     help="if OUT holds results of another dataset or other options, move it to OUT.stale-N "
                          "and start afresh (default: refuse)")
+    ap.add_argument("--keypoints", type=Path, default=None,
+                    help="2D keypoints of any detector, one sub-folder per camera (default: the dataset's "
+                         "keypoints/ when it has one): stage 1 triangulates them instead of querying the "
+                         "silhouette database")
+    ap.add_argument("--no-keypoints", action="store_true",
+                    help="ignore the dataset's keypoints/ (2D poses from the silhouette database)")
+    ap.add_argument("--keypoint-format", default=None,
+                    choices=("body_25", "body_25b", "coco_17", "coco_18", "halpe_26", "coco_133", "blazepose_33"),
+                    help="the keypoints' format (default: the dataset's import.json pose_model, else found "
+                         "from the files)")
+    ap.add_argument("--masks", type=Path, default=None,
+                    help="subject masks from elsewhere, <dir>/<camera>/NNNNNN.png (default: the dataset's masks/)")
+    ap.add_argument("--silhouettes", choices=("auto", "masks", "background", "seeded"), default="auto",
+                    help="with keypoints: masks given, background subtraction, or a segmentation seeded by the "
+                         "keypoints (auto: masks if given, else clean plates, else seeded)")
+    ap.add_argument("--hold-out", default=None, metavar="CAM",
+                    help="leave camera CAM out: run without its images and keypoints, render its view into "
+                         "OUT/heldout/CAM/ and compare with what it filmed (metrics.json 'heldout')")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
     args = ap.parse_args(argv)
     if args.jpeg_quality is not None and not 1 <= args.jpeg_quality <= 100:
@@ -86,19 +104,32 @@ def main(argv=None) -> int:
     from toolkit.io import Dataset, atomic_save_npz, atomic_write_png, atomic_write_text, write_video
     from toolkit.io.frames import frame_filename, read_png
     from toolkit.io.runs import dataset_fingerprint, run_recording, start_run
-    from toolkit.rendering import CpuCompositor, bbox_scores, birds_eye, orbit_path, source_path, subject_scores
+    from toolkit.rendering import CpuCompositor, birds_eye, orbit_path, source_path
     from toolkit.rendering.evaluation import BackgroundPlates, pose_errors, summarise
     from toolkit.rendering.freeviewpoint import (METHODS, FrameProcessor, FreeViewpointConfig, render_methods,
                                                    render_views)
+    from toolkit.pipeline import KeypointStage1Config, estimate_from_keypoints
+    from toolkit.pipeline.keypoints import declared_format
+    from toolkit.pipeline.views import (HELDOUT_REGION_DOC, EvaluationView, HeldOutRegions, render_evaluation,
+                                        split_rig)
     from toolkit.silhouettes import Stage1Config, default_database, default_database_path
     from toolkit.silhouettes.pipeline import estimate_dataset
     from toolkit.skeleton import SKELETON_14
 
     try:
         ds = Dataset.open(args.dataset)
-        names = ds.camera_names
+        all_names = ds.camera_names
         n = ds.frames_to_process(args.max_frames)
         out = args.out
+        kp_dir = None if args.no_keypoints else (
+            args.keypoints if args.keypoints is not None else (ds.root / "keypoints" if ds.has_keypoints else None))
+        if kp_dir is not None and not Path(kp_dir).is_dir():
+            raise InputError("--keypoints", "a folder with one sub-folder of keypoints per camera", f"{kp_dir}")
+        masks_dir = args.masks if args.masks is not None else (ds.root / "masks" if ds.has_masks else None)
+        if masks_dir is not None and not Path(masks_dir).is_dir():
+            raise InputError("--masks", "a folder with one sub-folder of masks per camera", f"{masks_dir}")
+        if args.hold_out is not None and args.hold_out not in all_names:
+            raise InputError("--hold-out", f"one of the dataset's cameras {all_names}", repr(args.hold_out))
         # results of another dataset or other options must not be resumed (run.json)
         identity = {"recipe": "free_viewpoint", "dataset": dataset_fingerprint(ds.root),
                     # the default database's file name holds its build configuration's key
@@ -106,10 +137,15 @@ def main(argv=None) -> int:
                     "foreground": args.foreground, "optimize": not args.no_optimize,
                     "keep_calibration": args.keep_calibration, "baselines": not args.no_baselines,
                     "renderer": args.renderer}
+        if kp_dir is not None or args.hold_out is not None or masks_dir is not None:
+            identity.update(keypoints=str(Path(kp_dir).resolve()) if kp_dir is not None else None,
+                            masks=str(Path(masks_dir).resolve()) if masks_dir is not None else None,
+                            silhouettes=args.silhouettes, hold_out=args.hold_out,
+                            keypoint_format=args.keypoint_format)
         resumed = start_run(out, identity, replace_stale=args.replace_stale)
         novel = list(ds.novel_rig) if ds.has_groundtruth and (ds.root / "groundtruth/novel/calibration.toml").exists() \
             else []
-        if not novel:
+        if not novel and args.hold_out is None:
             print("note: the dataset has no novel cameras; rendering the camera paths only (no image metrics)")
         done = {t for t in range(n) if (out / "frames" / frame_filename(t, ".json")).exists()}
         observer = rec_path = None
@@ -120,13 +156,18 @@ def main(argv=None) -> int:
             rec_path, rec_id = run_recording(out, resumed)
             rconf = RerunConfig() if args.jpeg_quality is None else RerunConfig(jpeg_quality=args.jpeg_quality)
             observer = RerunObserver(application_id="free_viewpoint", path=rec_path, recording_id=rec_id,
-                                     camera_names=names + [c.name for c in novel], config=rconf)
+                                     camera_names=all_names + [c.name for c in novel], config=rconf)
             if novel:
                 observer.report("rig", rig=ds.novel_rig)
             observer.report("skeleton", skeleton=SKELETON_14)
         # frames of this same run are finished: continue with its cameras
-        rig = cameras_for_run(ds, out, refine=not args.keep_calibration, resumed=resumed and bool(done),
-                              observer=observer)
+        full_rig = cameras_for_run(ds, out, refine=not args.keep_calibration, resumed=resumed and bool(done),
+                                   observer=observer)
+        held = None
+        rig = full_rig
+        if args.hold_out is not None:  # the pipeline never sees the held-out camera's images or keypoints
+            rig, held = split_rig(full_rig, args.hold_out)
+        names = rig.names
         if observer is not None:
             observer.report("rig", rig=rig)
         plates = BackgroundPlates(ds.scene_toml) if ds.scene_toml is not None else None
@@ -147,21 +188,30 @@ def main(argv=None) -> int:
         else:
             compositor = CpuCompositor()
         db = None
-        if todo:
+        if todo and kp_dir is None:
             db = default_database(args.db)[0] if args.db is None or not args.db.exists() else None
             if db is None:
                 from toolkit.silhouettes import SilhouetteDatabase
                 db = SilhouetteDatabase.load(args.db)
         # clean plates of the source cameras (a broadcast crew records the empty pitch): segmentation uses them
         source_plates = {c: p for c in names if (p := ds.background(c)) is not None} if todo else {}
+        region_of = None
+        if held is not None:
+            region_of = HeldOutRegions(ds, held, masks_dir=masks_dir, keypoints=kp_dir, out=out)
         stopped = ""
         t_start = time.perf_counter()
         try:
             fg = ForegroundConfig(method="chroma") if args.foreground == "chroma" else \
                 ForegroundConfig(background=replace(BackgroundConfig(), method=args.foreground))
-            s1config = Stage1Config().with_refined_cameras(refined_cameras(out))  # tight offset prior where refined
-            run = estimate_dataset(ds, db, s1config, foreground=fg, frames=todo, rig=rig,
-                                   observer=observer) if todo else iter(())
+            if not todo:
+                run = iter(())
+            elif kp_dir is not None:
+                kconf = KeypointStage1Config(fmt=args.keypoint_format or declared_format(ds.root))
+                run = estimate_from_keypoints(ds, kp_dir, rig, kconf, frames=todo, silhouettes=args.silhouettes,
+                                              masks_dir=masks_dir, foreground=fg, observer=observer)
+            else:
+                s1config = Stage1Config().with_refined_cameras(refined_cameras(out))  # tight prior where refined
+                run = estimate_dataset(ds, db, s1config, foreground=fg, frames=todo, rig=rig, observer=observer)
             for est, masks in tqdm(run, total=len(todo), desc="free viewpoint", unit="frame", disable=args.quiet):
                 t0 = time.perf_counter()
                 t = est.frame
@@ -169,31 +219,28 @@ def main(argv=None) -> int:
                 res = processor.process(t, images, masks, est, plates=source_plates)
                 for c in names:
                     atomic_write_png(out / "parts" / c / frame_filename(t), res.labels[c])
-                scores = {}
-                for cam in novel:
-                    bg = plates.plate(cam) if plates is not None else np.zeros(cam.size[::-1] + (3,), np.float32)
-                    views = render_views(res, cam, bg, compositor, observer=observer)
-                    gt, gt_mask = ds.novel_image(cam.name, t), ds.novel_mask(cam.name, t)
-                    atomic_write_png(out / "baselines" / "plate" / cam.name / frame_filename(t),
-                                     np.clip(np.asarray(bg, np.float32) + 0.5, 0, 255).astype(np.uint8))
-                    for m, v in views.items():
-                        folder = out / "novel" if m == "articulated" else out / "baselines" / m
-                        atomic_write_png(folder / cam.name / frame_filename(t), v.image)
-                        if m == "articulated":
-                            atomic_write_png(out / "novel_alpha" / cam.name / frame_filename(t),
-                                             np.clip(np.rint(v.alpha * 255.0), 0, 255).astype(np.uint8))
-                        scores.setdefault(m, {})[cam.name] = {**bbox_scores(v.image, gt, gt_mask),
-                                                              **subject_scores(v.image, gt, gt_mask, v.alpha)}
-                        if observer is not None:
-                            observer.report("image", camera=cam.name, image=v.image, name=f"render/{m}", frame=t)
+                views = [EvaluationView(cam, "novel", plates.plate(cam) if plates is not None else
+                                        np.zeros(cam.size[::-1] + (3,), np.float32),
+                                        ds.novel_image(cam.name, t), ds.novel_mask(cam.name, t)) for cam in novel]
+                if held is not None:
+                    views.append(region_of.view(t))
+                scores, heldout = {}, {}
+                for v in views:
+                    for m, sc in render_evaluation(res, v, out, t, compositor, observer=observer).items():
+                        (scores if v.kind == "novel" else heldout).setdefault(m, {})[v.camera.name] = sc
                 for p, cams in paths.items():
                     bg = plates.plate(cams[t]) if plates is not None else np.zeros(cams[t].size[::-1] + (3,))
                     img = render_methods(res, cams[t], bg, compositor, methods=("articulated",))["articulated"]
                     atomic_write_png(out / "paths" / p / frame_filename(t), img)
                 record = {"frame": t, "status": res.status, "joints": res.joints.tolist(),
                           "joints_stage1": res.joints_stage1.tolist(), "offsets": res.offsets.tolist(),
-                          "scores": scores, "timings": {**res.timings, "total": time.perf_counter() - t0},
+                          "scores": scores, "timings": {**res.timings, **{k: v for k, v in est.timings.items()
+                                                                          if k in ("foreground", "keypoints")},
+                                                        "total": time.perf_counter() - t0},
                           "optimize": res.optimize}
+                if held is not None:
+                    record["heldout"] = heldout
+                    record["heldout_region"] = region_of.how.get(t, "")
                 atomic_write_text(out / "frames" / frame_filename(t, ".json"), json.dumps(record, allow_nan=True))
         except KeyboardInterrupt:
             stopped = "interrupted"
@@ -215,14 +262,22 @@ def main(argv=None) -> int:
             for p in PATHS:
                 frames = (read_png(out / "paths" / p / frame_filename(t)) for t in range(n))
                 write_video(out / "paths" / f"{p}.mp4", frames, ds.fps)
+        metrics = {"frames": n, "finished": len(records), "optimize": outcome,
+                   "stage1": "keypoints" if kp_dir is not None else "silhouette database",
+                   "seconds_per_frame": {k: float(np.mean([r["timings"].get(k, np.nan) for r in records]))
+                                         for k in ("total", "foreground", "keypoints", "segmentation", "optimize",
+                                                   "billboards", "standard_billboards", "visual_hull")}
+                   if records else {}}
         if ds.has_groundtruth:
             gt = ds.gt_joints3d()[:n]
-            metrics = {"frames": n, "finished": len(records), "methods": summarise([r["scores"] for r in records]),
-                       "pose": pose_errors(joints, gt), "pose_stage1": pose_errors(stage1, gt),
-                       "seconds_per_frame": {k: float(np.mean([r["timings"].get(k, np.nan) for r in records]))
-                                             for k in ("total", "segmentation", "optimize", "billboards",
-                                                       "standard_billboards", "visual_hull")} if records else {},
-                       "novel_cameras": [c.name for c in novel], "optimize": outcome}
+            metrics.update({"methods": summarise([r["scores"] for r in records]),
+                            "pose": pose_errors(joints, gt), "pose_stage1": pose_errors(stage1, gt),
+                            "novel_cameras": [c.name for c in novel]})
+        if held is not None:
+            metrics["heldout"] = {"camera": held.name, "methods": summarise([r.get("heldout", {}) for r in records]),
+                                  "region": dict(Counter(r.get("heldout_region", "") for r in records)),
+                                  "region_definition": HELDOUT_REGION_DOC}
+        if ds.has_groundtruth or held is not None:
             atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=2, allow_nan=True))
         ds.close()
     except InputError as e:
@@ -239,6 +294,14 @@ def main(argv=None) -> int:
                       f"  coverage {s['coverage']:.3f} (worst view {s['coverage_min']:.3f})  ({s['n']} views)")
         e, e1 = metrics["pose"]["mpjpe_m"], metrics["pose_stage1"]["mpjpe_m"]
         print(f"  pose error {e * 100:.1f} cm (stage 1: {e1 * 100:.1f} cm)")
+    if held is not None and records:
+        print(f"  held-out camera {held.name} (its person's region: "
+              + ", ".join(f"{k} {v} frames" for k, v in metrics["heldout"]["region"].items()) + "):")
+        for m in METHODS:
+            s = metrics["heldout"]["methods"].get(m)
+            if s:
+                print(f"  {m:12s} on the person {s['psnr_subject']:.2f} dB  box PSNR {s['psnr']:.2f} dB  "
+                      f"SSIM {s['ssim']:.3f}  coverage {s['coverage']:.3f}  ({s['n']} frames)")
     if outcome:  # e.g. two cameras far apart: every joint "few_views", stage 3 changed nothing
         total = sum(outcome.values())
         print("  stage 3 joints: " + ", ".join(f"{k} {100 * v / total:.0f} %" for k, v in

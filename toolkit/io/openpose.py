@@ -232,3 +232,29 @@ def read_openpose_cameras(root: str | os.PathLike, n_keypoints: int, person: str
             if n in pos:
                 kp[c, pos[n]] = f.keypoints[t]
     return folders, frames, kp
+
+
+def write_openpose_json(path: str | os.PathLike, people) -> Path:
+    """Write one frame's people as an OpenPose JSON file (atomically).
+
+    Parameters
+    ----------
+    path : path-like
+        The file, e.g. ``keypoints/<camera>/<camera>_000012_keypoints.json``.
+    people : sequence of ndarray of shape (K, 3)
+        Per person ``(x, y, confidence)`` in pixels; NaN coordinates (missing) are written
+        as OpenPose does, ``0, 0, 0``.
+
+    Returns
+    -------
+    Path
+    """
+    from toolkit.io.atomic import atomic_write_text
+
+    out = []
+    for p in people:
+        k = np.array(p, float).reshape(-1, 3)
+        bad = ~np.isfinite(k).all(-1)
+        k[bad] = 0.0
+        out.append({"person_id": [-1], "pose_keypoints_2d": [float(v) for v in k.ravel()]})
+    return atomic_write_text(path, json.dumps({"version": 1.3, "people": out}))

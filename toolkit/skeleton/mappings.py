@@ -30,7 +30,7 @@ import numpy as np
 from toolkit.errors import InputError
 from toolkit.skeleton.skeleton import JOINTS_14
 
-__all__ = ["KEYPOINTS", "MAPPINGS", "FORMATS", "BODY_25", "BODY_25B", "COCO_17", "COCO_18", "HALPE_26",
+__all__ = ["KEYPOINTS", "MAPPINGS", "FORMATS", "from_skeleton14", "BODY_25", "BODY_25B", "COCO_17", "COCO_18", "HALPE_26",
            "COCO_133", "BLAZEPOSE_33", "CMU_BVH", "CMU_BVH_TO_14", "SKELETON14_BVH_TO_14", "DETECTOR_FORMATS",
            "POSE2SIM_MARKERS", "to_skeleton14", "mapping_table"]
 
@@ -233,6 +233,52 @@ def to_skeleton14(keypoints: np.ndarray, fmt: str, confidence: bool = False,
             done |= ok
     if confidence:
         return np.concatenate([out, out_c[..., None]], -1)
+    return out
+
+
+def from_skeleton14(joints: np.ndarray, fmt: str = "body_25", confidence: np.ndarray | float = 1.0) -> np.ndarray:
+    """Keypoints of a detector convention carrying 14 joints (the inverse of :func:`to_skeleton14`).
+
+    Each joint is written to the keypoints of the first alternative of :data:`MAPPINGS`
+    (e.g. BODY_25 ``head`` to both ears, ``neck`` to ``Neck``), so that
+    ``to_skeleton14(from_skeleton14(j, fmt), fmt)`` gives ``j`` back; the other keypoints are
+    missing (NaN, confidence 0).  For writing synthetic detections or exporting poses to
+    tools that read OpenPose files.
+
+    Parameters
+    ----------
+    joints : ndarray of shape (..., 14, D)
+        Joints in the order of ``JOINTS_14``; NaN = missing.
+    fmt : str
+        One of :data:`FORMATS`.
+    confidence : float or ndarray of shape (..., 14)
+        Confidence written for each present joint.
+
+    Returns
+    -------
+    ndarray of shape (..., K, D + 1)
+        Coordinates and confidence (0 where missing).
+
+    Raises
+    ------
+    InputError
+        Unknown format or joints of the wrong shape.
+    """
+    if fmt not in KEYPOINTS:
+        raise InputError("fmt", f"one of {list(FORMATS)}", repr(fmt))
+    j = np.asarray(joints, float)
+    if j.ndim < 2 or j.shape[-2] != 14:
+        raise InputError("joints", "an array of shape (..., 14, D)", f"shape {j.shape}")
+    names = KEYPOINTS[fmt]
+    index = {n: i for i, n in enumerate(names)}
+    conf = np.broadcast_to(np.asarray(confidence, float), j.shape[:-1])
+    out = np.full(j.shape[:-2] + (len(names), j.shape[-1] + 1), np.nan)
+    out[..., -1] = 0.0
+    for k, jn in enumerate(JOINTS_14):
+        present = np.all(np.isfinite(j[..., k, :]), -1)
+        for n in MAPPINGS[fmt][jn][0]:
+            out[..., index[n], :-1] = j[..., k, :]
+            out[..., index[n], -1] = np.where(present, conf[..., k], 0.0)
     return out
 
 

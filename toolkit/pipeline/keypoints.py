@@ -1,0 +1,383 @@
+"""Stage 1 from a detector's 2D keypoints instead of the silhouette database (source 000 claim 8).
+
+A dataset may carry 2D keypoints of any detector under ``keypoints/<camera>/``
+(``docs/dataset_layout.md``; ``recipes/import_pose2sim.py`` puts a Pose2Sim
+trial's there).  :func:`estimate_from_keypoints` triangulates them with the
+keypoint rules of :mod:`toolkit.multiview.keypoint_sequence` (labels trusted
+unless a per-view flip is decisive; one offset per camera kept only when it
+generalises across joints) and yields, frame by frame, what the silhouette
+stage yields (:func:`toolkit.silhouettes.pipeline.estimate_dataset`): a
+:class:`~toolkit.silhouettes.estimate.FrameEstimate` and the silhouettes, so
+stages 2-4 (:class:`toolkit.rendering.freeviewpoint.FrameProcessor`) run
+unchanged.
+
+Silhouettes come from, in this order (``silhouettes="auto"``): masks given
+(``masks_dir``: ``<dir>/<camera>/NNNNNN.png``, non-zero = subject), the
+dataset's clean plates (background subtraction), or a segmentation seeded by the
+keypoints (:mod:`toolkit.foreground.seeded`: footage without a plate and a
+subject that barely moves, e.g. a treadmill).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Iterator, Sequence
+
+import numpy as np
+
+from toolkit.cameras import Rig
+from toolkit.errors import InputError
+from toolkit.observe import Observer, as_observer
+
+__all__ = ["KeypointStage1Config", "KeypointStage1", "read_dataset_keypoints", "triangulate_dataset_keypoints",
+           "estimate_from_keypoints", "SILHOUETTE_SOURCES", "read_mask", "choose_silhouettes", "declared_format"]
+
+#: Where silhouettes come from: ``auto`` picks the first available of ``masks``, ``background`` (clean plates),
+#: ``seeded`` (keypoint-seeded segmentation).
+SILHOUETTE_SOURCES = ("auto", "masks", "background", "seeded")
+
+
+@dataclass(frozen=True)
+class KeypointStage1Config:
+    """Options of the keypoint stage 1.
+
+    Parameters
+    ----------
+    keypoint : toolkit.multiview.keypoint_sequence.KeypointConfig
+        Labels (flips) and offsets rules, the triangulation's options.
+    fmt : str, optional
+        Keypoint format (``toolkit.io.keypoint_formats``); default: found from the files.
+    min_confidence : float
+        Keypoints below this detector confidence are missing.
+    min_view_confidence : float
+        A view whose kept keypoints' mean confidence is below this is left out of a frame.
+    person : str
+        How one person is picked per frame (``toolkit.io.keypoint_session.open_keypoint_session``).
+    """
+
+    keypoint: object = field(default_factory=lambda: _default_keypoint_config())
+    fmt: str | None = None
+    min_confidence: float = 0.3
+    min_view_confidence: float = 0.3
+    person: str = "consensus"
+
+
+def _default_keypoint_config():
+    from toolkit.multiview.keypoint_sequence import KeypointConfig
+
+    return KeypointConfig()
+
+
+@dataclass(frozen=True, eq=False)
+class KeypointStage1:
+    """The keypoints of a dataset's cameras, triangulated.
+
+    Attributes
+    ----------
+    rig : Rig
+        The cameras triangulated, in the order of the arrays.
+    sources : tuple of Path
+        Per camera its keypoint folder or file.
+    matching : str
+        How sources were matched to cameras.
+    format : str
+        The keypoint format and why.
+    frames : ndarray of shape (T,) int
+        Dataset frame index of each row.
+    sequence : toolkit.multiview.keypoint_sequence.KeypointSequence
+    """
+
+    rig: Rig
+    sources: tuple
+    matching: str
+    format: str
+    frames: np.ndarray
+    sequence: object
+
+    def row(self, frame: int) -> int | None:
+        """Row of dataset frame ``frame`` (None when the keypoints have none)."""
+        hit = np.flatnonzero(self.frames == int(frame))
+        return int(hit[0]) if hit.size else None
+
+    def estimate(self, frame: int):
+        """The stage-1 estimate of one dataset frame.
+
+        Returns
+        -------
+        toolkit.silhouettes.estimate.FrameEstimate
+            ``poses2d`` are the keypoints used (flips applied) in image pixels,
+            ``offsets`` the pixels added to them to meet the calibration
+            (the silhouette stage's convention); state "too few views" where
+            the frame has no triangulation.
+        """
+        from toolkit.silhouettes.estimate import FRAME_OK, FRAME_TOO_FEW_VIEWS, FrameEstimate
+
+        V = len(self.rig)
+        r = self.row(frame)
+        seq = self.sequence
+        ok = r is not None and bool(seq.success[r])
+        nan2 = np.full((V, 14, 2), np.nan)
+        return FrameEstimate(
+            frame=int(frame), state=FRAME_OK if ok else FRAME_TOO_FEW_VIEWS,
+            view_states=np.zeros(V, np.uint8), bboxes=np.full((V, 4), np.nan), candidates=(None,) * V,
+            candidates_px=np.full((V, 1, 14, 2), np.nan),
+            poses2d=seq.poses2d_raw[:, r].copy() if r is not None else nan2,
+            offsets=seq.offsets[r].copy() if r is not None else np.full((V, 2), np.nan),
+            joints3d=seq.joints3d[r].copy() if r is not None else np.full((14, 3), np.nan),
+            cost=float(seq.cost[r]) if r is not None else float("nan"), edited=np.zeros(V, bool))
+
+
+def read_dataset_keypoints(keypoints: str | os.PathLike, camera_names: Sequence[str], rig: Rig,
+                           fmt: str | None = None, person: str = "consensus", fps: float | None = None):
+    """Read the keypoints of ``rig``'s cameras from a keypoints folder of a dataset.
+
+    Parameters
+    ----------
+    keypoints : path-like
+        One sub-folder (a JSON file per frame) or one JSON file per camera.
+    camera_names : sequence of str
+        All the dataset's cameras: the sources are matched to them (by name, number or order,
+        :func:`toolkit.io.keypoint_files.match_cameras`), then ``rig``'s are kept, so a
+        held-out camera's keypoints are never read.
+    rig : Rig
+        The cameras to read (a subset of ``camera_names``).
+    fmt : str, optional
+    person : str
+        ``"consensus"`` (the person the cameras agree on) or a per-view policy.
+    fps : float, optional
+        For the person tracking's motion model.
+
+    Returns
+    -------
+    sources : tuple of Path
+    matching : str
+    data : toolkit.io.keypoint_formats.KeypointInput
+        Keypoints of ``rig``'s cameras, rig order.
+
+    Raises
+    ------
+    InputError
+        No such folder, sources that do not match the cameras, unreadable files.
+    """
+    from toolkit.io.keypoint_files import camera_sources, match_cameras
+    from toolkit.io.keypoint_formats import read_keypoints
+
+    root = Path(keypoints)
+    srcs = camera_sources(root)
+    order, matching = match_cameras(list(camera_names), srcs, f"{root}: keypoint sources")
+    by_name = dict(zip(camera_names, (srcs[i] for i in order)))
+    missing = [c for c in rig.names if c not in by_name]
+    if missing:
+        raise InputError("rig", f"cameras of {list(camera_names)}", f"{missing}")
+    sources = tuple(by_name[c] for c in rig.names)
+    data = read_keypoints(list(sources), fmt, "format",
+                          person="most_confident" if person == "consensus" else person)
+    if person == "consensus":
+        from toolkit.multiview.tracking import DEFAULT_FPS, TrackingConfig, frame_detections, main_person
+
+        dets = frame_detections(data.cameras, data.frames, data.keypoints.shape[2])
+        data = replace(data, keypoints=main_person(dets, rig, TrackingConfig(fps=fps or DEFAULT_FPS)))
+    return sources, matching, data
+
+
+def triangulate_dataset_keypoints(keypoints: str | os.PathLike, camera_names: Sequence[str], rig: Rig,
+                                  n_frames: int, config: KeypointStage1Config = KeypointStage1Config(), *,
+                                  fps: float | None = None, observer: Observer | None = None) -> KeypointStage1:
+    """Triangulate a dataset's keypoints over the whole sequence (flips and offsets are sequence decisions).
+
+    Parameters
+    ----------
+    keypoints : path-like
+    camera_names : sequence of str
+        All the dataset's cameras (see :func:`read_dataset_keypoints`).
+    rig : Rig
+        The cameras used.
+    n_frames : int
+        The dataset's frame count; keypoint frame numbers are dataset frame indices, and
+        numbers outside ``[0, n_frames)`` are refused.
+    config : KeypointStage1Config
+    fps : float, optional
+    observer : Observer, optional
+
+    Returns
+    -------
+    KeypointStage1
+    """
+    from toolkit.multiview import keypoints_to_candidates
+    from toolkit.multiview.keypoint_sequence import triangulate_keypoint_sequence
+    from toolkit.skeleton.mappings import to_skeleton14
+
+    sources, matching, data = read_dataset_keypoints(keypoints, camera_names, rig, config.fmt, config.person, fps)
+    frames = np.asarray(data.frames, int)
+    bad = frames[(frames < 0) | (frames >= n_frames)]
+    if bad.size:
+        raise InputError(f"{keypoints}", f"keypoint frame numbers in [0, {n_frames}) (the dataset's video frames)",
+                         f"{bad[:5].tolist()}" + (" ..." if bad.size > 5 else ""))
+    kp14 = to_skeleton14(data.keypoints, data.format.fmt, confidence=True, min_confidence=config.min_confidence)
+    cand = [keypoints_to_candidates(kp14[:, t], config.min_confidence, config.min_view_confidence)
+            for t in range(kp14.shape[1])]
+    V = len(rig)
+    pts = np.stack([c[0][:, 0] for c in cand], axis=1) if cand else np.full((V, 0, 14, 2), np.nan)
+    wts = np.stack([c[1][:, 0] for c in cand], axis=1) if cand else np.zeros((V, 0, 14))
+    seq = triangulate_keypoint_sequence(pts, rig, config.keypoint, weights=wts, observer=observer, frames=frames)
+    return KeypointStage1(rig, sources, matching, f"{data.format.fmt} ({data.format.reason})", frames, seq)
+
+
+def declared_format(root: str | os.PathLike) -> str | None:
+    """The keypoint format a dataset declares: ``pose_model`` of its ``import.json``
+    (written by ``recipes/import_pose2sim.py``), or None (found from the files)."""
+    import json
+
+    p = Path(root) / "import.json"
+    if not p.is_file():
+        return None
+    try:
+        fmt = json.loads(p.read_text()).get("pose_model")
+    except (ValueError, OSError) as e:
+        raise InputError(str(p), "a JSON object (written by recipes/import_pose2sim.py)", f"unreadable: {e}")
+    return fmt if isinstance(fmt, str) and fmt else None
+
+
+def read_mask(folder: str | os.PathLike, camera: str, frame: int, size: tuple[int, int]) -> np.ndarray | None:
+    """A given silhouette: ``folder/<camera>/NNNNNN.png`` (non-zero = subject), or None when absent.
+
+    Raises
+    ------
+    InputError
+        A mask of another size than the camera's ``(width, height)``.
+    """
+    from toolkit.io.frames import frame_filename, read_png
+
+    p = Path(folder) / camera / frame_filename(frame)
+    if not p.exists():
+        return None
+    m = read_png(p)
+    m = m[..., 0] if m.ndim == 3 else m
+    if m.shape != (size[1], size[0]):
+        raise InputError(str(p), f"a {size[0]}x{size[1]} mask (the camera's size)", f"{m.shape[1]}x{m.shape[0]}")
+    return m > 0
+
+
+def choose_silhouettes(source: str, masks_dir, has_plates: bool, seeded_available: bool = True) -> str:
+    """Resolve ``silhouettes="auto"``: masks given, else clean plates, else keypoint-seeded.
+
+    Raises
+    ------
+    InputError
+        An unknown source, ``"masks"`` without a folder.
+    """
+    if source not in SILHOUETTE_SOURCES:
+        raise InputError("silhouettes", f"one of {SILHOUETTE_SOURCES}", repr(source))
+    if source == "masks" and masks_dir is None:
+        raise InputError("--silhouettes masks", "a masks folder (--masks DIR, or the dataset's masks/)", "none")
+    if source != "auto":
+        return source
+    if masks_dir is not None:
+        return "masks"
+    if has_plates:
+        return "background"
+    return "seeded" if seeded_available else "background"
+
+
+def estimate_from_keypoints(dataset, keypoints: str | os.PathLike, rig: Rig | None = None,
+                            config: KeypointStage1Config = KeypointStage1Config(), *,
+                            frames: Sequence[int] | None = None, silhouettes: str = "auto",
+                            masks_dir: str | os.PathLike | None = None, foreground=None,
+                            observer: Observer | None = None, log_images: bool = True,
+                            stage1: KeypointStage1 | None = None) -> Iterator[tuple]:
+    """Stage 1 from keypoints, frame by frame, in the silhouette stage's shape.
+
+    Parameters
+    ----------
+    dataset : toolkit.io.Dataset
+    keypoints : path-like
+        The keypoints folder (``dataset/keypoints`` or ``--keypoints DIR``).
+    rig : Rig, optional
+        The cameras to use (default the dataset's): a subset leaves cameras out (their
+        keypoints and images are never read).
+    config : KeypointStage1Config
+    frames : sequence of int, optional
+        Frames to yield, increasing (default all).  The triangulation itself runs over the
+        whole sequence once (its flip and offset decisions are the sequence's).
+    silhouettes : {"auto", "masks", "background", "seeded"}
+        See the module docstring.
+    masks_dir : path-like, optional
+        Masks given, ``<dir>/<camera>/NNNNNN.png``.
+    foreground : toolkit.foreground.ForegroundConfig, optional
+        Background subtraction's options (``silhouettes="background"``).
+    observer : Observer, optional
+    log_images : bool
+    stage1 : KeypointStage1, optional
+        An earlier triangulation of the same keypoints and cameras (skips it).
+
+    Yields
+    ------
+    estimate : toolkit.silhouettes.estimate.FrameEstimate
+        With ``timings["foreground"]`` and ``timings["keypoints"]`` (this frame's share of
+        the sequence triangulation).
+    masks : list of (ndarray (H, W) bool or None)
+        Rig order.
+    """
+    from toolkit.io import VideoReader
+
+    obs = as_observer(observer)
+    rig = dataset.rig if rig is None else rig
+    names = rig.names
+    todo = list(range(dataset.n_frames)) if frames is None else [int(t) for t in frames]
+    t0 = time.perf_counter()
+    if stage1 is None:
+        stage1 = triangulate_dataset_keypoints(keypoints, dataset.camera_names, rig, dataset.n_frames, config,
+                                               fps=getattr(dataset, "fps", None), observer=observer)
+    t_kp = (time.perf_counter() - t0) / max(len(stage1.frames), 1)
+    plates = {c: p for c in names if (p := dataset.background(c)) is not None}
+    source = choose_silhouettes(silhouettes, masks_dir, len(plates) == len(names))
+    obs.report("text", name="stage1/keypoints", text=(
+        f"keypoints {stage1.format}, cameras matched {stage1.matching}; offsets: "
+        f"{stage1.sequence.offset_decision.reason}; silhouettes: {source}"))
+    readers = {c: VideoReader(dataset.video_path(c)) for c in names}
+    try:
+        extractors = seeded = None
+        if source == "background":
+            from toolkit.foreground import ForegroundExtractor
+
+            extractors = {c: ForegroundExtractor(foreground).fit([plates[c]] if c in plates else readers[c])
+                          for c in names}
+        elif source == "seeded":
+            from toolkit.foreground.seeded import SeededSilhouettes
+
+            seeded = SeededSilhouettes(rig)
+        previous: dict = {c: None for c in names}
+        for t in todo:
+            t1 = time.perf_counter()
+            est = stage1.estimate(t)
+            images = {}
+            for c in names:
+                try:
+                    images[c] = readers[c].read(t)
+                except (InputError, IndexError):
+                    images[c] = None
+                if log_images and images[c] is not None:
+                    obs.report("image", camera=c, image=images[c], frame=t)
+            masks: list = []
+            if source == "masks":
+                masks = [read_mask(masks_dir, c, t, rig[c].size) if images[c] is not None else None for c in names]
+            elif source == "background":
+                for c in names:
+                    if images[c] is None:
+                        masks.append(None)
+                        previous[c] = None
+                        continue
+                    sil = extractors[c].extract(images[c], previous[c])
+                    previous[c] = (images[c], sil.mask) if sil.usable else None
+                    masks.append(sil.mask)
+            else:
+                masks = seeded.segment_frame(t, images, est)
+            est.timings["foreground"] = time.perf_counter() - t1
+            est.timings["keypoints"] = t_kp
+            yield est, masks
+    finally:
+        for r in readers.values():
+            r.close()

@@ -1,0 +1,224 @@
+"""Views a run renders and judges: the dataset's novel cameras and a held-out source camera.
+
+Leaving a real camera out (``free_viewpoint.py --hold-out CAM``) is the honest test
+of a novel-view method on real footage: the pipeline runs without that camera's
+images and keypoints, renders its view from the others, and compares with what it
+filmed.  Without ground truth, *the person's region* of the held-out frame is its
+subject mask, from the first of: masks given for that camera (``--masks`` or the
+dataset's ``masks/``), the dataset's ground-truth mask (synthetic), or a
+segmentation of that frame seeded by that camera's own keypoints (used for the
+evaluation only: the pipeline never sees them).  The view is rendered over the
+camera's clean plate when the dataset has one, else over its own frame with the
+region (dilated by :data:`BLANK_MARGIN_PX`) blanked to black, so that a part a
+method fails to draw is black, never the real person.  Scores: PSNR over the region
+dilated by 2 px (``psnr_subject``), PSNR / SSIM in the region's box (``psnr``,
+``ssim``), and the share of the region drawn with opacity > 0.5 (``coverage``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from toolkit.cameras import Camera, Rig
+from toolkit.errors import InputError
+
+__all__ = ["EvaluationView", "HeldOutRegions", "split_rig", "blanked_background", "render_evaluation",
+           "BLANK_MARGIN_PX", "HELDOUT_REGION_DOC"]
+
+#: The person's region is blanked in the held-out frame's background this far beyond its mask, pixels.
+BLANK_MARGIN_PX = 6
+
+
+@dataclass(frozen=True, eq=False)
+class EvaluationView:
+    """One view to render and (when a reference exists) judge.
+
+    Attributes
+    ----------
+    camera : Camera
+    kind : {"novel", "heldout"}
+        Where the articulated rendering is written: ``novel/`` or ``heldout/``.
+    background : ndarray of shape (H, W, 3) float32
+        What the subject is drawn over, 0..255.
+    reference : ndarray of shape (H, W, 3) uint8, optional
+        What the camera saw.
+    region : ndarray of shape (H, W) bool, optional
+        The subject's pixels in ``reference``.
+    """
+
+    camera: Camera
+    kind: str
+    background: np.ndarray
+    reference: np.ndarray | None = None
+    region: np.ndarray | None = None
+
+
+def split_rig(rig: Rig, camera: str) -> tuple[Rig, Camera]:
+    """The rig without ``camera``, and that camera.
+
+    Raises
+    ------
+    InputError
+        ``camera`` is not in the rig, or fewer than two cameras would remain.
+    """
+    if camera not in rig.names:
+        raise InputError("--hold-out", f"one of the dataset's cameras {rig.names}", repr(camera))
+    rest = Rig(tuple(c for c in rig if c.name != camera))
+    if len(rest) < 2:
+        raise InputError("--hold-out", "a camera of a rig of at least 3 (two must remain to triangulate)",
+                         f"{camera!r} of {len(rig)} cameras")
+    return rest, rig[camera]
+
+
+def blanked_background(frame: np.ndarray, region: np.ndarray, margin_px: int = BLANK_MARGIN_PX) -> np.ndarray:
+    """The held-out frame with the person's region (dilated by ``margin_px``) set to black, float32 0..255."""
+    k = 2 * int(margin_px) + 1
+    grown = cv2.dilate(np.asarray(region, np.uint8), np.ones((k, k), np.uint8)) > 0
+    bg = np.asarray(frame, np.float32).copy()
+    bg[grown] = 0.0
+    return bg
+
+
+def render_evaluation(result, view: EvaluationView, out: Path, frame: int, compositor=None,
+                      observer=None) -> dict:
+    """Render ``result`` with every method into ``view``, write the images, and score them.
+
+    Writes ``novel/<camera>/NNNNNN.png`` (or ``heldout/``), its opacity under
+    ``novel_alpha/`` (or ``heldout_alpha/``), ``baselines/<method>/<camera>/NNNNNN.png``
+    and ``baselines/plate/<camera>/NNNNNN.png`` (the background alone).
+
+    Returns
+    -------
+    dict of str -> dict
+        Per method its scores (``psnr``, ``ssim``, ``psnr_subject``, ``coverage``); empty
+        without a reference and region.
+    """
+    from toolkit.io import atomic_write_png
+    from toolkit.io.frames import frame_filename
+    from toolkit.rendering import bbox_scores, subject_scores
+    from toolkit.rendering.freeviewpoint import render_views
+
+    out = Path(out)
+    name = frame_filename(frame)
+    cam = view.camera.name
+    atomic_write_png(out / "baselines" / "plate" / cam / name,
+                     np.clip(np.asarray(view.background, np.float32) + 0.5, 0, 255).astype(np.uint8))
+    views = render_views(result, view.camera, view.background, compositor, observer=observer)
+    scores: dict = {}
+    for m, v in views.items():
+        folder = out / view.kind if m == "articulated" else out / "baselines" / m
+        atomic_write_png(folder / cam / name, v.image)
+        if m == "articulated":
+            atomic_write_png(out / f"{view.kind}_alpha" / cam / name,
+                             np.clip(np.rint(v.alpha * 255.0), 0, 255).astype(np.uint8))
+        if view.reference is not None and view.region is not None:
+            scores[m] = {**bbox_scores(v.image, view.reference, view.region),
+                         **subject_scores(v.image, view.reference, view.region, v.alpha)}
+        if observer is not None:
+            observer.report("image", camera=cam, image=v.image, name=f"render/{m}", frame=frame)
+    return scores
+
+
+#: How the held-out camera's person region is defined (written into metrics.json).
+HELDOUT_REGION_DOC = (
+    "the held-out camera's subject mask, from the first of: masks given for that camera (--masks or the dataset's "
+    "masks/), the dataset's ground-truth mask, a segmentation of that frame seeded by that camera's own keypoints "
+    "(evaluation only: the pipeline never sees them); rendered over the camera's clean plate when the dataset has "
+    "one, else over its own frame with the region (dilated by %d px) blanked to black; psnr_subject: PSNR over the "
+    "region dilated by 2 px; psnr, ssim: in the region's box; coverage: share of the region drawn with opacity > 0.5"
+    % BLANK_MARGIN_PX)
+
+
+class HeldOutRegions:
+    """The reference, person's region and background of a held-out camera, frame by frame.
+
+    Parameters
+    ----------
+    dataset : toolkit.io.Dataset
+    camera : Camera
+        The held-out camera (its calibration as used by the run).
+    masks_dir : path-like, optional
+        Masks given, ``<dir>/<camera>/NNNNNN.png``.
+    keypoints : path-like, optional
+        The dataset's keypoints folder: the held-out camera's own keypoints seed its region
+        when there is neither a mask nor ground truth.
+    out : path-like, optional
+        Where the regions used are written (``heldout_region/<camera>/NNNNNN.png``) for checking.
+
+    Attributes
+    ----------
+    how : dict of int -> str
+        Per frame, where its region came from (``"masks"``, ``"ground truth"``,
+        ``"seeded by its keypoints"`` or ``"none"``).
+    """
+
+    def __init__(self, dataset, camera: Camera, masks_dir=None, keypoints=None, out=None):
+        self.dataset = dataset
+        self.camera = camera
+        self.masks_dir = None if masks_dir is None else Path(masks_dir)
+        self.keypoints = None if keypoints is None else Path(keypoints)
+        self.out = None if out is None else Path(out)
+        self.how: dict = {}
+        self._kp = None
+        self._segmenter = None
+
+    def _own_keypoints(self, frame: int):
+        """The held-out camera's own 14 joints (pixels) and confidences in ``frame``, or None."""
+        if self.keypoints is None:
+            return None
+        if self._kp is None:
+            from toolkit.pipeline.keypoints import read_dataset_keypoints
+            from toolkit.skeleton.mappings import to_skeleton14
+
+            _, _, data = read_dataset_keypoints(self.keypoints, self.dataset.camera_names, Rig((self.camera,)),
+                                                person="most_confident")
+            self._kp = (np.asarray(data.frames, int), to_skeleton14(data.keypoints, data.format.fmt, confidence=True))
+        frames, kp = self._kp
+        hit = np.flatnonzero(frames == int(frame))
+        if not hit.size:
+            return None
+        k = kp[0, hit[0]]  # (14, 3)
+        return k[:, :2], np.nan_to_num(k[:, 2])
+
+    def region(self, frame: int, image: np.ndarray) -> tuple[np.ndarray | None, str]:
+        """The person's pixels in the held-out ``image`` of ``frame`` and where they come from."""
+        from toolkit.pipeline.keypoints import read_mask
+
+        name = self.camera.name
+        if self.masks_dir is not None:
+            m = read_mask(self.masks_dir, name, frame, self.camera.size)
+            if m is not None:
+                return m, "masks"
+        if self.dataset.has_groundtruth:
+            return self.dataset.gt_mask(name, frame), "ground truth"
+        own = self._own_keypoints(frame)
+        if own is not None and np.count_nonzero(own[1] > 0) >= 6:
+            from toolkit.foreground.seeded import seeded_silhouette
+
+            return seeded_silhouette(image, own[0], own[1]), "seeded by its keypoints"
+        return None, "none"
+
+    def view(self, frame: int) -> EvaluationView:
+        """The :class:`EvaluationView` of ``frame`` (writes its region under ``heldout_region/``)."""
+        name = self.camera.name
+        ref = self.dataset.frame(name, frame)
+        region, how = self.region(frame, ref)
+        self.how[int(frame)] = how
+        if region is not None and self.out is not None:
+            from toolkit.io import atomic_write_png
+            from toolkit.io.frames import frame_filename
+
+            atomic_write_png(self.out / "heldout_region" / name / frame_filename(frame),
+                             region.astype(np.uint8) * 255)
+        plate = self.dataset.background(name)
+        if plate is not None:
+            bg = np.asarray(plate, np.float32)
+        elif region is not None:
+            bg = blanked_background(ref, region)
+        else:
+            bg = np.asarray(ref, np.float32)
+        return EvaluationView(self.camera, "heldout", bg, ref if region is not None else None, region)
