@@ -25,6 +25,8 @@ from toolkit.foreground.config import BackgroundConfig
 MAD_TO_SIGMA = 1.4826
 #: Frames fed to the OpenCV subtractors while training (the samples, cycled); also their history.
 SUBTRACTOR_TRAINING_FRAMES = 200
+#: Margin around the strong foreground left out of the frame's noise estimate, pixels.
+NOISE_MARGIN_PX = 7
 #: Share of the OpenCV subtractors' weight (MOG2) or stored samples (KNN) a colour needs to
 #: be background: a majority, like the median model.
 SUBTRACTOR_MAJORITY = 0.5
@@ -157,6 +159,87 @@ class BackgroundModel:
             thr = self.threshold
             if prior is not None:
                 thr = np.where(np.asarray(prior, bool), thr * prior_threshold_scale, thr)
-            return self.distance(img) > thr
+            strong = self.distance(img) > thr
+            return self._with_weak_evidence(img, strong)
         out = self._subtractor.apply(cv2.cvtColor(img, cv2.COLOR_RGB2BGR), learningRate=0)
         return out == 255  # 127 = shadow
+
+    def weak_threshold(self, smoothed: np.ndarray, strong: np.ndarray) -> float:
+        """Weak-evidence threshold of one frame (0-255): the frame's own background noise.
+
+        Parameters
+        ----------
+        smoothed : ndarray of shape (H, W, 3), float32
+            The smoothed signed difference to the background.
+        strong : ndarray of shape (H, W) of bool
+            Strong foreground, left out of the noise estimate with a margin.
+
+        Returns
+        -------
+        float
+            ``max(weak_min_threshold, weak_sigma_factor * sigma)`` with ``sigma`` the largest
+            per-channel robust standard deviation (median absolute value x 1.4826) of
+            ``smoothed`` away from the strong foreground.
+        """
+        cfg = self.config
+        away = cv2.dilate(strong.astype(np.uint8), np.ones((2 * NOISE_MARGIN_PX + 1,) * 2, np.uint8)) == 0
+        sample = smoothed[away] if away.any() else smoothed.reshape(-1, 3)
+        sigma = float(np.max(np.median(np.abs(sample), axis=0))) * MAD_TO_SIGMA
+        return max(cfg.weak_min_threshold, cfg.weak_sigma_factor * sigma)
+
+    def _with_weak_evidence(self, img: np.ndarray, strong: np.ndarray) -> np.ndarray:
+        """Strong foreground plus the weak-evidence regions that touch it (hysteresis)."""
+        cfg = self.config
+        if not cfg.weak_sigma_factor or not strong.any():
+            return strong
+        diff = img.astype(np.float32) - self.background.astype(np.float32)
+        smoothed = cv2.GaussianBlur(diff, (0, 0), cfg.weak_blur_px)
+        weak = np.abs(smoothed).max(axis=-1) > self.weak_threshold(smoothed, strong)
+        n, lab = cv2.connectedComponents((weak | strong).astype(np.uint8), connectivity=8)
+        keep = np.zeros(n, bool)
+        keep[np.unique(lab[strong])] = True
+        keep[0] = False
+        return keep[lab]
+
+    def trim_border(self, frame: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """Drop border pixels that are more background than subject (median model).
+
+        Each pixel of the mask's outer layer is compared with the background ``B`` and the
+        subject's colour ``F`` next to it (the mean of the mask's interior pixels in a
+        ``border_window_px`` window): its opacity is the projection
+        ``alpha = (I - B) . (F - B) / |F - B|^2``; where ``|F - B|`` reaches
+        ``border_min_contrast`` and ``alpha < border_alpha`` the pixel leaves.  Repeated
+        ``border_passes`` times.
+
+        Parameters
+        ----------
+        frame : ndarray of shape (H, W, 3), uint8 RGB
+        mask : ndarray of shape (H, W) of bool
+
+        Returns
+        -------
+        ndarray of shape (H, W) of bool
+            The mask itself for the OpenCV subtractors or with the trimming off.
+        """
+        cfg = self.config
+        img = check_rgb(frame, "frame", self.size)
+        m = np.asarray(mask, bool)
+        if self._subtractor is not None or not cfg.border_alpha or not m.any():
+            return m
+        I = img.astype(np.float32)
+        B = self.background.astype(np.float32)
+        IB = I - B
+        win = (cfg.border_window_px, cfg.border_window_px)
+        for _ in range(cfg.border_passes):
+            interior = cv2.erode(m.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(np.float32)
+            cnt = cv2.boxFilter(interior, -1, win, normalize=False)
+            F = cv2.boxFilter(I * interior[..., None], -1, win, normalize=False) / np.maximum(cnt, 1e-6)[..., None]
+            FB = F - B
+            den = np.sum(FB * FB, axis=-1)
+            alpha = np.sum(IB * FB, axis=-1) / np.maximum(den, 1e-6)
+            judged = m & (interior == 0) & (cnt > 0) & (den >= cfg.border_min_contrast ** 2)
+            drop = judged & (alpha < cfg.border_alpha)
+            if not drop.any():
+                break
+            m = m & ~drop
+        return m

@@ -30,6 +30,32 @@ MEDIAN_MIN_THRESHOLD = 25.0
 #: pixel's own variation over the samples (flickering screens, waving flags).
 MEDIAN_SIGMA_FACTOR = 4.0
 
+#: Median model, weak evidence (hysteresis): the colour difference to the background is
+#: smoothed (Gaussian, :data:`WEAK_BLUR_PX`), and pixels whose smoothed difference exceeds
+#: this many robust standard deviations of the frame's own background noise (measured on the
+#: frame, away from the strong foreground) join the silhouette when they touch it.  A kit close
+#: to the backdrop differs from it by a coherent shift that smoothing keeps while it averages
+#: the compression noise away: on zoo seed 13 a grass-green kit's silhouette went from 0.76-0.87
+#: to 0.86-0.96 IoU (docs/stage1_silhouettes.md, "Silhouette area").  0 turns it off.
+WEAK_SIGMA_FACTOR = 4.0
+#: Smallest weak threshold (0-255, smoothed max-channel difference), for noiseless renderings.
+WEAK_MIN_THRESHOLD = 6.0
+#: Standard deviation of the Gaussian smoothing of the weak evidence, pixels.
+WEAK_BLUR_PX = 1.0
+#: Median model, border trimming: a pixel on the silhouette's border is kept only when its
+#: colour is at least this fraction of the way from the background to the subject's colour
+#: next to it (its opacity, the projection of I - B on F - B).  Blended border pixels (anti-
+#: aliasing, MPEG-4's colour bleed) otherwise make the silhouette 2-8 % too large at broadcast
+#: scale, where a pixel's width is a tenth of a forearm.  0 turns it off.
+BORDER_ALPHA = 0.5
+#: Border trimming judges a pixel only where subject and background differ by at least this
+#: much (Euclidean RGB, 0-255): with less contrast the opacity is noise.
+BORDER_MIN_CONTRAST = 40.0
+#: Border layers trimmed (each pass looks at the outermost layer again).
+BORDER_PASSES = 2
+#: Side of the window in which the subject's colour next to a border pixel is averaged, pixels.
+BORDER_WINDOW_PX = 5
+
 #: Chroma key for a green screen, OpenCV HSV units (H in 0-179, S and V in 0-255):
 #: green hues 35-85 (70-170 degrees), saturation >= 60, value >= 40.  Darker or greyer
 #: pixels are never keyed out, so shadows on the screen count as foreground: lower
@@ -97,6 +123,23 @@ class BackgroundConfig:
         OpenCV MOG2 ``varThreshold`` (squared Mahalanobis distance).
     knn_dist2_threshold : float
         OpenCV KNN ``dist2Threshold`` (squared distance).
+    weak_sigma_factor : float
+        Median model: weak evidence threshold in robust standard deviations of the frame's
+        background noise (hysteresis, :data:`WEAK_SIGMA_FACTOR`); 0 turns it off.
+    weak_min_threshold : float
+        Median model: smallest weak threshold (0-255).
+    weak_blur_px : float
+        Median model: Gaussian smoothing of the weak evidence, pixels.
+    border_alpha : float
+        Median model: smallest opacity of a border pixel kept (:data:`BORDER_ALPHA`); 0 turns
+        the trimming off.
+    border_min_contrast : float
+        Median model: border pixels are judged only where subject and background differ by
+        at least this much (Euclidean RGB, 0-255).
+    border_passes : int
+        Border layers trimmed.
+    border_window_px : int
+        Window (odd side, pixels) averaging the subject's colour next to a border pixel.
     """
 
     method: str = "median"
@@ -105,14 +148,30 @@ class BackgroundConfig:
     sigma_factor: float = MEDIAN_SIGMA_FACTOR
     mog2_var_threshold: float = 16.0
     knn_dist2_threshold: float = 400.0
+    weak_sigma_factor: float = WEAK_SIGMA_FACTOR
+    weak_min_threshold: float = WEAK_MIN_THRESHOLD
+    weak_blur_px: float = WEAK_BLUR_PX
+    border_alpha: float = BORDER_ALPHA
+    border_min_contrast: float = BORDER_MIN_CONTRAST
+    border_passes: int = BORDER_PASSES
+    border_window_px: int = BORDER_WINDOW_PX
 
     def __post_init__(self):
         if self.method not in BACKGROUND_METHODS:
             raise InputError("BackgroundConfig.method", f"one of {list(BACKGROUND_METHODS)}", repr(self.method))
         if int(self.n_samples) != self.n_samples or self.n_samples < 1:
             raise InputError("BackgroundConfig.n_samples", "an integer >= 1", repr(self.n_samples))
-        for name in ("min_threshold", "sigma_factor", "mog2_var_threshold", "knn_dist2_threshold"):
+        for name in ("min_threshold", "sigma_factor", "mog2_var_threshold", "knn_dist2_threshold",
+                     "weak_sigma_factor", "weak_min_threshold", "border_min_contrast"):
             _positive(f"BackgroundConfig.{name}", getattr(self, name), allow_zero=True)
+        _positive("BackgroundConfig.weak_blur_px", self.weak_blur_px)
+        if not 0 <= self.border_alpha < 1:
+            raise InputError("BackgroundConfig.border_alpha", "a value in [0, 1)", repr(self.border_alpha))
+        if int(self.border_passes) != self.border_passes or self.border_passes < 0:
+            raise InputError("BackgroundConfig.border_passes", "an integer >= 0", repr(self.border_passes))
+        w = self.border_window_px
+        if int(w) != w or w < 3 or w % 2 == 0:
+            raise InputError("BackgroundConfig.border_window_px", "an odd integer >= 3", repr(w))
 
 
 @dataclass(frozen=True)

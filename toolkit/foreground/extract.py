@@ -88,6 +88,8 @@ class ForegroundExtractor:
             if np.asarray(prev_mask).any():
                 prior = warp_previous_mask(prev_mask, prev_frame, img, cfg.motion.method)
         mask = clean_mask(self.raw_mask(img, prior), cfg.morphology)
+        if self.model is not None:
+            mask = self.model.trim_border(img, mask)
         return silhouette_from_mask(mask, cfg.silhouette)
 
 
