@@ -172,9 +172,12 @@ def people_sequence(n_frames: int, rng: np.random.Generator, height: float = 1.7
                 direction = np.array([side * np.sin(lift), 0.0, -np.cos(lift)])
                 J[el] = J[sh] + body.upper_arm * direction
                 J[wr] = J[el] + body.forearm * direction
-            step = 0.25 * np.sin(2 * np.pi * 4 * s + phase[2])
-            J[[9, 10], 1] += step
-            J[[12, 13], 1] -= step
+            swing = 0.45 * np.sin(2 * np.pi * 4 * s + phase[2])  # legs swing about the hips (radians)
+            for hip, knee, ankle, sign in ((8, 9, 10, 1.0), (11, 12, 13, -1.0)):
+                cs, ss = np.cos(sign * swing), np.sin(sign * swing)
+                for j in (knee, ankle):
+                    v = J[j] - J[hip]
+                    J[j] = J[hip] + np.array([v[0], cs * v[1] - ss * v[2], ss * v[1] + cs * v[2]])
             c, sn = np.cos(yaw), np.sin(yaw)
             Rz = np.array([[c, -sn, 0], [sn, c, 0], [0, 0, 1]])
             out[k, t] = J @ Rz.T + pos
