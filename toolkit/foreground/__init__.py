@@ -22,6 +22,15 @@ from toolkit.foreground.config import (
 from toolkit.foreground.extract import ForegroundExtractor, extract_silhouettes
 from toolkit.foreground.morphology import clean_mask, fill_holes, keep_largest_components
 from toolkit.foreground.motion import dense_flow, warp_previous_mask
+from toolkit.foreground.seeded import (
+    RefineConfig,
+    SeededConfig,
+    SeededMask,
+    SeededSegmenter,
+    body_scale,
+    refine_masks,
+    seed_trimap,
+)
 from toolkit.foreground.silhouette import STATES, Silhouette, bounding_box, mask_iou, silhouette_from_mask
 
 __all__ = [
@@ -31,4 +40,5 @@ __all__ = [
     "MotionConfig", "SilhouetteConfig", "ForegroundExtractor", "extract_silhouettes", "clean_mask",
     "fill_holes", "keep_largest_components", "dense_flow", "warp_previous_mask", "STATES", "Silhouette",
     "bounding_box", "mask_iou", "silhouette_from_mask",
+    "RefineConfig", "SeededConfig", "SeededMask", "SeededSegmenter", "body_scale", "refine_masks", "seed_trimap",
 ]
