@@ -273,7 +273,7 @@ def run_extrinsics(args) -> int:
         write_calibration(args.out, r.rig, metadata={"kind": f"extrinsics from {r.method}", "error": float(
             np.mean([v["rms_px"] for v in r.reprojection.values()])), "warnings": len(r.warnings)})
         report.update({"method": r.method, "reprojection": r.reprojection, "warnings": r.warnings,
-                       "details": {k: v for k, v in r.details.items() if k != "board_poses"},
+                       "details": {k: v for k, v in r.details.items() if k not in ("board_poses", "keypoints3d")},
                        "centres_m": {c.name: c.center.tolist() for c in r.rig}})
         atomic_write_text(_report_paths(args.out)[0], json.dumps(report, indent=1, default=str))
         for name, v in r.reprojection.items():

@@ -3,9 +3,9 @@
 Intrinsics stay fixed (they come from :mod:`toolkit.calibration.intrinsics`): the
 observations are undistorted once to normalised image coordinates and the residuals
 are normalised errors times the camera's focal length, i.e. about pixels.  The
-solver is ``scipy.optimize.least_squares`` (trust-region reflective) with the
-Jacobian's sparsity pattern given (each residual depends on one camera and one point
-or board pose) and a robust loss (``soft_l1`` by default), so that wrong detections
+solver is ``scipy.optimize.least_squares`` (trust-region reflective, LSMR steps) with
+an analytic sparse Jacobian (each residual depends on one camera and one point or
+board pose; rotation derivatives of Gallego and Yezzi, 2015) and a robust loss (``soft_l1`` by default), so that wrong detections
 (a keypoint on the wrong leg) do not pull the solution.
 """
 
@@ -16,7 +16,6 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.sparse import lil_matrix
 
 from toolkit.cameras import Camera
 
@@ -33,6 +32,31 @@ def rodrigues(r: np.ndarray) -> np.ndarray:
     K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = k[:, 2], -k[:, 1], k[:, 0]
     s, c = np.sin(th)[:, None, None], np.cos(th)[:, None, None]
     return np.eye(3)[None] + s * K + (1 - c) * (K @ K)
+
+
+def _skew(u: np.ndarray) -> np.ndarray:
+    """Cross-product matrices (N, 3, 3) of vectors (N, 3)."""
+    S = np.zeros(u.shape[:-1] + (3, 3))
+    S[..., 0, 1], S[..., 0, 2], S[..., 1, 2] = -u[..., 2], u[..., 1], -u[..., 0]
+    S[..., 1, 0], S[..., 2, 0], S[..., 2, 1] = u[..., 2], -u[..., 1], u[..., 0]
+    return S
+
+
+def rotation_jacobian_factor(r: np.ndarray) -> np.ndarray:
+    """Per Rodrigues vector ``v`` the (3, 3) factor ``A`` of d(R u)/dv = -R [u]x A (Gallego and Yezzi, 2015).
+
+    ``A = (v v^T + (R^T - I)[v]x) / |v|^2``, and the identity for ``v`` near zero.
+    """
+    r = np.asarray(r, float).reshape(-1, 3)
+    R = rodrigues(r)
+    n2 = np.sum(r ** 2, 1)
+    A = np.broadcast_to(np.eye(3), (len(r), 3, 3)).copy()
+    big = n2 > 1e-16
+    if big.any():
+        v = r[big]
+        A[big] = (v[:, :, None] * v[:, None, :]
+                  + (np.transpose(R[big], (0, 2, 1)) - np.eye(3)) @ _skew(v)) / n2[big, None, None]
+    return A
 
 
 def pose_params(T: np.ndarray) -> np.ndarray:
@@ -113,7 +137,7 @@ def _project(cam_p: np.ndarray, X: np.ndarray, obs: Observations) -> np.ndarray:
 def bundle_adjust(cameras: list[Camera], obs: Observations, points: np.ndarray | None = None,
                   board_poses: np.ndarray | None = None, board_points: np.ndarray | None = None,
                   fixed_cameras=(0,), loss: str = "soft_l1", f_scale_px: float = 2.0, max_nfev: int = 200,
-                  x_scale="jac") -> BundleResult:
+                  x_scale="jac", ftol: float = 1e-8) -> BundleResult:
     """Refine camera poses with free 3D points or with rigid board poses.
 
     Parameters
@@ -134,6 +158,10 @@ def bundle_adjust(cameras: list[Camera], obs: Observations, points: np.ndarray |
     f_scale_px : float
         Residual (pixels) where the robust loss starts to flatten.
     max_nfev : int
+    x_scale : str or ndarray
+        ``least_squares``' parameter scaling.
+    ftol : float
+        Stop when an iteration lowers the cost by less than this fraction.
 
     Returns
     -------
@@ -171,18 +199,51 @@ def bundle_adjust(cameras: list[Camera], obs: Observations, points: np.ndarray |
         return ((_project(cp, world_points(pp), obs) - obs.xy) * f[:, None]).ravel()
 
     M = len(obs.cam)
-    A = lil_matrix((2 * M, n_c + n_pp * len(P0)), dtype=np.int8)
-    rows = np.arange(M)
-    for k in range(2):
-        for c in free:
-            m = rows[obs.cam == c]
-            for j in range(6):
-                A[2 * m + k, 6 * slot[c] + j] = 1
-        for j in range(n_pp):
-            A[2 * rows + k, n_c + n_pp * obs.point + j] = 1
+    rows2 = np.arange(2 * M).reshape(M, 2)
+    cam_col = np.array([6 * slot[c] if c in slot else -1 for c in range(C)])[obs.cam]
+
+    def jac(x):
+        """Analytic Jacobian (sparse, 2M x n): projection chain rule with exact Rodrigues derivatives."""
+        cp, pp = unpack(x)
+        Rc = rodrigues(cp[:, :3])
+        Xw = world_points(pp)
+        Xc = np.einsum("mij,mj->mi", Rc[obs.cam], Xw) + cp[obs.cam, 3:6]
+        z = np.where(np.abs(Xc[:, 2]) < 1e-9, 1e-9, Xc[:, 2])
+        P = np.zeros((M, 2, 3))
+        P[:, 0, 0] = P[:, 1, 1] = f / z
+        P[:, 0, 2] = -f * Xc[:, 0] / z ** 2
+        P[:, 1, 2] = -f * Xc[:, 1] / z ** 2
+        PR = P @ Rc[obs.cam]  # d residual / d world point, (M, 2, 3)
+        blocks_r, blocks_c, blocks_v = [], [], []
+
+        def add(block, col0, m_idx):
+            k = block.shape[-1]
+            blocks_r.append(np.repeat(rows2[m_idx], k, axis=1).ravel())
+            blocks_c.append((col0[:, None, None] + np.arange(k)[None, None, :]).repeat(2, 1).ravel())
+            blocks_v.append(block.ravel())
+
+        mc = cam_col >= 0
+        if mc.any():
+            A = rotation_jacobian_factor(cp[:, :3])
+            # d Xc / d v = -R [Xw]x A
+            dR = -np.einsum("mij,mjk,mkl->mil", Rc[obs.cam[mc]], _skew(Xw[mc]), A[obs.cam[mc]])
+            add(np.concatenate([P[mc] @ dR, P[mc]], axis=2), cam_col[mc], np.flatnonzero(mc))
+        all_m = np.arange(M)
+        if rigid:
+            Rb = rodrigues(pp[:, :3])
+            Ab = rotation_jacobian_factor(pp[:, :3])
+            dRb = -np.einsum("mij,mjk,mkl->mil", Rb[obs.point], _skew(Bp[obs.corner]), Ab[obs.point])
+            add(np.concatenate([PR @ dRb, PR], axis=2), n_c + 6 * obs.point, all_m)
+        else:
+            add(PR, n_c + 3 * obs.point, all_m)
+        from scipy.sparse import csr_matrix
+
+        return csr_matrix((np.concatenate(blocks_v), (np.concatenate(blocks_r), np.concatenate(blocks_c))),
+                          shape=(2 * M, n_c + n_pp * len(P0)))
+
     x0 = np.concatenate([cam_p0[free].ravel(), P0.ravel()])
-    res = least_squares(fun, x0, jac_sparsity=A, loss=loss, f_scale=f_scale_px, method="trf", x_scale=x_scale,
-                        max_nfev=max_nfev, xtol=1e-10, ftol=1e-10)
+    res = least_squares(fun, x0, jac=jac, loss=loss, f_scale=f_scale_px, method="trf", x_scale=x_scale,
+                        max_nfev=max_nfev, xtol=1e-10, ftol=ftol, tr_solver="lsmr")
     cp, pp = unpack(res.x)
     Ts = np.array([pose_from_params(p) for p in cp])
     r = res.fun.reshape(-1, 2)

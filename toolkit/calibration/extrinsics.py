@@ -432,7 +432,8 @@ def extrinsics_from_people(cameras: list[Camera], keypoints: np.ndarray, keypoin
     -------
     ExtrinsicsResult
         ``details`` holds ``scale`` (metres per unit of the first reconstruction), ``scale_from``,
-        ``bone_scales``, ``floor`` and the number of observations.
+        ``bone_scales``, ``floor_from``, the number of observations and ``keypoints3d`` (T, K, 3),
+        the adjusted keypoints in the world frame (NaN where not reconstructed).
 
     Raises
     ------
@@ -600,7 +601,7 @@ def extrinsics_from_people(cameras: list[Camera], keypoints: np.ndarray, keypoin
     warnings += mirrored_person_warning(named) + cameras_under_floor(rig)
     details = {"scale": scale, "scale_from": scale_from, "bone_scales": bone_scales, "floor_from": floor_from,
                "start_pair": (cameras[a].name, cameras[b].name), "observations": int(len(residuals)),
-               "points": int(np.isfinite(Xw).all(1).sum())}
+               "points": int(np.isfinite(Xw).all(1).sum()), "keypoints3d": Xw.reshape(T_, K_, 3)}
     result = ExtrinsicsResult(rig, Xw[np.isfinite(Xw).all(1)], reprojection_summary(rig.names, res_cam, residuals),
                               warnings, "people", details)
     _report(observer, result, residuals, res_cam)
