@@ -7,6 +7,7 @@ blueprint) and the data always agree:
 ``world``                          world frame, metres, z up (``ViewCoordinates``)
 ``world/cams/<camera>``            ``Transform3D``: world from camera
 ``world/cams/<camera>/image``      ``Pinhole`` (K, OpenCV axes) and the camera image
+``world/cams/<camera>/image/subject``  the subject's crop of the camera image, every frame
 ``world/cams/<camera>/image/<n>``  2D overlays: keypoints, masks, labels, depth, boxes
 ``world/<n>``                      3D data: joints, points, rays, meshes, billboards
 ``metrics/<n>``                    scalar time series
@@ -21,7 +22,7 @@ with spaces or dots are safe.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 
 import rerun as rr
 import rerun.blueprint as rrb
@@ -81,6 +82,57 @@ def image_path(camera: str, root: str = CAMS) -> str:
     return f"{camera_path(camera, root)}/{IMAGE}"
 
 
+#: Child entity of a camera image holding the subject's crop of each frame (drawn over the last full
+#: image; :class:`toolkit.viz.RerunObserver` logs the full image only now and then).
+SUBJECT_CROP = "subject"
+#: Stage panels of the default layout: tab name and the overlay names (first segment of a report's
+#: ``name`` under a camera image) that it shows over the camera images.
+STAGE_TABS = (
+    ("stage 1: silhouettes, multi-view", ("calibration", "silhouettes", "multiview")),
+    ("stage 2: template, parts", ("template", "segmentation")),
+    ("stages 3-4: seams, rendered views", ("seams", "render", "optimize")),
+)
+#: Overlays of the stage tabs that the overview also shows (the result of each stage).
+OVERVIEW_OVERLAYS = ("silhouettes/pose", "render/articulated")
+#: Distance of the 3D view's eye from the subject, metres, and its height above the subject's centre.
+EYE_DISTANCE_M = 6.0
+EYE_HEIGHT_M = 1.5
+
+
+def subject_eye(target, camera_centres=None) -> tuple[list[float], list[float]]:
+    """Eye position and look target of a 3D view framed on a subject.
+
+    Parameters
+    ----------
+    target : array_like of shape (3,)
+        The subject's centre, metres (world, z up).
+    camera_centres : array_like of shape (n_cams, 3), optional
+        The eye looks from their mean horizontal direction (default: from -y).
+
+    Returns
+    -------
+    position, look_target : list of 3 float
+        ``EYE_DISTANCE_M`` from the target horizontally, ``EYE_HEIGHT_M`` above it.
+    """
+    import numpy as np
+
+    t = np.asarray(target, float).reshape(3)
+    d = np.array([0.0, -1.0])
+    if camera_centres is not None and len(camera_centres):
+        v = (np.asarray(camera_centres, float)[:, :2] - t[:2]).mean(axis=0)
+        if np.linalg.norm(v) > 1e-6:
+            d = v / np.linalg.norm(v)
+    pos = [t[0] + EYE_DISTANCE_M * d[0], t[1] + EYE_DISTANCE_M * d[1], t[2] + EYE_HEIGHT_M]
+    return [float(x) for x in pos], [float(x) for x in t]
+
+
+def _overview_contents() -> list[str]:
+    out = ["+ $origin/**"]
+    for _, prefixes in STAGE_TABS:
+        out += [f"- $origin/{p}/**" for p in prefixes]
+    return out + [f"+ $origin/{p}" for p in OVERVIEW_OVERLAYS]
+
+
 def make_blueprint(
     camera_names: Iterable[str],
     *,
@@ -88,13 +140,20 @@ def make_blueprint(
     include_metrics: bool = True,
     include_logs: bool = True,
     cams_root: str = CAMS,
+    overlays: Mapping[str, Iterable[str]] | None = None,
+    eye: tuple[Sequence[float], Sequence[float]] | None = None,
 ) -> rrb.Blueprint:
     """The default viewer layout for a recording of a camera rig.
 
-    Left column: a 3D view of ``world`` above a text log view of ``logs``.
-    Right column: a grid of 2D views, one per camera image
-    (``<cams_root>/<name>/image``) then one per ``extra_2d`` entity, above a
-    time-series view of ``metrics``.
+    A first tab, "overview": left a 3D view of ``world`` (framed on the subject
+    when ``eye`` is given, not on the far cameras) above a text log view of
+    ``logs``; right a grid of 2D views, one per camera image
+    (``<cams_root>/<name>/image``) with the camera image, each stage's result
+    (:data:`OVERVIEW_OVERLAYS`) and overlays of no stage, then one per
+    ``extra_2d`` entity, above a time-series view of ``metrics``.  Then one tab
+    per stage (:data:`STAGE_TABS`): the camera images with that stage's
+    overlays only, so that the panels of a stage are together and the overview
+    stays readable.
 
     Parameters
     ----------
@@ -109,6 +168,13 @@ def make_blueprint(
         Add the text log view of ``logs``.
     cams_root : str
         Root of the camera entities (the ``path`` of the ``rig`` report).
+    overlays : mapping of str to iterable of str, optional
+        Per camera, the overlay names seen so far (first segment of the report
+        names); a stage tab then shows only the cameras with overlays of that
+        stage and is left out when none has any.  Default: every stage tab with
+        every camera.
+    eye : (position, look_target), optional
+        Metres, world frame (:func:`subject_eye`).
 
     Returns
     -------
@@ -127,10 +193,15 @@ def make_blueprint(
     if dup:
         raise InputError("make_blueprint: camera_names", "unique names", f"duplicates {dup}")
 
-    views_2d: list[rrb.View] = [rrb.Spatial2DView(origin=image_path(n, cams_root), name=n) for n in names]
+    overview = _overview_contents()
+    views_2d: list[rrb.View] = [rrb.Spatial2DView(origin=image_path(n, cams_root), name=n, contents=overview)
+                                for n in names]
     views_2d += [rrb.Spatial2DView(origin=entity_path(p), name=p) for p in extra_2d]
 
-    left: list = [rrb.Spatial3DView(origin=WORLD, name="3D")]
+    controls = None
+    if eye is not None:
+        controls = rrb.EyeControls3D(position=list(eye[0]), look_target=list(eye[1]), eye_up=[0.0, 0.0, 1.0])
+    left: list = [rrb.Spatial3DView(origin=WORLD, name="3D", eye_controls=controls)]
     if include_logs:
         left.append(rrb.TextLogView(origin=LOGS, name="log"))
     right: list = []
@@ -140,7 +211,19 @@ def make_blueprint(
         right.append(rrb.TimeSeriesView(origin=METRICS, name="metrics"))
 
     left_col = rrb.Vertical(*left, row_shares=[3, 1][: len(left)]) if len(left) > 1 else left[0]
-    if not right:
-        return rrb.Blueprint(left_col, collapse_panels=False)
-    right_col = rrb.Vertical(*right, row_shares=[3, 1][: len(right)]) if len(right) > 1 else right[0]
-    return rrb.Blueprint(rrb.Horizontal(left_col, right_col), collapse_panels=False)
+    if right:
+        right_col = rrb.Vertical(*right, row_shares=[3, 1][: len(right)]) if len(right) > 1 else right[0]
+        main = rrb.Horizontal(left_col, right_col, name="overview")
+    else:
+        main = rrb.Horizontal(left_col, name="overview")
+    tabs = [main]
+    for title, prefixes in STAGE_TABS:
+        cams = [n for n in names if overlays is None or set(prefixes) & set(overlays.get(n, ()))]
+        if not cams:
+            continue
+        contents = ["+ $origin", f"+ $origin/{SUBJECT_CROP}"] + [f"+ $origin/{p}/**" for p in prefixes]
+        tabs.append(rrb.Grid(*[rrb.Spatial2DView(origin=image_path(n, cams_root), name=n, contents=contents)
+                               for n in cams], name=title))
+    if len(tabs) == 1 and not names:
+        return rrb.Blueprint(left_col if not right else main, collapse_panels=False)
+    return rrb.Blueprint(rrb.Tabs(*tabs, active_tab=0), collapse_panels=False)

@@ -41,8 +41,11 @@ from toolkit.viz.blueprint import (
     WORLD,
     camera_path,
     entity_path,
+    STAGE_TABS,
+    SUBJECT_CROP,
     image_path,
     make_blueprint,
+    subject_eye,
 )
 from toolkit.viz.fields import (
     _array,
@@ -66,6 +69,14 @@ from toolkit.viz.style import (
 
 #: Name of the sequence timeline that frames are logged on.
 FRAME_TIMELINE = "frame"
+#: Pixels added around a colour image's subject crop (beyond ``RerunConfig.crop_margin``).
+CROP_PAD_PX = 8
+#: A crop is stored only when it keeps at most this fraction of the image's pixels.
+CROP_MAX_FRACTION = 0.5
+#: Draw order of the subject crop: above the camera image (rerun's default -10), below masks (0).
+SUBJECT_DRAW_ORDER = -9.0
+#: Frames between two full camera images at most (a moving camera's background stays current).
+KEYFRAME_INTERVAL = 25
 
 
 class RerunObserver:
@@ -124,6 +135,14 @@ class RerunObserver:
         self._skeletons: dict[str, Skeleton] = {}
         self._skeleton_colors: dict[str, tuple] = {}  # classes of a skeleton drawn in a given colour
         self._contexts: set[str] = set()
+        self._bp_args: dict | None = None  # arguments of the default blueprint sent (None: the caller's own)
+        self._overlays: dict[str, set[str]] = {}  # camera -> overlay names seen (first name segment)
+        self._cameras: dict = {}  # camera name -> Camera, from rig reports
+        self._subject: dict[int | None, np.ndarray] = {}  # frame -> the 3D joints reported in it (all people)
+        self._keys: dict[str, tuple[int | None, tuple | None]] = {}  # camera -> last full image: frame, subject box
+        self._eye = None
+        self._crop_paths: set[str] = set()
+        self._bp_dirty = False
         self._handlers = {
             "rig": self._rig, "skeleton": self._skeleton, "image": self._image, "mask": self._mask,
             "labels": self._labels, "depth": self._depth, "joints2d": self._joints2d,
@@ -155,6 +174,8 @@ class RerunObserver:
             raise InputError("frame", "an integer frame index", f"{frame!r}") from None
         if i != frame:
             raise InputError("frame", "an integer frame index", f"{frame!r}")
+        if self._bp_dirty and i != self.frame and not self.closed:
+            self._refresh_blueprint(now=True)
         self.frame = i
         self.recording.set_time(FRAME_TIMELINE, sequence=i)
 
@@ -173,10 +194,26 @@ class RerunObserver:
         self._check_open()
         if blueprint is None:
             names = list(camera_names) if camera_names is not None else list(self._cam_roots)
-            blueprint = make_blueprint(names, extra_2d=extra_2d, include_metrics=include_metrics,
-                                       cams_root=cams_root)
+            self._bp_args = dict(camera_names=names, extra_2d=tuple(extra_2d), include_metrics=include_metrics,
+                                 cams_root=cams_root)
+            blueprint = make_blueprint(**self._bp_args, overlays=self._overlays, eye=self._eye)
+        else:
+            self._bp_args = None
         self.recording.send_blueprint(blueprint)
         self._blueprint_sent = True
+
+    def _refresh_blueprint(self, now: bool = False) -> None:
+        """Send the default blueprint again with what was learnt (stage overlays, the subject's place):
+        when the frame changes or the recording closes (a blueprint is ~20 chunks: not once per report)."""
+        if self._bp_args is None or not self.config.auto_blueprint:
+            return
+        if not now:
+            self._bp_dirty = True
+            return
+        self._bp_dirty = False
+        names = self._bp_args["camera_names"]
+        self._bp_args["camera_names"] = names + [c for c in self._cam_roots if c not in names]
+        self.recording.send_blueprint(make_blueprint(**self._bp_args, overlays=self._overlays, eye=self._eye))
 
     def flush(self) -> None:
         """Write everything logged so far to the sinks."""
@@ -191,6 +228,8 @@ class RerunObserver:
         """
         if self.closed:
             return
+        if self._bp_dirty:
+            self._refresh_blueprint(now=True)
         self.recording.flush()
         if self._owns_stream or self.path is not None:
             self.recording.disconnect()
@@ -238,7 +277,15 @@ class RerunObserver:
         cam = _camera_name(kind, data)
         base = image_path(cam, self._cam_roots.get(cam, CAMS))
         name = data.get("name") or default_name
-        return base if name == "image" else f"{base}/{entity_path(name)}"
+        if name == "image":
+            return base
+        first = [p for p in str(name).split("/") if p][:1]
+        seen = self._overlays.setdefault(cam, set())
+        if first and first[0] not in seen:
+            seen.add(first[0])
+            if any(first[0] in prefixes for _, prefixes in STAGE_TABS):  # the camera joins a stage tab
+                self._refresh_blueprint()
+        return f"{base}/{entity_path(name)}"
 
     def _world_path(self, kind: str, data: Mapping[str, Any]) -> str:
         return entity_path(WORLD, data.get("name") or kind)
@@ -291,6 +338,50 @@ class RerunObserver:
         self._log("/", rr.AnnotationContext(classes), static=True)
         return class_id
 
+    def _subject_box(self, camera: str, shape) -> tuple[tuple[int, int, int, int], tuple[int, int, int, int]] | None:
+        """The subject's box in a camera image of ``shape``, from the 3D joints of this frame and the one
+        before (every person); ``(tight, crop)`` boxes (x0, y0, x1, y1 pixels, end exclusive), the crop
+        widened by ``crop_margin``; None when unknown."""
+        cam = self._cameras.get(camera)
+        if cam is None or not self._subject or len(shape) < 2 or tuple(shape[1::-1]) != tuple(cam.size):
+            return None
+        now = self.frame
+        pts = [p for f, p in self._subject.items() if f == now or (f is not None and now is not None and f == now - 1)]
+        if not pts:
+            return None
+        px = cam.project(np.concatenate(pts))
+        px = px[np.isfinite(px).all(axis=1)]
+        if len(px) < 2:
+            return None
+        lo, hi = px.min(axis=0), px.max(axis=0)
+        w, h = cam.size
+
+        def box(m):
+            x0, y0 = int(np.clip(np.floor(lo[0] - m), 0, w)), int(np.clip(np.floor(lo[1] - m), 0, h))
+            x1, y1 = int(np.clip(np.ceil(hi[0] + m) + 1, 0, w)), int(np.clip(np.ceil(hi[1] + m) + 1, 0, h))
+            return (x0, y0, x1, y1)
+
+        tight, crop = box(0.0), box(self.config.crop_margin * (hi[1] - lo[1]) + CROP_PAD_PX)
+        return (tight, crop) if crop[2] > crop[0] and crop[3] > crop[1] else None
+
+    def _cropped(self, path: str, img: np.ndarray, box, static: bool) -> np.ndarray:
+        """``img`` cropped to ``box`` (or, for ``None``, to its non-zero pixels), with the 2D translation
+        that puts it back in place logged at ``path`` (``crop_overlays``; uncropped when it saves little)."""
+        if not self.config.crop_overlays:
+            return img
+        h, w = img.shape[:2]
+        if box is None and img.ndim == 2:
+            rows, cols = np.flatnonzero(img.any(axis=1)), np.flatnonzero(img.any(axis=0))
+            if rows.size:
+                box = (int(cols[0]), int(rows[0]), int(cols[-1]) + 1, int(rows[-1]) + 1)
+        if box is not None and (box[2] - box[0]) * (box[3] - box[1]) > CROP_MAX_FRACTION * w * h:
+            box = None
+        x0, y0 = (0, 0) if box is None else box[:2]
+        if box is not None or path in self._crop_paths:  # an uncropped image after a cropped one: back to 0
+            self._crop_paths.add(path)
+            self._log(path, rr.Transform3D(translation=[float(x0), float(y0), 0.0]), static=static)
+        return img if box is None else np.ascontiguousarray(img[box[1]:box[3], box[0]:box[2]])
+
     def _keypoints(self, kind: str, data: Mapping[str, Any], dim: int):
         joints = _array(kind, data, "joints", (None, dim))
         ids = np.arange(len(joints))
@@ -312,6 +403,7 @@ class RerunObserver:
         cfg = self.config
         for cam in rig:
             self._cam_roots[cam.name] = root
+            self._cameras[cam.name] = cam
             # rerun's Transform3D maps child (camera) to parent (world): log world_from_cam.
             self._log(camera_path(cam.name, root),
                       rr.Transform3D(translation=cam.center, mat3x3=cam.R.T), static=static)
@@ -336,6 +428,48 @@ class RerunObserver:
             img = img[..., 0]
         cfg = self.config
         path = self._image_path(kind, data, "image")
+        cam = _camera_name(kind, data)
+        boxes = self._subject_box(cam, img.shape) if cfg.crop_overlays else None
+        if path != image_path(cam, self._cam_roots.get(cam, CAMS)):
+            img = self._cropped(path, img, None if boxes is None else boxes[1], static)
+        elif not self._camera_image(path, cam, img, boxes, static):
+            return
+        self._log(path, self._encoded(path, img), static=static)
+
+    def _camera_image(self, path: str, cam: str, img: np.ndarray, boxes, static: bool) -> bool:
+        """The camera's own image: a full frame now and then, the subject's crop every frame.
+
+        With the subject's box known, the crop (``<image>/subject``, drawn over the image) is logged
+        every frame, and the full image only when the crop no longer covers the subject of the last
+        full image (no ghost), every :data:`KEYFRAME_INTERVAL` frames (a moving camera) or when
+        static.  Returns whether the full image is to be logged now.
+        """
+        sub = f"{path}/{SUBJECT_CROP}"
+        if boxes is None or static:
+            if sub in self._crop_paths:
+                self._log(sub, rr.Clear(recursive=False), static=static)
+                self._crop_paths.discard(sub)
+            self._keys.pop(cam, None)
+            return True
+        tight, crop = boxes
+        h, w = img.shape[:2]
+        if (crop[2] - crop[0]) * (crop[3] - crop[1]) > CROP_MAX_FRACTION * w * h:
+            return self._camera_image(path, cam, img, None, static)
+        key = self._keys.get(cam)
+        full = key is None or key[1] is None or self.frame is None or key[0] is None \
+            or self.frame - key[0] >= KEYFRAME_INTERVAL or not (
+                crop[0] <= key[1][0] and crop[1] <= key[1][1] and crop[2] >= key[1][2] and crop[3] >= key[1][3])
+        if full:
+            self._keys[cam] = (self.frame, tight)
+        self._crop_paths.add(sub)
+        self._log(sub, rr.Transform3D(translation=[float(crop[0]), float(crop[1]), 0.0]), static=static)
+        part = np.ascontiguousarray(img[crop[1]:crop[3], crop[0]:crop[2]])
+        self._log(sub, self._encoded(sub, part, draw_order=SUBJECT_DRAW_ORDER), static=static)
+        return full
+
+    def _encoded(self, path: str, img: np.ndarray, draw_order: float | None = None):
+        """An 8-bit image as JPEG (large RGB / grey images, ``compress_images``) or raw."""
+        cfg = self.config
         channels = 1 if img.ndim == 2 else img.shape[2]
         large = img.shape[0] * img.shape[1] >= cfg.compress_min_pixels
         if cfg.compress_images and channels in (1, 3) and large:
@@ -343,10 +477,9 @@ class RerunObserver:
             ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, int(cfg.jpeg_quality)])
             if not ok:
                 raise ToolkitError(f"JPEG encoding of {path} ({img.shape}) failed")
-            self._log(path, rr.EncodedImage(contents=buf.tobytes(), media_type="image/jpeg"), static=static)
-        else:
-            model = {1: "L", 3: "RGB", 4: "RGBA"}[channels]
-            self._log(path, rr.Image(img, color_model=model), static=static)
+            return rr.EncodedImage(contents=buf.tobytes(), media_type="image/jpeg", draw_order=draw_order)
+        model = {1: "L", 3: "RGB", 4: "RGBA"}[channels]
+        return rr.Image(img, color_model=model, draw_order=draw_order)
 
     def _mask(self, kind, data, static):
         mask = np.asarray(_field(kind, data, "mask"))
@@ -356,7 +489,7 @@ class RerunObserver:
         if mask.dtype == bool or np.isin(values, (0, 1, 255)).all():
             self._context_once(path, [rr.AnnotationInfo(id=0, label="background", color=(0, 0, 0, 0)),
                                       rr.AnnotationInfo(id=1, label="foreground", color=MASK_COLOR)])
-            seg = (mask > 0).astype(np.uint8)
+            seg = self._cropped(path, (mask > 0).astype(np.uint8), None, static)
             self._log(path, rr.SegmentationImage(seg, opacity=self.config.overlay_opacity), static=static)
         else:  # a soft matte: grey levels
             grey = _image_uint8(kind, "mask", mask)
@@ -375,6 +508,7 @@ class RerunObserver:
                     for i, p in enumerate(sk.part_names)]
         self._context_once(path, classes)
         dtype = np.uint8 if labels.max(initial=0) < 256 and labels.min(initial=0) >= 0 else np.uint16
+        labels = self._cropped(path, labels, None, static)
         self._log(path, rr.SegmentationImage(labels.astype(dtype), opacity=self.config.overlay_opacity),
                   static=static)
 
@@ -401,8 +535,8 @@ class RerunObserver:
     def _joints2d(self, kind, data, static):
         joints, ids, cls = self._keypoints(kind, data, 2)
         self._log(self._image_path(kind, data, "joints"),
-                  rr.Points2D(joints, keypoint_ids=ids, class_ids=cls, radii=self.config.keypoint_radius_px),
-                  static=static)
+                  rr.Points2D(joints, keypoint_ids=ids, class_ids=cls, radii=self.config.keypoint_radius_px,
+                              show_labels=self.config.joint_labels), static=static)
 
     def _points2d(self, kind, data, static):
         pts = _array(kind, data, "points", (None, 2))
@@ -437,8 +571,19 @@ class RerunObserver:
     def _joints3d(self, kind, data, static):
         joints, ids, cls = self._keypoints(kind, data, 3)
         self._log(self._world_path(kind, data),
-                  rr.Points3D(joints, keypoint_ids=ids, class_ids=cls, radii=self.config.joint_radius_m),
-                  static=static)
+                  rr.Points3D(joints, keypoint_ids=ids, class_ids=cls, radii=self.config.joint_radius_m,
+                              show_labels=self.config.joint_labels), static=static)
+        if len(joints) >= 2:  # where the subject is: crops of colour images, the 3D view's eye
+            first = not self._subject
+            if self.frame not in self._subject:
+                self._subject = {f: p for f, p in self._subject.items()
+                                 if f is not None and self.frame is not None and f >= self.frame - 1}
+            prev = self._subject.get(self.frame)
+            self._subject[self.frame] = joints if prev is None else np.concatenate([prev, joints])
+            if first and self._eye is None:
+                centres = [c.center for c in self._cameras.values()]
+                self._eye = subject_eye(joints.mean(axis=0), np.array(centres) if centres else None)
+                self._refresh_blueprint()
 
     def _points3d(self, kind, data, static):
         pts = _array(kind, data, "points", (None, 3))

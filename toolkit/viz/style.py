@@ -61,7 +61,21 @@ class RerunConfig:
     image_plane_distance_m : float or None
         Depth at which the viewer draws camera frusta and images (None: rerun's choice).
     auto_blueprint : bool
-        Send the default blueprint on the first ``rig`` report if none was sent.
+        Send the default blueprint on the first ``rig`` report if none was sent; it is
+        sent again when it can show more (a camera's first overlay of a stage, the
+        subject's first 3D joints that frame the 3D view).
+    joint_labels : bool
+        Draw joint names next to 2D and 3D joints.  Off by default: on a subject
+        100-200 px tall the 14 names cover it; the name shows when hovering a joint.
+    crop_overlays : bool
+        Store masks, part labels and other named images of a camera cropped to what
+        they show (the bounding box of the non-zero pixels, or for colour images the
+        subject's box, from the latest 3D joints, widened by ``crop_margin``), placed
+        at their offset in the camera image by a 2D translation.  The camera's own
+        image is never cropped.
+    crop_margin : float
+        Margin of a colour image's subject crop, as a fraction of the subject box's
+        height on each side.
     """
 
     compress_images: bool = True
@@ -76,6 +90,9 @@ class RerunConfig:
     overlay_opacity: float = 0.5
     image_plane_distance_m: float | None = 0.5
     auto_blueprint: bool = True
+    joint_labels: bool = False
+    crop_overlays: bool = True
+    crop_margin: float = 0.35
 
     def __post_init__(self):
         if not 1 <= int(self.jpeg_quality) <= 100:
@@ -83,5 +100,7 @@ class RerunConfig:
         if self.depth_png_units_per_metre <= 0:
             raise InputError("RerunConfig.depth_png_units_per_metre", "> 0",
                              f"{self.depth_png_units_per_metre}")
+        if not 0.0 <= self.crop_margin:
+            raise InputError("RerunConfig.crop_margin", ">= 0", f"{self.crop_margin}")
         if not 0.0 <= self.overlay_opacity <= 1.0:
             raise InputError("RerunConfig.overlay_opacity", "a value in [0, 1]", f"{self.overlay_opacity}")
