@@ -17,7 +17,7 @@ from toolkit.cameras import Camera, Rig
 from toolkit.io.calibration import read_calibration, write_calibration
 from toolkit.skeleton import JOINTS_14
 from toolkit.skeleton.mappings import BODY_25B
-from toolkit.synthetic.boards import people_sequence, pixel_rays, random_board_poses, render_checkerboard
+from toolkit.synthetic.boards import board_pose, people_sequence, pixel_rays, random_board_poses, render_checkerboard
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 RECIPE = REPO_ROOT / "recipes" / "calibrate.py"
@@ -155,3 +155,33 @@ def test_help():
     with pytest.raises(SystemExit) as e:
         load_recipe().main(["--help"])
     assert e.value.code == 0
+
+
+def test_extrinsics_command_from_board_images(tmp_path):
+    board = Board("checkerboard", 4, 7, 0.10)  # 5 x 8 squares: the corner squares differ, so the order is fixed
+    truth = Rig(tuple(Camera.look_at(f"cam_{i + 1:02d}", [2.5 * np.cos(a), 2.5 * np.sin(a), 1.6], [0, 0, 0.2],
+                                     size=(400, 300), focal_px=350.0)
+                      for i, a in enumerate(np.radians([10, 130, 250]))))
+    write_calibration(tmp_path / "intrinsics.toml", intrinsics_rig(truth))
+    rng = np.random.default_rng(4)
+    poses = [board_pose([-0.3, -0.15, 0.0], facing=(0, 0, -1))]  # first view: on the floor, printed side up
+    poses += [board_pose(rng.uniform([-0.4, -0.3, 0.1], [0.1, 0.1, 0.5]), rng.uniform(-25, 25, 2),
+                         rng.uniform(-180, 180), facing=(0, 0, -1)) for _ in range(3)]
+    for c, cam in enumerate(truth):
+        folder = tmp_path / "ext" / f"ext_cam{c + 1:02d}_img"
+        folder.mkdir(parents=True)
+        rays = pixel_rays(cam)
+        for v, T in enumerate(poses):
+            cv2.imwrite(str(folder / f"v{v:02d}.png"), render_checkerboard(cam, board, T, rays=rays))
+    out = tmp_path / "calibration.toml"
+    rc = load_recipe().main(["extrinsics", "--intrinsics", str(tmp_path / "intrinsics.toml"), "--board-images",
+                             str(tmp_path / "ext"), "--board", "checkerboard", "--corners", "4,7", "--square-mm",
+                             "100", "--out", str(out)])
+    assert rc == 0
+    got = read_calibration(out)
+    s, R, t = similarity_align(got.centers, truth.centers)
+    assert np.linalg.norm(s * got.centers @ R.T + t - truth.centers, axis=1).max() < CENTRE_TOL_M
+    assert abs(s - 1) < 0.01  # metric from the squares
+    assert np.abs(got.centers[:, 2] - truth.centers[:, 2]).max() < CENTRE_TOL_M  # the first board is the floor
+    report = json.loads(out.with_suffix(".json").read_text())
+    assert report["method"] == "board" and not report["warnings"]

@@ -167,10 +167,32 @@ def _find_checkerboard(gray: np.ndarray, rows: int, cols: int) -> np.ndarray | N
     if not ok:
         return None
     c = c.reshape(rows, cols, 2).astype(float)
-    # a fixed orientation: the first corner is the one nearest the image's top-left (OpenCV may start anywhere)
-    if c[0, 0].sum() > c[-1, -1].sum():
+    # the printed side faces the camera, so columns then rows turn like the image's x then y axes; OpenCV
+    # sometimes orders a grid mirrored (rows reversed), which would give a board pose seen from behind
+    u, v = c[0, -1] - c[0, 0], c[-1, 0] - c[0, 0]
+    if u[0] * v[1] - u[1] * v[0] < 0:
+        c = c[::-1]
+    # OpenCV may start at either end (a 180 degree turn).  A board whose corner squares differ in colour
+    # ((rows + 1) + (cols + 1) odd, e.g. 5 x 8 squares) says which end is which: the first corner is the
+    # one whose outer diagonal square is dark, in every camera.  Otherwise: the end nearest the image's top-left.
+    a, b = _outer_square(gray, c[0, 0], c[1, 1]), _outer_square(gray, c[-1, -1], c[-2, -2])
+    if (rows + cols) % 2 == 1 and a is not None and b is not None and abs(a - b) > 40:
+        flip = a > b
+    else:
+        flip = c[0, 0].sum() > c[-1, -1].sum()
+    if flip:
         c = c[::-1, ::-1]
     return c.reshape(-1, 2)
+
+
+def _outer_square(gray: np.ndarray, corner: np.ndarray, inner: np.ndarray) -> float | None:
+    """Mean grey level at the centre of the square diagonally outside ``corner`` (None off the image)."""
+    p = corner + 0.5 * (corner - inner)
+    x, y = int(round(p[0])), int(round(p[1]))
+    h, w = gray.shape[:2]
+    if not (2 <= x < w - 2 and 2 <= y < h - 2):
+        return None
+    return float(gray[y - 2:y + 3, x - 2:x + 3].mean())
 
 
 def _find_charuco(gray: np.ndarray, board: Board) -> tuple[np.ndarray, np.ndarray]:
