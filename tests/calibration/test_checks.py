@@ -81,3 +81,57 @@ def test_reprojection_summary():
     s = reprojection_summary(["a", "b"], np.array([0, 0, 1]), np.array([1.0, 3.0, 2.0]))
     assert s["a"]["n"] == 2 and s["a"]["median_px"] == 2.0 and np.isclose(s["a"]["rms_px"], np.sqrt(5))
     assert s["b"]["p95_px"] == 2.0
+
+
+def test_mirrored_board_order_puts_cameras_under_the_floor():
+    """Every camera's corners ordered mirrored (rows reversed): the board poses are seen from behind and the
+    cameras end up under the floor; both are said, although the reprojection stays perfect."""
+    from tests.calibration.test_extrinsics import board_views, intrinsics, true_rig
+    from toolkit.calibration.boards import Board, BoardDetection
+    from toolkit.calibration.extrinsics import extrinsics_from_boards
+
+    cams = true_rig(3)
+    board = Board("charuco", 5, 7, 0.08, 0.06)
+    dets = board_views(cams, board, np.random.default_rng(7), n=6)
+    mirrored = [{v: BoardDetection(d.source, d.size, d.ids,
+                                   d.corners.reshape(board.rows, board.cols, 2)[::-1].reshape(-1, 2))
+                 for v, d in cd.items()} for cd in dets]
+    r = extrinsics_from_boards(intrinsics(cams), mirrored, board)
+    assert max(v["rms_px"] for v in r.reprojection.values()) < 1e-6
+    assert any("seen from behind" in w for w in r.warnings)
+    assert any("under the floor" in w for w in r.warnings)
+
+
+def test_mirrored_images_give_a_mirrored_person_warning():
+    """Every camera's image flipped left-right (a selfie-mode video): the reconstruction is the mirror image
+    of the person, which the chirality check says."""
+    from toolkit.calibration.extrinsics import extrinsics_from_people
+    from toolkit.skeleton.mappings import COCO_17
+    from toolkit.synthetic.boards import people_sequence
+
+    rng = np.random.default_rng(8)
+    J = people_sequence(40, rng, height=1.75)[0]
+    idx = {n: i for i, n in enumerate(JOINTS_14)}
+    left = J[:, idx["l_shoulder"]] - J[:, idx["r_shoulder"]]
+    left /= np.linalg.norm(left, axis=1, keepdims=True)
+    front = np.cross(left, [0, 0, 1.0])
+    head = J[:, idx["head"]]
+    pts = {"nose": head + 0.1 * front, "left_eye": head + 0.08 * front + 0.03 * left,
+           "right_eye": head + 0.08 * front - 0.03 * left, "left_ear": head + 0.07 * left,
+           "right_ear": head - 0.07 * left}
+    for side, s in (("left", "l"), ("right", "r")):
+        for part in ("shoulder", "elbow", "wrist", "hip", "knee", "ankle"):
+            pts[f"{side}_{part}"] = J[:, idx[f"{s}_{part}"]]
+    P = np.stack([pts[n] for n in COCO_17], 1)
+    cams = [Camera.look_at(f"cam_{i}", [4 * np.cos(a), 4 * np.sin(a), 2.0], [0, 0, 1.0], size=(801, 601),
+                           focal_px=700.0) for i, a in enumerate([0.3, 1.9, 3.5, 5.0])]
+    for flip, expect in ((False, False), (True, True)):
+        kp = np.ones((4, 40, 17, 3))
+        for c, cam in enumerate(cams):
+            uv = cam.project(P)
+            if flip:
+                uv[..., 0] = cam.width - 1 - uv[..., 0]
+            kp[c, ..., :2] = uv
+        r = extrinsics_from_people([c.replace(cam_from_world=np.eye(4)) for c in cams], kp, COCO_17, "coco_17",
+                                   height_m=1.75, rng=np.random.default_rng(0))
+        assert any("mirrored solution" in w for w in r.warnings) == expect

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from toolkit.cameras import Rig
+from toolkit.io.keypoint_files import normalise_name
 
 __all__ = ["UNDER_FLOOR_MARGIN_M", "MIRRORED_FRACTION", "cameras_under_floor", "person_chirality",
            "mirrored_person_warning", "boards_seen_from_behind", "reprojection_summary"]
@@ -47,31 +48,31 @@ def cameras_under_floor(rig: Rig, margin: float = UNDER_FLOOR_MARGIN_M) -> list[
 def person_chirality(points: dict[str, np.ndarray]) -> np.ndarray:
     """Per frame, +1 when the person's left is on their left, -1 when mirrored, NaN when unknown.
 
-    The body's up is neck minus mid-hip, its left the right-to-left shoulder vector, and its front
+    Names are compared without case, punctuation or spelling of sides (``LShoulder`` is ``left_shoulder``,
+    :func:`toolkit.io.keypoint_files.normalise_name`).  The body's up is mid-shoulders minus mid-hips, its left the right-to-left shoulder vector, and its front
     the direction from the ears' midpoint to the nose (or heels to big toes).  For a real person
     ``left . (up x front) > 0`` (z up, facing +y: left is -x).
 
     Parameters
     ----------
     points : dict of str to ndarray of shape (T, 3)
-        3D keypoints by name: ``l_shoulder``, ``r_shoulder``, ``neck``, ``l_hip``, ``r_hip`` and either
+        3D keypoints by name: ``l_shoulder``, ``r_shoulder``, ``l_hip``, ``r_hip`` and either
         ``nose`` with ``l_ear`` / ``r_ear``, or ``l_big_toe`` / ``r_big_toe`` with ``l_heel`` / ``r_heel``.
 
     Returns
     -------
     ndarray of shape (T,)
     """
-    g = {k.lower(): np.asarray(v, float) for k, v in points.items()}
-    need = ("l_shoulder", "r_shoulder", "neck", "l_hip", "r_hip")
+    g = {normalise_name(k): np.asarray(v, float) for k, v in points.items()}
     T = len(next(iter(g.values())))
-    if not all(k in g for k in need):
+    if not all(k in g for k in ("lshoulder", "rshoulder", "lhip", "rhip")):
         return np.full(T, np.nan)
-    left = g["l_shoulder"] - g["r_shoulder"]
-    up = g["neck"] - 0.5 * (g["l_hip"] + g["r_hip"])
-    if all(k in g for k in ("nose", "l_ear", "r_ear")):
-        front = g["nose"] - 0.5 * (g["l_ear"] + g["r_ear"])
-    elif all(k in g for k in ("l_big_toe", "r_big_toe", "l_heel", "r_heel")):
-        front = 0.5 * (g["l_big_toe"] + g["r_big_toe"] - g["l_heel"] - g["r_heel"])
+    left = g["lshoulder"] - g["rshoulder"]
+    up = 0.5 * (g["lshoulder"] + g["rshoulder"]) - 0.5 * (g["lhip"] + g["rhip"])
+    if all(k in g for k in ("nose", "lear", "rear")):
+        front = g["nose"] - 0.5 * (g["lear"] + g["rear"])
+    elif all(k in g for k in ("lbigtoe", "rbigtoe", "lheel", "rheel")):
+        front = 0.5 * (g["lbigtoe"] + g["rbigtoe"] - g["lheel"] - g["rheel"])
     else:
         return np.full(T, np.nan)
     s = np.einsum("ti,ti->t", left, np.cross(up, front))
