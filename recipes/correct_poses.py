@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
@@ -43,6 +44,8 @@ def main(argv=None) -> int:
                     help="silhouette database that 'add to database' grows (default: the cached default one)")
     ap.add_argument("--foreground", choices=("median", "mog2", "knn", "chroma"), default="median",
                     help="how the silhouettes added to the database are cut (as the run's --foreground)")
+    ap.add_argument("--screenshot", type=Path, default=None,
+                    help="save a picture of the page (first frame) with headless Chromium to this PNG and exit")
     args = ap.parse_args(argv)
     if not 0 < args.port < 65536:
         ap.error(f"--port: expected 1..65535, found {args.port}")
@@ -58,10 +61,43 @@ def main(argv=None) -> int:
         return 2
     print(f"{len(session.frames)} frames of {args.run} ({session.kind}), cameras {', '.join(session.camera_names)}")
     print(f"corrections: {args.run / 'edits.toml'}; database: {session.database_path}")
+    if args.screenshot is not None:
+        return _screenshot(session, args.host, args.port, args.screenshot)
     print(f"open http://{args.host}:{args.port}/  (Ctrl-C to stop)", flush=True)
     try:
         uvicorn.run(create_app(session), host=args.host, port=args.port, log_level="warning")
     finally:
+        session.close()
+    return 0
+
+
+def _screenshot(session, host: str, port: int, png: Path) -> int:
+    """Serve in a thread, take the page's picture in headless Chromium, stop."""
+    import threading
+
+    import uvicorn
+
+    from toolkit.correction import create_app
+    from toolkit.viz.webshot import screenshot_url
+
+    server = uvicorn.Server(uvicorn.Config(create_app(session), host=host, port=port, log_level="warning"))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    try:
+        while not server.started:
+            if not thread.is_alive():
+                print(f"error: the page could not be served on {host}:{port}", file=sys.stderr)
+                return 2
+            time.sleep(0.05)
+        screenshot_url(f"http://{host}:{port}/", png, viewport=(1500, 720), wait_selector="circle[data-joint]",
+                       wait_s=1.0)
+        print(f"page: {png}")
+    except InputError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    finally:
+        server.should_exit = True
+        thread.join(timeout=10)
         session.close()
     return 0
 

@@ -165,3 +165,4 @@ def test_commit_button_grows_the_database_by_the_frames_poses(browser, served):
     assert list(db_now.frame[n0:]) == [2] * len(session.camera_names)
     assert problems == []
     page.close()
+

@@ -449,7 +449,10 @@ class RerunObserver:
             if sub in self._crop_paths:
                 self._log(sub, rr.Clear(recursive=False), static=static)
                 self._crop_paths.discard(sub)
-            self._keys.pop(cam, None)
+            if static:
+                self._keys.pop(cam, None)
+            else:  # a full image of unknown subject box: the frame's 3D joints, when reported, give it
+                self._keys[cam] = (self.frame, None)
             return True
         tight, crop = boxes
         h, w = img.shape[:2]
@@ -580,6 +583,17 @@ class RerunObserver:
                                  if f is not None and self.frame is not None and f >= self.frame - 1}
             prev = self._subject.get(self.frame)
             self._subject[self.frame] = joints if prev is None else np.concatenate([prev, joints])
+            for cam, (kf, kbox) in list(self._keys.items()):  # full images of this frame: where the subject is
+                if kf == self.frame and kf is not None and cam in self._cameras:
+                    px = self._cameras[cam].project(self._subject[self.frame])
+                    px = px[np.isfinite(px).all(axis=1)]
+                    if len(px):
+                        lo, hi = np.floor(px.min(axis=0)), np.ceil(px.max(axis=0)) + 1
+                        box = (int(lo[0]), int(lo[1]), int(hi[0]), int(hi[1]))
+                        if kbox is not None:  # more people in the frame: the union
+                            box = (min(box[0], kbox[0]), min(box[1], kbox[1]), max(box[2], kbox[2]),
+                                   max(box[3], kbox[3]))
+                        self._keys[cam] = (kf, box)
             if first and self._eye is None:
                 centres = [c.center for c in self._cameras.values()]
                 self._eye = subject_eye(joints.mean(axis=0), np.array(centres) if centres else None)
