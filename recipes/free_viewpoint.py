@@ -5,12 +5,17 @@ Usage::
 
     python recipes/make_scene.py datasets_synthetic/default.toml --out out/default
     python recipes/free_viewpoint.py out/default --out out/default_fvv
+    python recipes/import_pose2sim.py TRIAL --out out/demo      # real footage with OpenPose keypoints
+    python recipes/free_viewpoint.py out/demo --out out/demo_fvv --hold-out cam_01
 
 Per frame: foreground silhouettes, 2D poses and the multi-view selection with
-calibration offsets (stage 1) -> template fit and body-part segmentation ->
-seams and the 3D joint optimisation by the position score -> articulated
-billboards -> view-dependent rendering (source 000 §4) of every novel camera
-of the dataset and of three camera paths.  Writes into OUT:
+calibration offsets (stage 1; from a detector's 2D keypoints instead of the
+silhouette database when the dataset has keypoints/ or --keypoints is given,
+with silhouettes given (--masks), from clean plates, or seeded by the
+keypoints) -> template fit and body-part segmentation -> seams and the 3D joint
+optimisation by the position score -> articulated billboards -> view-dependent
+rendering (source 000 §4) of every novel camera of the dataset, of a held-out
+source camera (--hold-out) and of three camera paths.  Writes into OUT:
 
   poses3d.npz            joints (T, 14, 3) metres, names, joints_stage1, status (str per frame)
   parts/<camera>/NNNNNN.png      part labels per source camera
@@ -19,6 +24,9 @@ of the dataset and of three camera paths.  Writes into OUT:
   baselines/<method>/<camera>/NNNNNN.png   standard billboards and visual hull, same views
   baselines/plate/<camera>/NNNNNN.png      the background alone (what the subject is drawn over)
   paths/<path>/NNNNNN.png, paths/<path>.mp4   orbit, sweep through the sources, bird's-eye
+  heldout/<CAM>/NNNNNN.png       with --hold-out CAM: CAM's view rendered from the other cameras (articulated);
+                                 heldout_alpha/ its opacity, heldout_region/ the person's region it is judged in,
+                                 baselines/<method>/<CAM>/ the baselines; metrics.json "heldout" their scores
   metrics.json           per method: PSNR / SSIM in the subject's box, psnr_subject (PSNR on the true mask
                          + 2 px), coverage (share of the true mask rendered with opacity > 0.5; mean and
                          coverage_min, the worst view); pose error, timings (with ground truth)
@@ -100,7 +108,7 @@ def main(argv=None) -> int:
 
     from toolkit.foreground import BackgroundConfig, ForegroundConfig
     from toolkit.calibration import cameras_for_run, refined_cameras
-    from toolkit.cameras import closest_point_to_rays
+    from toolkit.cameras import Rig, closest_point_to_rays
     from toolkit.io import Dataset, atomic_save_npz, atomic_write_png, atomic_write_text, write_video
     from toolkit.io.frames import frame_filename, read_png
     from toolkit.io.runs import dataset_fingerprint, run_recording, start_run
@@ -175,7 +183,9 @@ def main(argv=None) -> int:
         paths = {"orbit": orbit_path(target, n, radius_m=float(np.median(np.linalg.norm(rig.centers - target, axis=1))),
                                      height_m=float(np.median(rig.centers[:, 2])), size=rig[0].size,
                                      focal_px=float(rig[0].K[0, 0])),
-                 "sweep": source_path(rig, max(n, 2), closed=True)[:n],
+                 # a path between cameras of different sizes (1080 and 1088 px wide) is drawn at the first one's
+                 "sweep": source_path(Rig(tuple(replace(c, size=rig[0].size) for c in rig)), max(n, 2),
+                                      closed=True)[:n],
                  "birds_eye": [birds_eye(rig, target)] * n}
         todo = [t for t in range(n) if t not in done]
         if done:
@@ -197,7 +207,8 @@ def main(argv=None) -> int:
         source_plates = {c: p for c in names if (p := ds.background(c)) is not None} if todo else {}
         region_of = None
         if held is not None:
-            region_of = HeldOutRegions(ds, held, masks_dir=masks_dir, keypoints=kp_dir, out=out)
+            region_of = HeldOutRegions(ds, held, masks_dir=masks_dir, keypoints=kp_dir, out=out,
+                                       fmt=args.keypoint_format or declared_format(ds.root))
         stopped = ""
         t_start = time.perf_counter()
         try:
@@ -223,7 +234,7 @@ def main(argv=None) -> int:
                                         np.zeros(cam.size[::-1] + (3,), np.float32),
                                         ds.novel_image(cam.name, t), ds.novel_mask(cam.name, t)) for cam in novel]
                 if held is not None:
-                    views.append(region_of.view(t))
+                    views.append(region_of.view(t, res.joints if res.ok else None))
                 scores, heldout = {}, {}
                 for v in views:
                     for m, sc in render_evaluation(res, v, out, t, compositor, observer=observer).items():
@@ -241,6 +252,7 @@ def main(argv=None) -> int:
                 if held is not None:
                     record["heldout"] = heldout
                     record["heldout_region"] = region_of.how.get(t, "")
+                    record["heldout_offset"] = region_of.offsets.get(t, np.zeros(2)).tolist()
                 atomic_write_text(out / "frames" / frame_filename(t, ".json"), json.dumps(record, allow_nan=True))
         except KeyboardInterrupt:
             stopped = "interrupted"
@@ -276,7 +288,9 @@ def main(argv=None) -> int:
         if held is not None:
             metrics["heldout"] = {"camera": held.name, "methods": summarise([r.get("heldout", {}) for r in records]),
                                   "region": dict(Counter(r.get("heldout_region", "") for r in records)),
-                                  "region_definition": HELDOUT_REGION_DOC}
+                                  "region_definition": HELDOUT_REGION_DOC,
+                                  "offset_px_median": np.median(offs, axis=0).tolist() if (offs := [
+                                      r["heldout_offset"] for r in records if "heldout_offset" in r]) else None}
         if ds.has_groundtruth or held is not None:
             atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=2, allow_nan=True))
         ds.close()
@@ -296,7 +310,10 @@ def main(argv=None) -> int:
         print(f"  pose error {e * 100:.1f} cm (stage 1: {e1 * 100:.1f} cm)")
     if held is not None and records:
         print(f"  held-out camera {held.name} (its person's region: "
-              + ", ".join(f"{k} {v} frames" for k, v in metrics["heldout"]["region"].items()) + "):")
+              + ", ".join(f"{k} {v} frames" for k, v in metrics["heldout"]["region"].items())
+              + ("; its calibration corrected by a 2D offset of ({:+.1f}, {:+.1f}) px".format(
+                  *metrics["heldout"]["offset_px_median"]) if metrics["heldout"]["offset_px_median"] else "")
+              + "):")
         for m in METHODS:
             s = metrics["heldout"]["methods"].get(m)
             if s:

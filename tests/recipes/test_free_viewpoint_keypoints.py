@@ -133,3 +133,25 @@ def test_hold_out_unknown_camera_is_a_clear_error(studio, tmp_path, capsys):
     assert rc == 2
     err = capsys.readouterr().err
     assert "--hold-out" in err and "cam_9" in err and "cam_0" in err
+
+
+def test_resampled_dataset_keeps_keypoints_on_the_person(studio, tmp_path):
+    """A half-resolution copy: cameras, frames and keypoints scaled together (pixel-centre convention)."""
+    from toolkit.io import Dataset
+    from toolkit.io.resample import resample_dataset
+    from toolkit.pipeline.keypoints import read_dataset_keypoints
+    from toolkit.skeleton.mappings import to_skeleton14
+
+    src = Dataset.open(studio)
+    half = resample_dataset(src, tmp_path / "half", 0.5)
+    assert half.rig[0].size == (160, 120) and half.n_frames == N_FRAMES and half.has_keypoints
+    truth = src.gt_joints3d()
+    for cam in half.rig:
+        _, _, data = read_dataset_keypoints(half.root / "keypoints", half.camera_names, Rig((cam,)),
+                                            fmt="body_25", person="most_confident")
+        uv = to_skeleton14(data.keypoints, "body_25", confidence=True)[0, :, :, :2]
+        err = np.linalg.norm(uv - cam.project(truth), axis=-1)
+        assert np.nanmedian(err) < 0.5 * 3 * NOISE_PX  # the synthetic noise, halved
+        assert half.frame(cam.name, 0).shape == (120, 160, 3)
+    with pytest.raises(Exception, match="factor"):
+        resample_dataset(src, tmp_path / "bad", 1.5)

@@ -282,6 +282,69 @@ def choose_silhouettes(source: str, masks_dir, has_plates: bool, seeded_availabl
     return "seeded" if seeded_available else "background"
 
 
+class SeededSilhouettes:
+    """Per frame, every camera's subject mask seeded by the stage-1 pose (:mod:`toolkit.foreground.seeded`).
+
+    Each camera is segmented by GrabCut seeded with the 3D joints projected into it (shifted by
+    the view's offset, so they sit where the keypoints are), started from its previous frame's
+    colour models; then each mask is carved by the visual hull of the other views' masks
+    around the 3D pose (:func:`toolkit.foreground.seeded.refine_masks`), which drops bystanders
+    and floor patches.
+
+    Parameters
+    ----------
+    rig : Rig
+    config : toolkit.foreground.seeded.SeededConfig, optional
+    observer : Observer, optional
+    """
+
+    def __init__(self, rig: Rig, config=None, observer: Observer | None = None):
+        from toolkit.foreground.seeded import SeededSegmenter
+
+        self.rig = rig
+        self.segmenter = SeededSegmenter(config, observer=observer)
+        self.observer = observer
+        self.previous: dict = {c: None for c in rig.names}
+
+    def segment_frame(self, frame: int, images: dict, estimate) -> list:
+        """Masks of one frame, rig order (None where a camera has no image or no pose).
+
+        Parameters
+        ----------
+        frame : int
+        images : dict of str -> ndarray (H, W, 3) uint8 or None
+        estimate : toolkit.silhouettes.estimate.FrameEstimate
+        """
+        from toolkit.foreground.seeded import refine_masks
+        from toolkit.multiview import image_offsets
+
+        J = np.asarray(estimate.joints3d, float)
+        off = image_offsets(estimate.offsets)
+        out: dict = {}
+        for v, cam in enumerate(self.rig):
+            img = images.get(cam.name)
+            if img is None:
+                self.previous[cam.name] = None
+                continue
+            if np.isfinite(J).all(-1).sum() >= 6:
+                j2 = cam.project(J) + off[v]
+                w = np.isfinite(j2).all(-1).astype(float)
+            else:  # no 3D pose: the view's own keypoints
+                j2 = np.asarray(estimate.poses2d[v], float)
+                w = np.isfinite(j2).all(-1).astype(float)
+            if w.sum() < 6:
+                self.previous[cam.name] = None
+                continue
+            res = self.segmenter.segment(img, j2, w, previous=self.previous[cam.name], camera=cam.name,
+                                         frame=frame)
+            self.previous[cam.name] = res
+            out[cam.name] = res.mask
+        if len(out) >= 2 and np.isfinite(J).all(-1).sum() >= 2:
+            sub = Rig(tuple(c for c in self.rig if c.name in out))
+            out = refine_masks(out, sub, J, observer=self.observer, frame=frame)
+        return [out.get(c) for c in self.rig.names]
+
+
 def estimate_from_keypoints(dataset, keypoints: str | os.PathLike, rig: Rig | None = None,
                             config: KeypointStage1Config = KeypointStage1Config(), *,
                             frames: Sequence[int] | None = None, silhouettes: str = "auto",
@@ -346,9 +409,7 @@ def estimate_from_keypoints(dataset, keypoints: str | os.PathLike, rig: Rig | No
             extractors = {c: ForegroundExtractor(foreground).fit([plates[c]] if c in plates else readers[c])
                           for c in names}
         elif source == "seeded":
-            from toolkit.foreground.seeded import SeededSilhouettes
-
-            seeded = SeededSilhouettes(rig)
+            seeded = SeededSilhouettes(rig, observer=observer)
         previous: dict = {c: None for c in names}
         for t in todo:
             t1 = time.perf_counter()
@@ -375,6 +436,10 @@ def estimate_from_keypoints(dataset, keypoints: str | os.PathLike, rig: Rig | No
                     masks.append(sil.mask)
             else:
                 masks = seeded.segment_frame(t, images, est)
+                if log_images:
+                    for c, m in zip(names, masks):
+                        if m is not None:
+                            obs.report("mask", camera=c, mask=m, name="stage1/silhouette", frame=t)
             est.timings["foreground"] = time.perf_counter() - t1
             est.timings["keypoints"] = t_kp
             yield est, masks

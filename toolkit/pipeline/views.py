@@ -127,7 +127,9 @@ def render_evaluation(result, view: EvaluationView, out: Path, frame: int, compo
 HELDOUT_REGION_DOC = (
     "the held-out camera's subject mask, from the first of: masks given for that camera (--masks or the dataset's "
     "masks/), the dataset's ground-truth mask, a segmentation of that frame seeded by that camera's own keypoints "
-    "(evaluation only: the pipeline never sees them); rendered over the camera's clean plate when the dataset has "
+    "(evaluation only: the pipeline never sees them); the held-out camera is first corrected by its 2D offset "
+    "(the median of its own keypoints minus the run's 3D joints projected: a calibration error is not a rendering "
+    "error); rendered over the camera's clean plate when the dataset has "
     "one, else over its own frame with the region (dilated by %d px) blanked to black; psnr_subject: PSNR over the "
     "region dilated by 2 px; psnr, ssim: in the region's box; coverage: share of the region drawn with opacity > 0.5"
     % BLANK_MARGIN_PX)
@@ -148,6 +150,10 @@ class HeldOutRegions:
         when there is neither a mask nor ground truth.
     out : path-like, optional
         Where the regions used are written (``heldout_region/<camera>/NNNNNN.png``) for checking.
+    fmt : str, optional
+        The keypoints' format (default: found from the files).
+    correct : bool
+        Correct the held-out camera by its 2D offset from its own keypoints (:meth:`view`).
 
     Attributes
     ----------
@@ -156,8 +162,12 @@ class HeldOutRegions:
         ``"seeded by its keypoints"`` or ``"none"``).
     """
 
-    def __init__(self, dataset, camera: Camera, masks_dir=None, keypoints=None, out=None):
+    def __init__(self, dataset, camera: Camera, masks_dir=None, keypoints=None, out=None, correct: bool = True,
+                 fmt: str | None = None):
         self.dataset = dataset
+        self.fmt = fmt
+        self.correct = bool(correct)
+        self.offsets: dict = {}
         self.camera = camera
         self.masks_dir = None if masks_dir is None else Path(masks_dir)
         self.keypoints = None if keypoints is None else Path(keypoints)
@@ -175,7 +185,7 @@ class HeldOutRegions:
             from toolkit.skeleton.mappings import to_skeleton14
 
             _, _, data = read_dataset_keypoints(self.keypoints, self.dataset.camera_names, Rig((self.camera,)),
-                                                person="most_confident")
+                                                fmt=self.fmt, person="most_confident")
             self._kp = (np.asarray(data.frames, int), to_skeleton14(data.keypoints, data.format.fmt, confidence=True))
         frames, kp = self._kp
         hit = np.flatnonzero(frames == int(frame))
@@ -197,15 +207,43 @@ class HeldOutRegions:
             return self.dataset.gt_mask(name, frame), "ground truth"
         own = self._own_keypoints(frame)
         if own is not None and np.count_nonzero(own[1] > 0) >= 6:
-            from toolkit.foreground.seeded import seeded_silhouette
+            from toolkit.foreground.seeded import SeededSegmenter
 
-            return seeded_silhouette(image, own[0], own[1]), "seeded by its keypoints"
+            if self._segmenter is None:
+                self._segmenter = SeededSegmenter()
+            return self._segmenter.segment(image, own[0], own[1]).mask, "seeded by its keypoints"
         return None, "none"
 
-    def view(self, frame: int) -> EvaluationView:
-        """The :class:`EvaluationView` of ``frame`` (writes its region under ``heldout_region/``)."""
+    def offset(self, frame: int, joints3d: np.ndarray | None) -> np.ndarray:
+        """The held-out camera's 2D offset in ``frame``: where its own keypoints are minus where the
+        run's 3D joints project (median over the joints detected with confidence >= 0.3), pixels;
+        zero without keypoints or joints."""
+        own = self._own_keypoints(frame) if joints3d is not None else None
+        if own is None:
+            return np.zeros(2)
+        J = np.asarray(joints3d, float)
+        d = own[0] - self.camera.project(J)
+        ok = (own[1] >= 0.3) & np.isfinite(d).all(-1)
+        return np.median(d[ok], axis=0) if ok.sum() >= 4 else np.zeros(2)
+
+    def view(self, frame: int, joints3d: np.ndarray | None = None) -> EvaluationView:
+        """The :class:`EvaluationView` of ``frame`` (writes its region under ``heldout_region/``).
+
+        With ``joints3d`` (the run's joints of this frame) and the camera's own keypoints, the
+        camera is corrected by its 2D offset (:meth:`offset`: its principal point shifted, two
+        numbers per frame, as stage 1 does for the source cameras), so that a calibration error
+        of the held-out camera is not scored as a rendering error; ``offsets`` keeps them.
+        """
         name = self.camera.name
         ref = self.dataset.frame(name, frame)
+        o = self.offset(frame, joints3d) if self.correct else np.zeros(2)
+        self.offsets[int(frame)] = o
+        cam = self.camera
+        if np.any(o != 0):
+            K = cam.K.copy()
+            K[0, 2] += o[0]
+            K[1, 2] += o[1]
+            cam = cam.replace(K=K)
         region, how = self.region(frame, ref)
         self.how[int(frame)] = how
         if region is not None and self.out is not None:
@@ -221,4 +259,4 @@ class HeldOutRegions:
             bg = blanked_background(ref, region)
         else:
             bg = np.asarray(ref, np.float32)
-        return EvaluationView(self.camera, "heldout", bg, ref if region is not None else None, region)
+        return EvaluationView(cam, "heldout", bg, ref if region is not None else None, region)
