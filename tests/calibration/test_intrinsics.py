@@ -119,3 +119,30 @@ def test_pose2sim_demo_intrinsics_focal_within_two_percent():
     assert abs(r.camera.K[1, 1] / ref.K[1, 1] - 1) < REAL_FOCAL_TOL
     assert r.camera.size == (1088, 1920)
     assert len(r.rejected) >= 1  # one image shows the board cut by the image border
+
+
+def charuco_image(board_shown: Board, seed: int = 0):
+    from toolkit.synthetic.boards import render_charuco
+
+    cam = Camera.look_at("cam", [0, 0, 0], [0, 1, 0], size=(640, 480), focal_px=500.0)
+    T = random_board_poses(cam, board_shown, 1, np.random.default_rng(seed), distance=(0.5, 0.7))[0]
+    return cam, T, render_charuco(cam, board_shown, T)
+
+
+def test_charuco_detected_at_the_right_corners():
+    board = Board("charuco", 5, 7, 0.04, 0.03)
+    cam, T, img = charuco_image(board)
+    d = detect_board(img, board)
+    assert d is not None and len(d.ids) >= 30
+    assert np.abs(d.corners - board_corners(cam, board, T)[d.ids]).max() < 1.5  # warped, not rendered exactly
+
+
+@pytest.mark.parametrize("declared, message", [
+    (Board("charuco", 4, 7, 0.04, 0.03), "5x7 inner corners, not 4x7 as declared"),
+    (Board("charuco", 5, 7, 0.04, 0.02), "markers measure 29 mm .* not 20 mm as declared"),
+    (Board("charuco", 5, 7, 0.04, 0.03, "DICT_5X5_50"), "markers of DICT_4X4_50: check --dictionary"),
+])
+def test_charuco_declared_wrong_is_said_so(declared, message):
+    _, _, img = charuco_image(Board("charuco", 5, 7, 0.04, 0.03))
+    with pytest.raises(InputError, match=message):
+        detect_in_frames([("view.png", img)], declared, "images")

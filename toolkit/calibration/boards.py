@@ -195,12 +195,53 @@ def _outer_square(gray: np.ndarray, corner: np.ndarray, inner: np.ndarray) -> fl
     return float(gray[y - 2:y + 3, x - 2:x + 3].mean())
 
 
-def _find_charuco(gray: np.ndarray, board: Board) -> tuple[np.ndarray, np.ndarray]:
+#: ChArUco: a detection whose corners are farther than this from the board-plane homography through them is
+#: not the declared board (another grid), pixels (or 2 % of the corners' spread, if larger).
+CHARUCO_HOMOGRAPHY_PX = 3.0
+
+
+def _find_charuco(gray: np.ndarray, board: Board):
+    """ChArUco corner ids and pixels, and the markers (corners (M, 4, 2), ids (M,)) found."""
     det = cv2.aruco.CharucoDetector(board.charuco())
-    cc, ci, _, _ = det.detectBoard(gray)
+    cc, ci, mc, mi = det.detectBoard(gray)
+    markers = (np.zeros((0, 4, 2)), np.zeros(0, int)) if mi is None else \
+        (np.asarray(mc, float).reshape(-1, 4, 2), mi.ravel().astype(int))
     if ci is None or len(ci) == 0:
-        return np.zeros(0, int), np.zeros((0, 2))
-    return ci.ravel().astype(int), cc.reshape(-1, 2).astype(float)
+        return np.zeros(0, int), np.zeros((0, 2)), markers
+    return ci.ravel().astype(int), cc.reshape(-1, 2).astype(float), markers
+
+
+def charuco_consistency(board: Board, ids: np.ndarray, corners: np.ndarray, markers) -> str | None:
+    """Why a ChArUco detection contradicts the declared board (``None`` when it agrees).
+
+    Checks that every marker id belongs to the board, that the corners lie on one plane through a
+    homography (a wrong grid puts them in the wrong places), and that the markers measure the declared
+    marker size relative to the squares (mapped to the board plane by that homography).
+    """
+    n_markers = len(board.charuco().getIds())
+    mc, mi = markers
+    if len(mi) and mi.max() >= n_markers:
+        return (f"ArUco marker ids up to {int(mi.max())} while a {board.rows}x{board.cols}-corner ChArUco board has "
+                f"{n_markers} markers (ids 0-{n_markers - 1}): check --corners and the dictionary")
+    if len(ids) < 6:
+        return None
+    O = board.object_points()[ids, :2]
+    H, _ = cv2.findHomography(O, corners, 0)
+    if H is None:
+        return None
+    proj = cv2.perspectiveTransform(O.reshape(-1, 1, 2), H).reshape(-1, 2)
+    err = float(np.sqrt(np.mean(np.sum((proj - corners) ** 2, 1))))
+    spread = float(np.linalg.norm(corners.max(0) - corners.min(0)))
+    if err > max(CHARUCO_HOMOGRAPHY_PX, 0.02 * spread):
+        return (f"ChArUco corners {err:.1f} px off one plane: the markers are not laid out as on a "
+                f"{board.rows}x{board.cols}-corner board; check --corners")
+    if len(mi):
+        back = cv2.perspectiveTransform(mc.reshape(-1, 1, 2), np.linalg.inv(H)).reshape(-1, 4, 2)
+        side = float(np.median(np.linalg.norm(back - np.roll(back, 1, axis=1), axis=2)))
+        if abs(side / board.marker - 1) > 0.1:
+            return (f"the markers measure {side * 1000:.0f} mm on a grid of {board.square * 1000:g} mm squares, "
+                    f"not {board.marker * 1000:g} mm as declared: check --marker-mm (and --square-mm)")
+    return None
 
 
 def detect_board(image: np.ndarray, board: Board, source: str = "image",
@@ -229,8 +270,8 @@ def detect_board(image: np.ndarray, board: Board, source: str = "image",
         if c is None:
             return None
         return BoardDetection(source, (w, h), np.arange(board.n_corners), c)
-    ids, c = _find_charuco(gray, board)
-    if len(ids) < (min_corners or 6):
+    ids, c, markers = _find_charuco(gray, board)
+    if len(ids) < (min_corners or 6) or charuco_consistency(board, ids, c, markers) is not None:
         return None
     return BoardDetection(source, (w, h), ids, c)
 
@@ -252,16 +293,33 @@ def _declared_size_message(images: list[tuple[str, np.ndarray]], board: Board) -
                     return (f"the images show a checkerboard of {rows}x{cols} inner corners (squares minus one), "
                             f"not {board.rows}x{board.cols} as declared: check --corners")
         return None
-    # ChArUco: markers found but no corners interpolated -> wrong grid or marker size
-    d = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(ARUCO_DICTIONARIES[board.dictionary]))
+    # ChArUco: what contradicts the declared board, and which grid the images show
     for g in gray:
-        mc, mi, _ = d.detectMarkers(g)
-        if mi is not None and len(mi):
-            n_expected = len(board.charuco().getIds())
-            top = int(mi.max())
-            return (f"the images show {len(mi)} ArUco markers of {board.dictionary} (largest id {top}) but no "
-                    f"ChArUco corners of a {board.rows}x{board.cols} board ({n_expected} markers): check --corners, "
-                    "--marker-mm and the dictionary")
+        ids, c, markers = _find_charuco(g, board)
+        why = charuco_consistency(board, ids, c, markers)
+        if why is None and len(markers[1]):
+            why = (f"{len(markers[1])} ArUco markers of {board.dictionary} but too few ChArUco corners of a "
+                   f"{board.rows}x{board.cols}-corner board")
+        if why is None:
+            continue
+        for dr in (0, -1, 1, -2, 2):
+            for dc in (0, -1, 1, -2, 2):
+                if (dr or dc) and board.rows + dr >= 2 and board.cols + dc >= 2:
+                    other = Board("charuco", board.rows + dr, board.cols + dc, board.square, board.marker,
+                                  board.dictionary)
+                    i2, c2, m2 = _find_charuco(g, other)
+                    if len(i2) >= 6 and charuco_consistency(other, i2, c2, m2) is None:
+                        return (f"{why}; the images show a ChArUco board of {other.rows}x{other.cols} inner corners, "
+                                f"not {board.rows}x{board.cols} as declared")
+        return why
+    for name in ("DICT_4X4_50", "DICT_5X5_100", "DICT_6X6_250", "DICT_7X7_250", "DICT_ARUCO_ORIGINAL"):
+        if name == board.dictionary:
+            continue
+        det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(ARUCO_DICTIONARIES[name]))
+        for g in gray:
+            _, mi, _ = det.detectMarkers(g)
+            if mi is not None and len(mi) >= 4:
+                return f"no {board.dictionary} markers but {len(mi)} markers of {name}: check --dictionary"
     return None
 
 
@@ -369,4 +427,4 @@ def detect_in_frames(frames, board: Board, where: str) -> tuple[list[BoardDetect
     return dets, missed
 
 
-__all__.append("detect_in_frames")
+__all__ += ["detect_in_frames", "charuco_consistency"]

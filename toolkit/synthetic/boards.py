@@ -16,7 +16,8 @@ from toolkit.anthropometry import BodyProportions
 from toolkit.calibration.boards import Board
 from toolkit.cameras import Camera
 
-__all__ = ["board_pose", "board_corners", "render_checkerboard", "pixel_rays", "people_sequence", "random_board_poses"]
+__all__ = ["board_pose", "board_corners", "render_checkerboard", "render_charuco", "pixel_rays", "people_sequence",
+           "random_board_poses"]
 
 
 def board_pose(center, normal_tilt_deg=(0.0, 0.0), spin_deg: float = 0.0, facing=(0.0, 0.0, 1.0)) -> np.ndarray:
@@ -181,4 +182,34 @@ def people_sequence(n_frames: int, rng: np.random.Generator, height: float = 1.7
             c, sn = np.cos(yaw), np.sin(yaw)
             Rz = np.array([[c, -sn, 0], [sn, c, 0], [0, 0, 1]])
             out[k, t] = J @ Rz.T + pos
+    return out
+
+
+def render_charuco(camera: Camera, board: Board, world_from_board: np.ndarray, px_per_square: int = 60,
+                   background: int = 110) -> np.ndarray:
+    """Grey image (H, W) uint8 of a ChArUco board (OpenCV's drawing) seen by a camera without distortion.
+
+    The board's first inner corner is at the origin of ``world_from_board`` (as
+    :meth:`~toolkit.calibration.boards.Board.object_points`), the board's outer corner one square
+    before it in x and y.  Lens distortion is ignored (a homography warp).
+    """
+    import cv2
+
+    sq = board.square
+    w_px, h_px = (board.cols + 1) * px_per_square, (board.rows + 1) * px_per_square
+    art = board.charuco().generateImage((w_px, h_px), marginSize=0, borderBits=1)
+    # board-image pixel -> board metres (origin at the first inner corner) -> camera pixels
+    S = np.array([[sq / px_per_square, 0, -sq + 0.5 * sq / px_per_square - sq / px_per_square * 0.5],
+                  [0, sq / px_per_square, -sq], [0, 0, 1]])
+    S[0, 2] = -sq + 0.5 * sq / px_per_square
+    S[1, 2] = -sq + 0.5 * sq / px_per_square
+    T = camera.cam_from_world @ world_from_board
+    H = camera.K @ np.column_stack([T[:3, 0], T[:3, 1], T[:3, 3]]) @ S
+    w, h = camera.size
+    # a white margin of one square around the board (as printed)
+    pad = px_per_square
+    art = cv2.copyMakeBorder(art, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=255)
+    shift = np.array([[1, 0, -pad], [0, 1, -pad], [0, 0, 1.0]])
+    out = cv2.warpPerspective(art, H @ shift, (w, h), flags=cv2.INTER_AREA, borderMode=cv2.BORDER_CONSTANT,
+                              borderValue=background)
     return out
