@@ -25,8 +25,8 @@ mean the same moment); the world is the board of the first view the first camera
 z out of its printed side.  ``--scene-points FILE``: 3D coordinates and their pixels per
 camera (TOML or CSV, docs/calibration.md).  ``--keypoints DIR``: 2D keypoints of a person
 moving through the volume (any detector of docs/keypoint_formats.md, or a Pose2Sim trial
-folder); the scale from ``--height-m`` (else a median adult, with a warning), the floor
-from the resting feet.
+folder); the scale from ``--height-m`` (else a Pose2Sim trial's ``participant_height``,
+else a median adult with a warning), the floor from the resting feet.
 
 Both commands write the Pose2Sim / anipose TOML (``--out``), a JSON report next to it
 (``<out>.json``: reprojection errors per camera, rejected views, coverage, warnings) and a
@@ -79,7 +79,9 @@ def parse_args(argv=None):
                                                     "Pose2Sim trial")
     _board_args(e, False)
     e.add_argument("--format", default="auto", help="keypoint format (default auto: found from the files)")
-    e.add_argument("--height-m", type=float, default=None, help="the person's stature, metres (the scale)")
+    e.add_argument("--height-m", type=float, default=None,
+                   help="the person's stature, metres (the scale); default: a Pose2Sim trial's participant_height, "
+                        "else a median adult with a warning")
     e.add_argument("--min-confidence", type=float, default=0.3, help="keypoints below this are not used")
     e.add_argument("--seed", type=int, default=0, help="RANSAC seed (default 0)")
     e.add_argument("--out", type=Path, required=True, help="calibration TOML (Pose2Sim / anipose layout)")
@@ -217,15 +219,35 @@ def _keypoint_input(args, cams):
     from toolkit.io.pose2sim import is_pose2sim_trial, read_pose2sim_trial
 
     root, fmt, declared = args.keypoints, None if args.format == "auto" else args.format, "--format"
+    height = (args.height_m, "--height-m") if args.height_m is not None else (None, None)
     if is_pose2sim_trial(root):
         trial = read_pose2sim_trial(root)
         root = trial.keypoints
         if fmt is None and trial.pose_model is not None:
             fmt, declared = trial.pose_model, "[pose] pose_model of the Pose2Sim Config.toml"
+        if height[0] is None:
+            height = pose2sim_height(trial.config_files)
     sources = camera_sources(root)
     order, how = match_cameras([c.name for c in cams], sources, f"{root}: camera sources")
     data = read_keypoints([sources[i] for i in order], fmt, declared)
-    return data, how
+    return data, how, height
+
+
+def pose2sim_height(config_files) -> tuple[float | None, str | None]:
+    """``[markerAugmentation] participant_height`` of the Pose2Sim settings (the last file that sets a
+    single number wins), with the file it comes from; ``(None, None)`` when none does."""
+    import tomllib
+
+    found = (None, None)
+    for f in config_files:
+        try:
+            doc = tomllib.loads(Path(f).read_text(encoding="utf-8"))
+        except (OSError, tomllib.TOMLDecodeError):
+            continue
+        h = doc.get("markerAugmentation", {}).get("participant_height")
+        if isinstance(h, (int, float)) and 1.0 <= h <= 2.5:
+            found = (float(h), f"participant_height of {f}")
+    return found
 
 
 def run_extrinsics(args) -> int:
@@ -258,13 +280,15 @@ def run_extrinsics(args) -> int:
         else:
             if args.height_m is not None and not (1.0 <= args.height_m <= 2.5):
                 raise InputError("--height-m", "a stature between 1.0 and 2.5 metres", repr(args.height_m))
-            data, how = _keypoint_input(args, cams)
+            data, how, (height, height_from) = _keypoint_input(args, cams)
+            if height is not None:
+                print(f"stature {height:g} m ({height_from})")
             fmt = data.format.fmt
-            r = ex.extrinsics_from_people(cams, data.keypoints, KEYPOINTS[fmt], fmt, height_m=args.height_m,
+            r = ex.extrinsics_from_people(cams, data.keypoints, KEYPOINTS[fmt], fmt, height_m=height,
                                           config=ex.PeopleConfig(min_confidence=args.min_confidence),
                                           rng=np.random.default_rng(args.seed), observer=obs)
             report["keypoints"] = {"format": fmt, "why": data.format.reason, "matching": how,
-                                   "frames": int(len(data.frames))}
+                                   "frames": int(len(data.frames)), "height_m": height, "height_from": height_from}
             if obs is not None:
                 pts = r.points[:: max(1, len(r.points) // 200)]
                 for cam in r.rig:

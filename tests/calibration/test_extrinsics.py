@@ -160,3 +160,33 @@ def test_board_views_sharing_nothing_is_an_input_error():
     dets[1] = {f"other_{k}": d for k, d in dets[1].items()}
     with pytest.raises(InputError, match="share no view"):
         extrinsics_from_boards(intrinsics(cams), dets, board)
+
+
+#: Issue 21's targets for extrinsics from the people on the Pose2Sim demo, against the lab's calibration.
+REAL_CENTRE_M = 0.05
+REAL_ANGLE_DEG = 1.0
+
+
+@pytest.mark.slow
+def test_pose2sim_demo_people_against_the_lab_calibration():
+    import os
+    from pathlib import Path
+
+    from toolkit.io.calibration import read_calibration
+    from toolkit.io.keypoint_files import camera_sources
+    from toolkit.io.keypoint_formats import read_keypoints
+    from toolkit.skeleton.mappings import KEYPOINTS
+
+    root = Path(os.environ.get("TOOLKIT_REALDATA", Path(__file__).resolve().parents[3] / "shared" / "realdata"))
+    root = root / "pose2sim_demo"
+    if not root.is_dir():
+        pytest.skip(f"real data not found at {root}")
+    lab = read_calibration(root / "S00_Calibration" / "Calib_qualisys.toml")
+    trial = root / "S00_P00_SingleParticipant" / "S00_P00_T01_BalancingTrial"
+    data = read_keypoints(camera_sources(trial / "pose-associated"), "body_25b")
+    r = extrinsics_from_people(intrinsics(list(lab)), data.keypoints, KEYPOINTS["body_25b"], "body_25b",
+                               height_m=1.72, rng=np.random.default_rng(0))
+    dc, ang, s = pose_errors(r.rig, list(lab))
+    assert dc.max() < REAL_CENTRE_M and ang.max() < REAL_ANGLE_DEG
+    assert abs(s - 1) < 0.07  # stature priors on OpenPose joints: 3.7 % measured
+    assert not any("under the floor" in w or "mirrored" in w for w in r.warnings)

@@ -185,3 +185,12 @@ def test_extrinsics_command_from_board_images(tmp_path):
     assert np.abs(got.centers[:, 2] - truth.centers[:, 2]).max() < CENTRE_TOL_M  # the first board is the floor
     report = json.loads(out.with_suffix(".json").read_text())
     assert report["method"] == "board" and not report["warnings"]
+
+
+def test_pose2sim_participant_height_read_from_the_settings(tmp_path):
+    a, b = tmp_path / "Config.toml", tmp_path / "trial.toml"
+    a.write_text("[markerAugmentation]\nparticipant_height = 1.72 # m\n")
+    b.write_text("[markerAugmentation]\n# participant_height = 1.80\n")
+    h, where = load_recipe().pose2sim_height([a, b])
+    assert h == 1.72 and str(a) in where
+    assert load_recipe().pose2sim_height([b]) == (None, None)
