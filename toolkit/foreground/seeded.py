@@ -18,7 +18,8 @@ with contrast-sensitive smoothness) decide the pixels in between:
 
 The result keeps only the connected components that hold sure-subject pixels, so a
 bystander touching the band but not the subject is dropped.  Over time the previous
-frame's mask initialises the colour models (``previous``); across views
+frame's colour models can start the next frame's (``previous`` with ``carry_models``; off by
+default, see :data:`CARRY_MODELS`: a mistake then persists); across views
 :func:`refine_masks` carves each camera's mask with the visual hull of the other
 cameras' masks around the 3D pose: a pixel whose ray meets no point inside every other
 view's mask is background.  ``docs/real_footage.md`` measures it.
@@ -66,6 +67,9 @@ BONE_LENGTHS = {("l_shoulder", "l_elbow"): 0.60, ("l_elbow", "l_wrist"): 0.52,
 #: Head radius around the 14-joint ``head`` (the middle of the ears), torso lengths: a head is
 #: about 0.12 m from ear level to its top.
 HEAD_RADIUS = 0.26
+#: The probable head is the typical one times this (hair, a cap, a head tilted toward the camera;
+#: at 1.0 the demo's swimming caps fell outside it).
+HEAD_PROBABLE_SCALE = 1.35
 #: Hands beyond the wrist and feet around the ankle, torso lengths.
 HAND_REACH, HAND_RADIUS, FOOT_RADIUS = 0.30, 0.12, 0.30
 #: Probable-subject half-widths are the typical ones times this (clothes, keypoint noise, bodies
@@ -92,6 +96,11 @@ MIN_SEED_PIXELS = 50
 #: After the first cut with the models learned from the seeds, GrabCut learns them again from
 #: its cut (OpenCV's iteration) when True; when False every iteration keeps the seeds' models.
 RELEARN = True
+#: Start each frame's GrabCut from the previous frame's colour models (``previous``) instead of
+#: models learned from the frame's own seeds.  Off: it gained 0.007 median IoU on the tuning
+#: scenes, but on the Pose2Sim demo a patch of background taken once stays taken (cam_01's mask
+#: grew from 163k to 200k pixels over 5 frames with the subject unchanged; docs/real_footage.md).
+CARRY_MODELS = False
 #: GrabCut's crop is the seeded region grown by this, torso lengths (a rim of sure background).
 CROP_PAD = 0.1
 #: Components of the mask smaller than this fraction of the subject's area are dropped.
@@ -116,6 +125,11 @@ class SeededConfig:
         :data:`MIN_COMPONENT_FRACTION`.
     relearn : bool
         :data:`RELEARN`.
+    local_models : bool
+        One colour model per body region of :data:`REGIONS` (upper body, legs), each learned on
+        the crop around its region, instead of one for the whole body.
+    carry_models : bool
+        :data:`CARRY_MODELS`.
     """
 
     probable_scale: float = PROBABLE_SCALE
@@ -128,6 +142,8 @@ class SeededConfig:
     work_side_px: int = WORK_SIDE_PX
     min_component_fraction: float = MIN_COMPONENT_FRACTION
     relearn: bool = RELEARN
+    local_models: bool = True
+    carry_models: bool = CARRY_MODELS
 
     def __post_init__(self):
         for name in ("probable_scale", "sure_scale", "band"):
@@ -159,8 +175,9 @@ class SeededMask:
         The seeds given to GrabCut: ``cv2.GC_BGD`` (0), ``GC_FGD`` (1), ``GC_PR_BGD`` (2), ``GC_PR_FGD`` (3).
     scale_px : float
         The body scale used (torso length, pixels); NaN when the pose gave none (then the mask is empty).
-    models : tuple of ndarray
-        GrabCut's background and foreground colour models, (1, 65) float64 each, for the next frame.
+    models : tuple of tuple of ndarray
+        Per body region (:data:`REGIONS`), GrabCut's background and foreground colour models,
+        (1, 65) float64 each (an empty tuple for a region without seeds), for the next frame.
     """
 
     mask: np.ndarray
@@ -247,7 +264,7 @@ def _draw_body(img: np.ndarray, j: np.ndarray, ok: np.ndarray, s: float, width: 
         if ok[_J[hip]] and ok[_J["neck"]] and not sure:
             _line(img, j[_J[hip]], j[_J["neck"]], 0.15 * width * s, value)
     if ok[_J["head"]]:
-        r = HEAD_RADIUS * s * (cfg.sure_scale if sure else width / PROBABLE_SCALE)
+        r = HEAD_RADIUS * s * (cfg.sure_scale if sure else HEAD_PROBABLE_SCALE * width / PROBABLE_SCALE)
         cv2.circle(img, tuple(int(round(v)) for v in j[_J["head"]]), max(int(round(r)), 0), int(value), -1)
     if sure:
         return
@@ -359,6 +376,60 @@ def _grabcut(bgr: np.ndarray, trimap: np.ndarray, models, iterations: int, relea
     return bgd, fgd
 
 
+#: The body's regions with their own colour models: a leg is told from the floor around it, the
+#: chest from the wall behind it (one model for the whole body mixes the floor between the legs
+#: with a shirt of its colour, the feet with a wall of skin colour).
+REGIONS = (("head", "neck", "l_shoulder", "l_elbow", "l_wrist", "r_shoulder", "r_elbow", "r_wrist"),
+           ("l_hip", "l_knee", "l_ankle", "r_hip", "r_knee", "r_ankle"))
+
+
+def _regions(size: tuple[int, int], j: np.ndarray, ok: np.ndarray) -> list[np.ndarray]:
+    """Per region of :data:`REGIONS`, the pixels nearer to its bones than to the others' ((H, W) bool)."""
+    w, h = size
+    dists = []
+    for names in REGIONS:
+        idx = [_J[n] for n in names if ok[_J[n]]]
+        if not idx:
+            continue
+        img = np.full((h, w), 255, np.uint8)
+        for (a, b), _ in BONE_HALF_WIDTHS.items():
+            if _J[a] in idx and _J[b] in idx:
+                _line(img, j[_J[a]], j[_J[b]], 0, 0)
+        for i in idx:
+            _line(img, j[i], j[i], 0, 0)
+        if "l_hip" in names and ok[_J["l_hip"]] and ok[_J["r_hip"]]:
+            _line(img, j[_J["l_hip"]], j[_J["r_hip"]], 0, 0)
+        dists.append(cv2.distanceTransform(img, cv2.DIST_L2, 5))
+    if len(dists) <= 1:
+        return [np.ones((h, w), bool)]
+    nearest = np.argmin(np.stack(dists), 0)
+    return [nearest == k for k in range(len(dists))]
+
+
+def _cut_region(work_img: np.ndarray, work_tri: np.ndarray, region: np.ndarray, models, pad: int,
+                cfg: "SeededConfig") -> tuple[np.ndarray, tuple]:
+    """GrabCut on the crop around ``region``'s seeded pixels; the subject (float 0/1, work size) and models.
+
+    GrabCut sees the seeded region and a thin rim of sure background: far-away background would
+    only dilute its background colour model.
+    """
+    fg = np.zeros(work_tri.shape, np.float32)
+    ys, xs = np.nonzero((work_tri != cv2.GC_BGD) & region)
+    if len(ys) == 0:
+        return fg, ()
+    h, w = work_tri.shape
+    a0, a1 = max(ys.min() - pad, 0), min(ys.max() + pad + 1, h)
+    b0, b1 = max(xs.min() - pad, 0), min(xs.max() + pad + 1, w)
+    tri = np.ascontiguousarray(work_tri[a0:a1, b0:b1])
+    if not (((tri == cv2.GC_FGD) | (tri == cv2.GC_PR_FGD)).any() and ((tri == cv2.GC_BGD) | (tri == cv2.GC_PR_BGD)).any()):
+        fg[a0:a1, b0:b1] = (tri == cv2.GC_FGD) | (tri == cv2.GC_PR_FGD)
+        return fg, ()
+    bgr = np.ascontiguousarray(work_img[a0:a1, b0:b1, ::-1])  # OpenCV's channel order, only here
+    bgd, fgd = _grabcut(bgr, tri, models or None, int(cfg.iterations), cfg.relearn)
+    fg[a0:a1, b0:b1] = (tri == cv2.GC_FGD) | (tri == cv2.GC_PR_FGD)
+    return fg, (bgd, fgd)
+
+
 class SeededSegmenter:
     """Subject masks from an image and the subject's 2D pose (module docstring).
 
@@ -397,8 +468,9 @@ class SeededSegmenter:
         weights : ndarray of shape (14,), optional
             Confidences in [0, 1], 0 = missing.
         previous : SeededMask or ndarray of shape (H, W) bool, optional
-            The previous frame's result (or mask) of the same camera: its mask marks the probable
-            subject inside the band, its colour models start GrabCut's.
+            The previous frame's result (or mask) of the same camera.  With ``config.carry_models``
+            its colour models start GrabCut's; its mask joins the probable subject inside the band
+            (which only matters when the sure subject is too small to learn a model from).
         others : sequence of ndarray of shape (14, 2)
             Other people's joints (sure background outside the subject's probable region).
         allowed : ndarray of shape (H, W) bool, optional
@@ -458,33 +530,25 @@ class SeededSegmenter:
                 if allowed is not None:
                     work_tri[~crop_to_work(allowed) & (work_tri != cv2.GC_FGD)] = cv2.GC_BGD
                 tri[y0:y1, x0:x1] = cv2.resize(work_tri, (x1 - x0, y1 - y0), interpolation=cv2.INTER_NEAREST)
-                # GrabCut sees the seeded region and a thin rim of sure background: far-away background
-                # would only dilute its background colour model
-                ys, xs = np.nonzero(work_tri != cv2.GC_BGD)
-                if len(ys) == 0:
-                    ys, xs = np.array([0]), np.array([0])
-                pad = max(int(round(CROP_PAD * s * f)), 4)
-                a0, a1 = max(ys.min() - pad, 0), min(ys.max() + pad + 1, size[1])
-                b0, b1 = max(xs.min() - pad, 0), min(xs.max() + pad + 1, size[0])
-                work_tri = np.ascontiguousarray(work_tri[a0:a1, b0:b1])
-                work_img = work_img[a0:a1, b0:b1]
-                seeds = work_tri.copy()
-                fg_seed = (seeds == cv2.GC_FGD) | (seeds == cv2.GC_PR_FGD)
-                bg_seed = (seeds == cv2.GC_BGD) | (seeds == cv2.GC_PR_BGD)
-                if fg_seed.any() and bg_seed.any():
-                    bgr = np.ascontiguousarray(work_img[..., ::-1])  # OpenCV's channel order, only here
-                    bgd, fgd = _grabcut(bgr, work_tri, models, int(cfg.iterations), cfg.relearn)
-                    out_models = (bgd, fgd)
-                    fg = np.zeros(size[::-1], np.float32)
-                    fg[a0:a1, b0:b1] = (work_tri == cv2.GC_FGD) | (work_tri == cv2.GC_PR_FGD)
-                    if f < 1:
-                        fg = cv2.resize(fg, (x1 - x0, y1 - y0), interpolation=cv2.INTER_LINEAR)
-                    crop = fg > 0.5
-                    crop_tri = tri[y0:y1, x0:x1]
-                    crop[crop_tri == cv2.GC_BGD] = False
-                    crop[crop_tri == cv2.GC_FGD] = True
-                    mask[y0:y1, x0:x1] = crop
-                    mask = _keep_seeded_components(mask, tri == cv2.GC_FGD, cfg.min_component_fraction)
+                regions = _regions(size, to_work(j), wts > 0) if cfg.local_models else [np.ones(size[::-1], bool)]
+                prev_models = (list(models) if cfg.carry_models and models is not None and len(models) == len(regions)
+                               else None)
+                fg = np.zeros(size[::-1], np.float32)
+                out = []
+                for r, region in enumerate(regions):
+                    fg_r, m_r = _cut_region(work_img, work_tri, region, None if prev_models is None
+                                            else prev_models[r], max(int(round(CROP_PAD * s * f)), 4), cfg)
+                    fg[region] = fg_r[region]
+                    out.append(m_r)
+                out_models = tuple(out)
+                if f < 1:
+                    fg = cv2.resize(fg, (x1 - x0, y1 - y0), interpolation=cv2.INTER_LINEAR)
+                crop = fg > 0.5
+                crop_tri = tri[y0:y1, x0:x1]
+                crop[crop_tri == cv2.GC_BGD] = False
+                crop[crop_tri == cv2.GC_FGD] = True
+                mask[y0:y1, x0:x1] = crop
+                mask = _keep_seeded_components(mask, tri == cv2.GC_FGD, cfg.min_component_fraction)
         if camera is not None:
             self.observer.report("mask", camera=camera, mask=(tri * 85).astype(np.uint8), name="seeded/trimap",
                                  **({} if frame is None else {"frame": frame}))
@@ -535,22 +599,33 @@ HULL_MARGIN_M = 0.3
 MASK_TOLERANCE_PX = 3
 
 
+#: A voxel seen by at least VOTE_FROM other views stays in the hull when at most MAX_MISSES of
+#: their masks miss it: one view's mask that lost a foot (or a head) does not carve it from all
+#: the others.  Seen by fewer views, every mask must hold it.
+MAX_MISSES = 1
+VOTE_FROM = 3
+
+
 @dataclass(frozen=True)
 class RefineConfig:
     """Options of :func:`refine_masks`; defaults :data:`VOXEL_M`, :data:`HULL_MARGIN_M`,
-    :data:`MASK_TOLERANCE_PX`."""
+    :data:`MASK_TOLERANCE_PX`, :data:`MAX_MISSES`, :data:`VOTE_FROM`."""
 
     voxel_m: float = VOXEL_M
     margin_m: float = HULL_MARGIN_M
     mask_tolerance_px: int = MASK_TOLERANCE_PX
+    max_misses: int = MAX_MISSES
+    vote_from: int = VOTE_FROM
 
     def __post_init__(self):
         for name in ("voxel_m", "margin_m"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise InputError(f"RefineConfig.{name}", "a finite value > 0", repr(v))
-        if int(self.mask_tolerance_px) != self.mask_tolerance_px or self.mask_tolerance_px < 0:
-            raise InputError("RefineConfig.mask_tolerance_px", "an integer >= 0", repr(self.mask_tolerance_px))
+        for name in ("mask_tolerance_px", "max_misses", "vote_from"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or int(v) != v or v < 0:
+                raise InputError(f"RefineConfig.{name}", "an integer >= 0", repr(v))
 
 
 def refine_masks(masks: dict[str, np.ndarray], rig: Rig, joints3d: np.ndarray, config: RefineConfig | None = None,
@@ -558,7 +633,8 @@ def refine_masks(masks: dict[str, np.ndarray], rig: Rig, joints3d: np.ndarray, c
     """Carve each view's mask with the visual hull of the other views' masks around the 3D pose.
 
     A voxel of the box around ``joints3d`` is inside the hull seen without camera ``c`` when it
-    projects inside the (slightly grown) mask of every other camera that sees it; camera ``c``'s
+    projects inside the (slightly grown) mask of every other camera that sees it (all but
+    ``max_misses`` of them when ``vote_from`` or more see it); camera ``c``'s
     refined mask keeps the pixels of its mask covered by those voxels' projections.  A pixel
     whose ray misses the other views' masks, or leaves the box around the body (a bystander,
     a patch of floor), becomes background.
@@ -625,10 +701,10 @@ def refine_masks(masks: dict[str, np.ndarray], rig: Rig, joints3d: np.ndarray, c
     out = {}
     everywhere = np.ones(len(vox), bool)
     for n in names:
-        keep = seen[n].copy()
-        for o in names:
-            if o != n:
-                keep &= inside[o] | ~seen[o]
+        others = [o for o in names if o != n]
+        misses = np.sum([seen[o] & ~inside[o] for o in others], 0)
+        n_seen = np.sum([seen[o] for o in others], 0)
+        keep = seen[n] & (misses <= np.where(n_seen >= cfg.vote_from, cfg.max_misses, 0))
         everywhere &= inside[n] | ~seen[n]
         cam = rig[n]
         ui, vi = pix[n]
