@@ -66,7 +66,7 @@ def _mask(cam: Camera, t: int) -> np.ndarray:
     return m
 
 
-def _record(path, config=None):
+def _record(path, config=None, flush_frames=False):
     rig = _rig()
     bg = _background()
     with RerunObserver(path=path, camera_names=rig.names, config=config) as obs:
@@ -79,6 +79,8 @@ def _record(path, config=None):
                        name="silhouettes/pose")
             obs.report("joints3d", joints=_joints(t), skeleton=SKELETON_14, name="multiview/joints3d")
             obs.report("image", camera="cam", image=_frame(rig[0], t, bg), name="render/articulated")
+            if flush_frames:  # as in a pipeline, where a frame takes seconds: one chunk per entity and frame
+                obs.flush()
     return rig, bg
 
 
@@ -193,3 +195,16 @@ def test_blueprint_groups_stages_in_tabs_and_frames_the_subject(recorded):
 def test_make_blueprint_without_overlays_has_every_stage_tab():
     bp = make_blueprint(["a", "b"])
     assert bp is not None  # stage tabs for every camera (checked through the recording above)
+
+
+def test_the_saved_file_is_compacted_on_close(recorded, tmp_path):
+    path, loose = tmp_path / "compact.rrd", tmp_path / "loose.rrd"
+    _record(path, flush_frames=True)
+    _record(loose, RerunConfig(compact_on_close=False), flush_frames=True)
+    n_chunks = {p: sum(1 for _ in rr.chunk.RrdReader(p).stream()) for p in (path, loose)}
+    assert n_chunks[path] < n_chunks[loose] / 2  # each entity's rows merged
+    assert path.stat().st_size < loose.stat().st_size
+    a, b = _rows(path), _rows(loose)
+    a.pop("__properties"), b.pop("__properties")  # start times differ
+    assert a == b  # the same data
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["compact.rrd", "loose.rrd"]  # no temporary file

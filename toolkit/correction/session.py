@@ -478,9 +478,10 @@ class CorrectionSession:
 
     def image(self, camera: str, t: int) -> np.ndarray:
         """The camera's frame ``t`` (H, W, 3) uint8 RGB."""
-        self._frame(t)
-        self._camera(camera)
-        return self.dataset.frame(camera, t)
+        with self.lock:  # one video reader per camera, not thread-safe
+            self._frame(t)
+            self._camera(camera)
+            return self.dataset.frame(camera, t)
 
     def close(self) -> None:
         self.dataset.close()

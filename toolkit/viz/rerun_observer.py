@@ -75,6 +75,8 @@ CROP_PAD_PX = 8
 CROP_MAX_FRACTION = 0.5
 #: Draw order of the subject crop: above the camera image (rerun's default -10), below masks (0).
 SUBJECT_DRAW_ORDER = -9.0
+#: Longest time the compaction of a saved recording may take, seconds.
+COMPACT_TIMEOUT_S = 300
 #: Frames between two full camera images at most (a moving camera's background stays current).
 KEYFRAME_INTERVAL = 25
 
@@ -234,6 +236,36 @@ class RerunObserver:
         if self._owns_stream or self.path is not None:
             self.recording.disconnect()
         self.closed = True
+        if self.path is not None and self.config.compact_on_close:
+            self._compact()
+
+    def _compact(self) -> None:
+        """Rewrite the saved file with each entity's rows merged into few chunks (``rerun rrd optimize``),
+        atomically; on failure the file stays as written (complete and valid) and a warning says why."""
+        import os
+        import shutil
+        import subprocess
+        import sys
+        import warnings
+
+        cli = Path(sys.executable).with_name("rerun")
+        cli = str(cli) if cli.is_file() else shutil.which("rerun")
+        if cli is None or not self.path.is_file():
+            warnings.warn(f"{self.path}: not compacted (no rerun CLI next to {sys.executable})", stacklevel=3)
+            return
+        tmp = self.path.with_name(f".{self.path.name}.compact-{os.getpid()}.rrd")
+        try:
+            done = subprocess.run([cli, "rrd", "optimize", str(self.path), "-o", str(tmp)],
+                                  capture_output=True, text=True, timeout=COMPACT_TIMEOUT_S)
+            if done.returncode == 0 and tmp.is_file() and tmp.stat().st_size > 0:
+                os.replace(tmp, self.path)
+            else:
+                warnings.warn(f"{self.path}: not compacted (rerun rrd optimize: {done.stderr.strip()[-300:]})",
+                              stacklevel=3)
+        except (OSError, subprocess.TimeoutExpired) as e:
+            warnings.warn(f"{self.path}: not compacted ({type(e).__name__}: {e})", stacklevel=3)
+        finally:
+            tmp.unlink(missing_ok=True)
 
     def __enter__(self) -> "RerunObserver":
         return self

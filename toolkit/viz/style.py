@@ -76,6 +76,11 @@ class RerunConfig:
     crop_margin : float
         Margin of a colour image's subject crop, as a fraction of the subject box's
         height on each side.
+    compact_on_close : bool
+        When the observer saved to a file, compact it on :meth:`close` with the rerun
+        CLI (``rerun rrd optimize``: the rows of each entity merged into few chunks;
+        a third smaller for a pipeline run) and replace it atomically.  The file is
+        complete and valid before, so a failed compaction only warns.
     """
 
     compress_images: bool = True
@@ -93,6 +98,7 @@ class RerunConfig:
     joint_labels: bool = False
     crop_overlays: bool = True
     crop_margin: float = 0.35
+    compact_on_close: bool = True
 
     def __post_init__(self):
         if not 1 <= int(self.jpeg_quality) <= 100:
