@@ -30,7 +30,7 @@ import cv2
 import numpy as np
 
 from toolkit.anthropometry import BodyProportions
-from toolkit.calibration.boards import Board, BoardDetection
+from toolkit.calibration.boards import Board
 from toolkit.calibration.bundle import Observations, bundle_adjust
 from toolkit.calibration.checks import (
     boards_seen_from_behind,
@@ -43,6 +43,8 @@ from toolkit.cameras.triangulation import triangulate_linear
 from toolkit.errors import InputError
 from toolkit.io.keypoint_files import normalise_name
 from toolkit.observe import as_observer
+from toolkit.skeleton import JOINTS_14
+from toolkit.skeleton.mappings import to_skeleton14
 
 __all__ = ["ExtrinsicsResult", "PeopleConfig", "extrinsics_from_boards", "extrinsics_from_scene_points",
            "extrinsics_from_people", "similarity_align", "DEFAULT_STATURE_M", "STATURE_SPREAD"]
@@ -100,6 +102,7 @@ def _mean_rotation(Rs: list[np.ndarray]) -> np.ndarray:
 
 
 def _report(obs, result: ExtrinsicsResult, residuals=None, cam_index=None):
+    """Report the rig, the points, the warnings and the sorted residuals per camera to an observer."""
     o = as_observer(obs)
     o.report("rig", rig=result.rig, path="world/calibration/cams")
     if len(result.points):
@@ -524,9 +527,6 @@ def extrinsics_from_people(cameras: list[Camera], keypoints: np.ndarray, keypoin
     residuals, res_cam = ba.residuals_px, obs.cam
     # ---- scale, up and floor from the body
     P3 = X.reshape(T_, K_, 3)
-    from toolkit.skeleton.mappings import to_skeleton14
-    from toolkit.skeleton import JOINTS_14
-
     J = P3 if fmt in (None, "skeleton14") and K_ == 14 else to_skeleton14(P3, fmt)
     jidx = {n: i for i, n in enumerate(JOINTS_14)}
     stature = height_m if height_m is not None else DEFAULT_STATURE_M

@@ -199,10 +199,8 @@ def render_charuco(camera: Camera, board: Board, world_from_board: np.ndarray, p
     w_px, h_px = (board.cols + 1) * px_per_square, (board.rows + 1) * px_per_square
     art = board.charuco().generateImage((w_px, h_px), marginSize=0, borderBits=1)
     # board-image pixel -> board metres (origin at the first inner corner) -> camera pixels
-    S = np.array([[sq / px_per_square, 0, -sq + 0.5 * sq / px_per_square - sq / px_per_square * 0.5],
-                  [0, sq / px_per_square, -sq], [0, 0, 1]])
-    S[0, 2] = -sq + 0.5 * sq / px_per_square
-    S[1, 2] = -sq + 0.5 * sq / px_per_square
+    S = np.array([[sq / px_per_square, 0, -sq + 0.5 * sq / px_per_square],
+                  [0, sq / px_per_square, -sq + 0.5 * sq / px_per_square], [0, 0, 1]])
     T = camera.cam_from_world @ world_from_board
     H = camera.K @ np.column_stack([T[:3, 0], T[:3, 1], T[:3, 3]]) @ S
     w, h = camera.size
