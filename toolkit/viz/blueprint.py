@@ -142,6 +142,7 @@ def make_blueprint(
     cams_root: str = CAMS,
     overlays: Mapping[str, Iterable[str]] | None = None,
     eye: tuple[Sequence[float], Sequence[float]] | None = None,
+    timeline: str = "frame",
 ) -> rrb.Blueprint:
     """The default viewer layout for a recording of a camera rig.
 
@@ -175,6 +176,8 @@ def make_blueprint(
         every camera.
     eye : (position, look_target), optional
         Metres, world frame (:func:`subject_eye`).
+    timeline : str
+        Timeline the time panel shows (the observer's ``frame``).
 
     Returns
     -------
@@ -224,6 +227,10 @@ def make_blueprint(
         contents = ["+ $origin", f"+ $origin/{SUBJECT_CROP}"] + [f"+ $origin/{p}/**" for p in prefixes]
         tabs.append(rrb.Grid(*[rrb.Spatial2DView(origin=image_path(n, cams_root), name=n, contents=contents)
                                for n in cams], name=title))
+    # the views get the room: blueprint and selection panels folded (one click opens them), the time
+    # panel on the frame timeline
+    panels = (rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
+              rrb.TimePanel(state="expanded", timeline=timeline))
     if len(tabs) == 1 and not names:
-        return rrb.Blueprint(left_col if not right else main, collapse_panels=False)
-    return rrb.Blueprint(rrb.Tabs(*tabs, active_tab=0), collapse_panels=False)
+        return rrb.Blueprint(left_col if not right else main, *panels, collapse_panels=False)
+    return rrb.Blueprint(rrb.Tabs(*tabs, active_tab=0), *panels, collapse_panels=False)

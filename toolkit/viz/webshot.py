@@ -17,6 +17,7 @@ import argparse
 import base64
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -114,8 +115,10 @@ def screenshot_recording(rrd: str | os.PathLike, png: str | os.PathLike, *, view
         raise InputError(str(rrd), "a rerun recording (.rrd)", "no such file")
     cli = Path(sys.executable).with_name("rerun")
     web, grpc = free_port(), free_port()
+    # its own process group: the `rerun` entry point starts the viewer binary as a child, ended with it
     proc = subprocess.Popen([str(cli), str(rrd), "--serve-web", "--web-viewer-port", str(web), "--port", str(grpc),
-                             "--bind", "127.0.0.1"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                             "--bind", "127.0.0.1"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
     try:
         deadline = time.monotonic() + 30
         while True:
@@ -129,11 +132,16 @@ def screenshot_recording(rrd: str | os.PathLike, png: str | os.PathLike, *, view
         url = f"http://127.0.0.1:{web}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{grpc}%2Fproxy"
         return screenshot_url(url, png, viewport=viewport, wait_s=wait_s)
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+        for sig in (signal.SIGTERM, signal.SIGKILL):
+            try:
+                os.killpg(proc.pid, sig)
+            except ProcessLookupError:
+                break
+            try:
+                proc.wait(timeout=10)
+                break
+            except subprocess.TimeoutExpired:
+                continue
 
 
 def main(argv=None) -> int:
