@@ -40,11 +40,11 @@ count = 0
 #: Keypoint noise, pixels (a subject about 100 px tall: about 1.5 % of its height, as OpenPose on
 #: the Pose2Sim demo is 8-17 px on a 1300 px person).
 NOISE_PX = 1.5
-#: IoU with the true masks over 3 frames x 3 cameras: measured median 0.923, worst 0.829 (mp4v
+#: IoU with the true masks over 3 frames x 3 cameras: measured median 0.913, worst 0.829 (mp4v
 #: frames, noisy keypoints); the bounds leave room for encoder differences, not for a broken cut.
 IOU_MEDIAN_MIN = 0.87
 IOU_WORST_MIN = 0.78
-#: The cut must beat its own seeds (the probable region of the trimap: IoU 0.55 here) by this.
+#: The cut must beat its own seeds (the probable region of the trimap: IoU 0.52 here) by this.
 CUT_GAIN_MIN = 0.15
 #: Bystander pixels the mask may take, fraction of the bystander's area.
 BYSTANDER_MAX = 0.02
@@ -176,3 +176,19 @@ def test_no_pose_gives_an_empty_mask_and_bad_input_is_refused(scene):
         refine_masks({c: truth[c][0]}, ds.rig, ds.gt_joints3d()[0])
     with pytest.raises(InputError, match="shape"):
         refine_masks({c: truth[c][0], ds.camera_names[1]: np.zeros((4, 4), bool)}, ds.rig, ds.gt_joints3d()[0])
+
+
+def test_segment_views_carves_and_chains(scene, segmented):
+    ds, j2, frames, truth = scene
+    seg = SeededSegmenter()
+    images = {c: frames[c][0] for c in ds.camera_names}
+    joints = {c: j2[c][0] for c in ds.camera_names if c != ds.camera_names[2]}  # the third camera lost the pose
+    masks, results = seg.segment_views(images, joints, rig=ds.rig, joints3d=ds.gt_joints3d()[0])
+    assert not masks[ds.camera_names[2]].any()
+    for c in ds.camera_names[:2]:
+        assert not (masks[c] & ~results[c].mask).any()
+        assert mask_iou(masks[c], truth[c][0]) >= IOU_WORST_MIN
+    masks1, _ = seg.segment_views({c: frames[c][1] for c in ds.camera_names}, {c: j2[c][1] for c in ds.camera_names},
+                                  previous=results)
+    for c in ds.camera_names:  # no carving without a rig: the same masks as frame by frame (reproducible)
+        assert not (masks1[c] ^ segmented[c][1]).any()

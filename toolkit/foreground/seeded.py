@@ -349,6 +349,7 @@ def _pixel_models(bgr: np.ndarray, fg: np.ndarray, bg: np.ndarray) -> tuple[np.n
     pix = np.concatenate([bgr[fg], bgr[bg]])[:, None, :]
     lab = np.concatenate([np.full(fg.sum(), cv2.GC_FGD, np.uint8), np.full(bg.sum(), cv2.GC_BGD, np.uint8)])[:, None]
     bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
+    cv2.setRNGSeed(0)  # GrabCut's k-means draws from OpenCV's global generator: the same input, the same masks
     cv2.grabCut(np.ascontiguousarray(pix), np.ascontiguousarray(lab), None, bgd, fgd, 0, cv2.GC_INIT_WITH_MASK)
     return bgd, fgd
 
@@ -556,6 +557,55 @@ class SeededSegmenter:
                                  **({} if frame is None else {"frame": frame}))
         return SeededMask(mask=mask, trimap=tri, scale_px=s, models=out_models)
 
+    def segment_views(self, images: dict[str, np.ndarray], joints2d: dict[str, np.ndarray],
+                      weights: dict[str, np.ndarray] | None = None, *, rig: Rig | None = None,
+                      joints3d: np.ndarray | None = None, others: dict | None = None,
+                      previous: dict[str, SeededMask] | None = None, refine: RefineConfig | None = None,
+                      frame: int | None = None) -> tuple[dict[str, np.ndarray], dict[str, SeededMask]]:
+        """Segment one frame in every camera, then carve the masks across views.
+
+        Parameters
+        ----------
+        images : dict of str to ndarray of shape (H, W, 3) uint8
+            RGB frame per camera name.
+        joints2d : dict of str to ndarray of shape (14, 2)
+            The subject's joints per camera, pixels, NaN = missing (a camera without an entry, or
+            with no joint, gets an empty mask).
+        weights : dict of str to ndarray of shape (14,), optional
+            Confidences per camera.
+        rig : Rig, optional
+            With ``joints3d``: the masks are carved by :func:`refine_masks` (two cameras or more).
+        joints3d : ndarray of shape (J, 3), optional
+            The subject's 3D joints, metres.
+        others : dict of str to sequence of ndarray of shape (14, 2), optional
+            Other people's joints per camera.
+        previous : dict of str to SeededMask, optional
+            The previous frame's results per camera (the second return value of the previous call).
+        refine : RefineConfig, optional
+        frame : int, optional
+            For the observer.
+
+        Returns
+        -------
+        masks : dict of str to ndarray of shape (H, W) bool
+            Carved when ``rig`` and ``joints3d`` are given.
+        results : dict of str to SeededMask
+            The uncarved results, for ``previous`` of the next frame.
+        """
+        results = {}
+        for c, img in images.items():
+            j = joints2d.get(c)
+            if j is None:
+                j = np.full((len(JOINTS_14), 2), np.nan)
+            results[c] = self.segment(img, j, None if weights is None else weights.get(c),
+                                      previous=None if previous is None else previous.get(c),
+                                      others=() if others is None else others.get(c, ()), camera=c, frame=frame)
+        masks = {c: r.mask for c, r in results.items()}
+        if rig is not None and joints3d is not None and len(masks) >= 2 \
+                and np.sum(np.all(np.isfinite(np.asarray(joints3d, float)), -1)) >= 2:
+            masks = refine_masks(masks, rig, joints3d, refine, observer=self.observer, frame=frame)
+        return masks, results
+
     def segment_sequence(self, frames, joints2d: np.ndarray, weights: np.ndarray | None = None, *,
                          camera: str | None = None) -> np.ndarray:
         """Segment a camera's frames in order, each seeded by the previous result.
@@ -637,7 +687,8 @@ def refine_masks(masks: dict[str, np.ndarray], rig: Rig, joints3d: np.ndarray, c
     ``max_misses`` of them when ``vote_from`` or more see it); camera ``c``'s
     refined mask keeps the pixels of its mask covered by those voxels' projections.  A pixel
     whose ray misses the other views' masks, or leaves the box around the body (a bystander,
-    a patch of floor), becomes background.
+    a patch of floor), becomes background.  An empty mask (a camera that lost the pose) carves
+    nothing.
 
     Parameters
     ----------
@@ -701,11 +752,12 @@ def refine_masks(masks: dict[str, np.ndarray], rig: Rig, joints3d: np.ndarray, c
     out = {}
     everywhere = np.ones(len(vox), bool)
     for n in names:
-        others = [o for o in names if o != n]
-        misses = np.sum([seen[o] & ~inside[o] for o in others], 0)
-        n_seen = np.sum([seen[o] for o in others], 0)
+        others = [o for o in names if o != n and ms[o].any()]  # an empty mask (no pose) says nothing
+        misses = np.sum([seen[o] & ~inside[o] for o in others], 0) if others else np.zeros(len(vox), int)
+        n_seen = np.sum([seen[o] for o in others], 0) if others else np.zeros(len(vox), int)
         keep = seen[n] & (misses <= np.where(n_seen >= cfg.vote_from, cfg.max_misses, 0))
-        everywhere &= inside[n] | ~seen[n]
+        if ms[n].any():
+            everywhere &= inside[n] | ~seen[n]
         cam = rig[n]
         ui, vi = pix[n]
         splat = np.zeros((cam.height, cam.width), np.uint8)
