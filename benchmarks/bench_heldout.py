@@ -3,8 +3,8 @@
 
 Usage::
 
-    python benchmarks/bench_heldout.py [--realdata DIR] [--trial balancing|static] [--frames N]
-                                       [--cameras cam_01 ...] [--out OUT] [--pictures docs/images]
+    python benchmarks/bench_heldout.py [--realdata DIR] [--trial balancing|static] [--frames N] [--scale S]
+                                       [--cameras cam_01 ...] [--out OUT] [--pictures docs/images] [--orbit]
 
 Imports the demo's trial (``recipes/import_pose2sim.py``: videos, OpenPose keypoints,
 the lab's calibration), then for each camera runs ``recipes/free_viewpoint.py DATASET
@@ -79,6 +79,9 @@ def main(argv=None) -> int:
                                                                          REPO.parent / "shared" / "realdata")))
     ap.add_argument("--trial", choices=tuple(TRIALS), default="balancing")
     ap.add_argument("--frames", type=int, default=4, help="frames per held-out run (default 4)")
+    ap.add_argument("--scale", type=float, default=0.5,
+                    help="image scale of the runs (default 0.5: 540x960; the person is ~600 px tall there, and a "
+                         "full-resolution frame takes ~8 min on 2 loaded cores); 1 = the videos as they are")
     ap.add_argument("--cameras", nargs="*", default=None, help="cameras to hold out (default: each in turn)")
     ap.add_argument("--out", type=Path, default=REPO / "out" / "bench_heldout")
     ap.add_argument("--pictures", type=Path, default=None, help="write the pictures into this folder")
@@ -99,6 +102,15 @@ def main(argv=None) -> int:
         if rc != 0:
             return rc
     ds = Dataset.open(dataset)
+    if args.scale != 1:
+        from toolkit.io.resample import resample_dataset
+
+        scaled = args.out / f"dataset_{args.trial}_x{args.scale:g}_{args.frames}f"
+        if not (scaled / "calibration.toml").exists():
+            resample_dataset(ds, scaled, args.scale, max_frames=args.frames).close()
+        ds.close()
+        dataset = scaled
+        ds = Dataset.open(dataset)
     cams = args.cameras or ds.camera_names
     fvv = load_recipe("free_viewpoint")
     table: dict = {}
@@ -147,7 +159,8 @@ def main(argv=None) -> int:
             cv2.imwrite(str(args.pictures / f"heldout_{args.trial}_orbit.jpg"),
                         cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 85])
 
-    print(f"\nleave one camera out, Pose2Sim demo {args.trial} trial, {args.frames} frames per run "
+    print(f"\nleave one camera out, Pose2Sim demo {args.trial} trial, {args.frames} frames per run at "
+          f"{ds.rig[0].size[0]}x{ds.rig[0].size[1]} "
           "(PSNR over the person's region + 2 px / SSIM in its box / coverage)")
     print(f"{'camera':8s} " + "  ".join(f"{m:>24s}" for m in METHODS) + "   margin   region")
     margins = []

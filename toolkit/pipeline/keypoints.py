@@ -286,9 +286,9 @@ class SeededSilhouettes:
     """Per frame, every camera's subject mask seeded by the stage-1 pose (:mod:`toolkit.foreground.seeded`).
 
     Each camera is segmented by GrabCut seeded with the 3D joints projected into it (shifted by
-    the view's offset, so they sit where the keypoints are), started from its previous frame's
-    colour models; then each mask is carved by the visual hull of the other views' masks
-    around the 3D pose (:func:`toolkit.foreground.seeded.refine_masks`), which drops bystanders
+    the view's offset, so they sit where the keypoints are); then each mask is carved by the
+    visual hull of the other views' masks around the 3D pose
+    (:meth:`toolkit.foreground.seeded.SeededSegmenter.segment_views`), which drops bystanders
     and floor patches.
 
     Parameters
@@ -304,7 +304,7 @@ class SeededSilhouettes:
         self.rig = rig
         self.segmenter = SeededSegmenter(config, observer=observer)
         self.observer = observer
-        self.previous: dict = {c: None for c in rig.names}
+        self.previous: dict = {}
 
     def segment_frame(self, frame: int, images: dict, estimate) -> list:
         """Masks of one frame, rig order (None where a camera has no image or no pose).
@@ -315,34 +315,24 @@ class SeededSilhouettes:
         images : dict of str -> ndarray (H, W, 3) uint8 or None
         estimate : toolkit.silhouettes.estimate.FrameEstimate
         """
-        from toolkit.foreground.seeded import refine_masks
         from toolkit.multiview import image_offsets
 
         J = np.asarray(estimate.joints3d, float)
         off = image_offsets(estimate.offsets)
-        out: dict = {}
+        use3d = np.isfinite(J).all(-1).sum() >= 6
+        imgs, joints2d, weights = {}, {}, {}
         for v, cam in enumerate(self.rig):
-            img = images.get(cam.name)
-            if img is None:
-                self.previous[cam.name] = None
+            if images.get(cam.name) is None:
                 continue
-            if np.isfinite(J).all(-1).sum() >= 6:
-                j2 = cam.project(J) + off[v]
-                w = np.isfinite(j2).all(-1).astype(float)
-            else:  # no 3D pose: the view's own keypoints
-                j2 = np.asarray(estimate.poses2d[v], float)
-                w = np.isfinite(j2).all(-1).astype(float)
-            if w.sum() < 6:
-                self.previous[cam.name] = None
-                continue
-            res = self.segmenter.segment(img, j2, w, previous=self.previous[cam.name], camera=cam.name,
-                                         frame=frame)
-            self.previous[cam.name] = res
-            out[cam.name] = res.mask
-        if len(out) >= 2 and np.isfinite(J).all(-1).sum() >= 2:
-            sub = Rig(tuple(c for c in self.rig if c.name in out))
-            out = refine_masks(out, sub, J, observer=self.observer, frame=frame)
-        return [out.get(c) for c in self.rig.names]
+            # the 3D joints projected and shifted by the view's offset sit where its keypoints are;
+            # without a 3D pose, the view's own keypoints
+            j2 = cam.project(J) + off[v] if use3d else np.asarray(estimate.poses2d[v], float)
+            imgs[cam.name], joints2d[cam.name] = images[cam.name], j2
+            weights[cam.name] = np.isfinite(j2).all(-1).astype(float)
+        masks, self.previous = self.segmenter.segment_views(
+            imgs, joints2d, weights, rig=Rig(tuple(c for c in self.rig if c.name in imgs)),
+            joints3d=J if use3d else None, previous=self.previous, frame=frame)
+        return [masks.get(c) if c in masks and masks[c].any() else None for c in self.rig.names]
 
 
 def estimate_from_keypoints(dataset, keypoints: str | os.PathLike, rig: Rig | None = None,
