@@ -35,7 +35,7 @@ from toolkit.billboards.model import Billboard, BillboardModel
 from toolkit.cameras import Camera
 from toolkit.errors import InputError
 from toolkit.observe import Observer, as_observer
-from toolkit.rendering.config import BlendConfig
+from toolkit.rendering.config import LATERAL_JOINTS, BlendConfig
 from toolkit.rendering.weights import (CameraWeights, attenuation, back_view_angles, camera_weights, grazing_fade,
                                       omega)
 
@@ -227,6 +227,11 @@ def fan_weights(model: BillboardModel, camera: Camera, config: BlendConfig = Ble
     return CameraWeights(beta, om, att, fade, nearest, dist, back if back.any() else None)
 
 
+#: Width (radians) of the fade of a borrowed billboard (:class:`toolkit.rendering.fans.BorrowedBillboard`)
+#: near its source: ``1 - omega(beta, BORROW_FADE_SIGMA)``, 0 on the source, > 0.5 beyond 7 degrees (with
+#: the blend's 0.32 the stand-in was half gone 20 degrees off and thresholded away: a view 15-20 degrees from
+#: a 2-camera broadcast source lost 2-9 % coverage).
+BORROW_FADE_SIGMA = 0.1
 #: The far-side copy of a billboard is drawn only when it sits at least this far behind it, in pixels
 #: of the view (nearer, it hides behind the billboard anyway).
 MIN_BACK_PX = 0.5
@@ -322,6 +327,103 @@ def view_widths(fan, centers: dict, eye: np.ndarray, ridge: float = WIDTH_RIDGE)
     yv = float(c @ [1.0, np.cos(2 * tv), np.sin(2 * tv)])
     wv = 2 * np.sqrt(max(yv, 0.0))
     wv = float(np.clip(wv, WIDTH_SHRINK_MIN * w.min(), WIDTH_GROWTH_MAX * w.max()))
+    return {bb.camera: wv / wj for bb, wj in zip(fan.billboards, w)}
+
+
+#: Weight of the depth/breadth prior against one source's width in :func:`section_widths` (dimensionless).
+SECTION_PRIOR_WEIGHT = 0.5
+#: A part is drawn at most this many times as wide as the widest segment its sources saw when its
+#: cross-section is known (:func:`section_widths`): 1 / 0.6 for a torso seen only from the side.
+SECTION_GROWTH_MAX = 1.7
+
+
+def section_widths(fan, centers: dict, eye: np.ndarray, joints: np.ndarray, ratio: float,
+                   prior: float = SECTION_PRIOR_WEIGHT) -> dict:
+    """Width of a flat part seen from ``eye``: an elliptic cross-section oriented by the skeleton.
+
+    The torso is not round about its bone: it is broad from the front and
+    shallow from the side, and the skeleton says which way it faces (the
+    shoulder and hip lines).  Its cross-section is taken as an ellipse with
+    semi-axes ``a`` along the left-right direction and ``b`` front to back;
+    seen from an angle theta off the front (about the bone) it is
+    ``w = 2 sqrt(a^2 cos^2 theta + b^2 sin^2 theta)`` wide, linear in
+    ``(a^2, b^2)``.  Each source's segment width (:func:`segment_width`) is
+    one equation, the prior ``b = ratio x a`` one more (weight ``prior`` per
+    source), solved by least squares: two sources far apart fix the ellipse,
+    one source (or two that both saw the side) gets the rest from the ratio.
+    Unlike :func:`view_widths` (orientation and shape from the widths alone:
+    underdetermined with two cameras), the orientation comes from the joints.
+
+    Parameters
+    ----------
+    fan : BillboardFan
+        A part listed in :data:`LATERAL_JOINTS`.
+    centers : dict of str -> ndarray (3,)
+        Source camera centres by name.
+    eye : ndarray of shape (3,)
+        The view's centre.
+    joints : ndarray of shape (14, 3)
+        The joints the model was built on (``SKELETON_14``), metres.
+    ratio : float
+        Depth / breadth of the cross-section prior (0 < ratio <= 1).
+    prior : float
+        Weight of the prior equation relative to one source's.
+
+    Returns
+    -------
+    dict of str -> float
+        Per source camera of the fan: the width from ``eye`` (at most :data:`SECTION_GROWTH_MAX` x the widest
+        seen) over the width that camera saw where it is wider than every source saw it, else 1 (billboards
+        are only widened, and only where no source saw that much of the part); empty when the
+        part's orientation is unknown (non-finite joints, bone along the shoulder line, view along the bone).
+    """
+    from toolkit.skeleton import SKELETON_14
+
+    name = SKELETON_14.parts[fan.part - 1].name if 1 <= fan.part <= len(SKELETON_14.parts) else None
+    pairs = LATERAL_JOINTS.get(name)
+    J = np.asarray(joints, float)
+    if pairs is None or not fan.billboards or J.shape != (14, 3):
+        return {}
+    idx = SKELETON_14.joint_names.index
+    lat = sum(J[idx(left)] - J[idx(right)] for left, right in pairs)
+    b = fan.axis[1] - fan.axis[0]
+    if not np.all(np.isfinite(lat)) or np.linalg.norm(b) < 1e-9:
+        return {}
+    b = b / np.linalg.norm(b)
+    lat = lat - (lat @ b) * b
+    if np.linalg.norm(lat) < 1e-6:
+        return {}
+    lat = lat / np.linalg.norm(lat)
+    fwd = _cross(b, lat)
+    mid = fan.axis.mean(axis=0)
+
+    def cos_sin2(p):
+        d = np.asarray(p, float) - mid
+        d = d - (d @ b) * b
+        n = float(np.linalg.norm(d))
+        if n < 1e-9:
+            return None
+        return (float(d @ fwd) / n) ** 2, (float(d @ lat) / n) ** 2
+
+    w = np.array([segment_width(bb) for bb in fan.billboards])
+    rows = [cos_sin2(centers[bb.camera]) for bb in fan.billboards]
+    view = cos_sin2(eye)
+    if view is None or not np.all(w > 0) or any(r is None for r in rows):
+        return {}
+    X = np.array(rows + [(np.sqrt(prior) * ratio ** 2, -np.sqrt(prior))])
+    y = np.r_[(w / 2) ** 2, 0.0]
+    (A, B), *_ = np.linalg.lstsq(X, y, rcond=None)
+    if not (A > 0 and B > 0):  # inconsistent widths: the prior's shape through their mean
+        A = float(np.mean(y[:-1] / (X[:-1, 0] + ratio ** 2 * X[:-1, 1])))
+        B = ratio ** 2 * A
+    wv = 2 * np.sqrt(A * view[0] + B * view[1])
+    wv = min(wv, SECTION_GROWTH_MAX * float(w.max()))
+    if wv <= w.max():
+        # a source saw the part at least that wide: its billboard covers it (widening the narrower ones
+        # drew the torso over the arms between two cameras 100 degrees apart, -0.46 dB); and never
+        # narrowed: a segment wider than the ellipse says holds what the fit does not know (an arm
+        # labelled torso, a loose shirt; narrowed, a studio view lost 11 % coverage)
+        return {bb.camera: 1.0 for bb in fan.billboards}
     return {bb.camera: wv / wj for bb, wj in zip(fan.billboards, w)}
 
 
@@ -436,18 +538,22 @@ def composite(model: BillboardModel, camera: Camera, warper: Warper, config: Ble
     centers = dict(zip(names, model.rig.centers))
     eye = camera.center
     free_deg = config.free_angles_deg()
+    sections = config.section_ratio_ids()
     bx0, by0, bx1, by1 = w_img, h_img, 0, 0  # box of everything drawn
     for i in order:
         fan = model.fans[i]
         layers = []
         depth_m = config.thickness * part_depth(fan) if config.face_view and config.thickness > 0 else 0.0
         widths = view_widths(fan, centers, eye) if config.face_view and config.view_width else {}
+        ratio = sections.get(fan.part)
+        if config.face_view and ratio is not None:
+            widths = section_widths(fan, centers, eye, model.joints, ratio) or widths
         for b in fan.billboards:
             j = names.index(b.camera)
             if cw.fade[i, j] <= 0 or (weight[i, j] <= 0 and j != cw.nearest[i]):
                 continue
             pose = facing_pose(b, eye, free_deg.get(b.part, config.turn_free_deg)) if config.face_view else None
-            if pose is not None and config.view_width:  # the part's width from this view, not the source's
+            if pose is not None and widths:  # the part's width from this view, not the source's
                 k = 1.0 + (widths.get(b.camera, 1.0) - 1.0) * (1.0 - float(omega(cw.beta[i, j], config.angle_sigma)))
                 pose = stretch_across(pose, b, k)
             got = warper(b, camera, tuple(offset), pose)
@@ -457,6 +563,15 @@ def composite(model: BillboardModel, camera: Camera, warper: Warper, config: Ble
                                                    behind_pose(pose, b, eye, back_m)))
             if got is None:
                 continue
+            if getattr(b, "borrowed", False):  # a stand-in its source did not see: faded out near that source,
+                keep = np.float32(1.0 - float(omega(cw.beta[i, j], BORROW_FADE_SIGMA)))
+                got = (got[0], got[1] * keep, got[2])
+                if b.original is not None:  # under what that source did see of the limb
+                    o = b.original
+                    po = facing_pose(o, eye, free_deg.get(o.part, config.turn_free_deg)) if config.face_view else None
+                    got = _front_over_back(warper(o, camera, tuple(offset), po), got)
+                if got is None:
+                    continue
             layers.append((j, got))
         if not layers:
             continue

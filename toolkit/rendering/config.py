@@ -16,6 +16,15 @@ TURN_FREE_DEG = 0.0
 #: default: ``part_depth_ratios=(("torso", TORSO_DEPTH_RATIO),)`` gains 0.7 dB on the seeds 7/8 benchmark
 #: and 0.1-0.4 dB on four new scenes but loses 0.3 and 1.2 dB on two others (docs/stage4_rendering.md).
 TORSO_DEPTH_RATIO = 0.8
+#: Depth / breadth of the torso's cross-section as its billboards see it (side segment, chest to back,
+#: over front segment, shoulder to shoulder): 0.55-0.64 measured on the synthetic bodies, about 0.6 for
+#: adults (chest depth ~0.24 m, shoulder breadth ~0.40 m).
+TORSO_SECTION_RATIO = 0.6
+#: Joint pairs (left, right) whose differences give a part's left-right direction, by part name: the parts
+#: that can have an oriented cross-section (``BlendConfig.section_ratios``).
+LATERAL_JOINTS = {"torso": (("l_shoulder", "r_shoulder"), ("l_hip", "r_hip"))}
+#: Parts drawn with an oriented elliptic cross-section by default (:func:`toolkit.rendering.blend.section_widths`).
+SECTION_RATIOS = (("torso", TORSO_SECTION_RATIO),)
 #: Default: every part is turned as a round one.
 PART_DEPTH_RATIOS = ()
 #: Where the back copy of a turned billboard sits, in part depths behind the bone (0.5: the part's back
@@ -72,6 +81,14 @@ class BlendConfig:
         cross-section fitted to the widths its sources saw
         (:func:`toolkit.rendering.blend.view_widths`), the more the farther
         the view from the billboard's source (not at all on it).
+    section_ratios : tuple of (str, float)
+        With ``face_view``, parts whose cross-section is an ellipse oriented
+        by the skeleton (part name with an entry in
+        :data:`LATERAL_JOINTS`, prior depth / breadth
+        ratio): each turned billboard is stretched across its bone to the
+        part's width from the view (:func:`toolkit.rendering.blend.section_widths`)
+        where no source saw it that wide, the more the farther the view from
+        its source; overrides ``view_width`` for those parts.
     thickness : float
         With ``face_view``, each billboard is also drawn this many part
         depths (:func:`toolkit.rendering.blend.part_depth`) behind itself,
@@ -102,6 +119,7 @@ class BlendConfig:
     turn_free_deg: float = TURN_FREE_DEG
     part_depth_ratios: tuple = PART_DEPTH_RATIOS
     view_width: bool = False
+    section_ratios: tuple = SECTION_RATIOS
     thickness: float = THICKNESS
     binary_alpha: bool = True
     smoothing: bool = True
@@ -122,10 +140,19 @@ class BlendConfig:
             if len(entry) != 2 or entry[0] not in names or not 0.0 < float(entry[1]) <= 1.0:
                 raise InputError("BlendConfig.part_depth_ratios", f"(part name in {names}, ratio in (0, 1]) pairs",
                                  repr(entry))
+        for entry in self.section_ratios:
+            if len(entry) != 2 or entry[0] not in LATERAL_JOINTS or not 0.0 < float(entry[1]) <= 1.0:
+                raise InputError("BlendConfig.section_ratios",
+                                 f"(part name in {tuple(LATERAL_JOINTS)}, ratio in (0, 1]) pairs", repr(entry))
         if not 0.0 <= self.thickness <= 2.0:
             raise InputError("BlendConfig.thickness", "a number of part depths in [0, 2]", repr(self.thickness))
         if self.smoothing_band_px < 0:
             raise InputError("BlendConfig.smoothing_band_px", "a non-negative integer", repr(self.smoothing_band_px))
+
+    def section_ratio_ids(self) -> dict:
+        """Per 1-based part id, the depth / breadth ratio of its oriented cross-section (``section_ratios``)."""
+        ids = {p.name: i + 1 for i, p in enumerate(SKELETON_14.parts)}
+        return {ids[n]: float(r) for n, r in self.section_ratios}
 
     def free_angles_deg(self) -> dict:
         """Per 1-based part id, the angle up to which its billboards are not turned, degrees."""
