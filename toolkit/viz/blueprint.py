@@ -126,11 +126,22 @@ def subject_eye(target, camera_centres=None) -> tuple[list[float], list[float]]:
     return [float(x) for x in pos], [float(x) for x in t]
 
 
-def _overview_contents() -> list[str]:
-    out = ["+ $origin/**"]
-    for _, prefixes in STAGE_TABS:
-        out += [f"- $origin/{p}/**" for p in prefixes]
-    return out + [f"+ $origin/{p}" for p in OVERVIEW_OVERLAYS]
+#: 3D entities (under ``world``) the overview's 3D view leaves to the stage tabs: rays from cameras tens of
+#: metres away and the joint search's candidate clouds hide the subject.
+STAGE_3D_DETAILS = ("multiview/rays", "multiview/closest_points", "multiview/retriangulated/rays",
+                    "multiview/retriangulated/closest_points", "optimize/**")
+#: Margin of a 2D view's initial bounds around the subject, as a fraction of its height on each side.
+VIEW_BOUNDS_MARGIN = 1.0
+
+
+def _overview_contents(seen: Iterable[str] | None) -> list[str]:
+    """A camera's overview contents: its image, the stages' results and overlays of no stage."""
+    staged = {p for _, prefixes in STAGE_TABS for p in prefixes}
+    if seen is None:  # not known yet: everything but the stages' details
+        return ["+ $origin/**"] + [f"- $origin/{p}/**" for p in sorted(staged)] \
+            + [f"+ $origin/{p}" for p in OVERVIEW_OVERLAYS]
+    return ["+ $origin", f"+ $origin/{SUBJECT_CROP}"] + [f"+ $origin/{p}" for p in OVERVIEW_OVERLAYS] \
+        + [f"+ $origin/{n}/**" for n in sorted(set(seen) - staged)]
 
 
 def make_blueprint(
@@ -143,6 +154,7 @@ def make_blueprint(
     overlays: Mapping[str, Iterable[str]] | None = None,
     eye: tuple[Sequence[float], Sequence[float]] | None = None,
     timeline: str = "frame",
+    subject_boxes: Mapping[str, Sequence[float]] | None = None,
 ) -> rrb.Blueprint:
     """The default viewer layout for a recording of a camera rig.
 
@@ -178,6 +190,9 @@ def make_blueprint(
         Metres, world frame (:func:`subject_eye`).
     timeline : str
         Timeline the time panel shows (the observer's ``frame``).
+    subject_boxes : mapping of str to (x0, y0, x1, y1), optional
+        Per camera, the initial visible region of its 2D views (pixels): around the
+        subject rather than the whole frame (zoom out with a double click).
 
     Returns
     -------
@@ -196,15 +211,21 @@ def make_blueprint(
     if dup:
         raise InputError("make_blueprint: camera_names", "unique names", f"duplicates {dup}")
 
-    overview = _overview_contents()
-    views_2d: list[rrb.View] = [rrb.Spatial2DView(origin=image_path(n, cams_root), name=n, contents=overview)
-                                for n in names]
+    def bounds(n):
+        b = (subject_boxes or {}).get(n)
+        return None if b is None else rrb.VisualBounds2D(x_range=[b[0], b[2]], y_range=[b[1], b[3]])
+
+    views_2d: list[rrb.View] = [
+        rrb.Spatial2DView(origin=image_path(n, cams_root), name=n, visual_bounds=bounds(n),
+                          contents=_overview_contents(None if overlays is None else overlays.get(n, ())))
+        for n in names]
     views_2d += [rrb.Spatial2DView(origin=entity_path(p), name=p) for p in extra_2d]
 
     controls = None
     if eye is not None:
         controls = rrb.EyeControls3D(position=list(eye[0]), look_target=list(eye[1]), eye_up=[0.0, 0.0, 1.0])
-    left: list = [rrb.Spatial3DView(origin=WORLD, name="3D", eye_controls=controls)]
+    left: list = [rrb.Spatial3DView(origin=WORLD, name="3D", eye_controls=controls,
+                                    contents=["+ $origin/**"] + [f"- $origin/{p}" for p in STAGE_3D_DETAILS])]
     if include_logs:
         left.append(rrb.TextLogView(origin=LOGS, name="log"))
     right: list = []
@@ -225,8 +246,12 @@ def make_blueprint(
         if not cams:
             continue
         contents = ["+ $origin", f"+ $origin/{SUBJECT_CROP}"] + [f"+ $origin/{p}/**" for p in prefixes]
-        tabs.append(rrb.Grid(*[rrb.Spatial2DView(origin=image_path(n, cams_root), name=n, contents=contents)
-                               for n in cams], name=title))
+        views = [rrb.Spatial2DView(origin=image_path(n, cams_root), name=n, contents=contents, visual_bounds=bounds(n))
+                 for n in cams]
+        if title == STAGE_TABS[0][0]:  # the selection's rays and closest points in 3D
+            views.insert(0, rrb.Spatial3DView(origin=WORLD, name="3D: rays", eye_controls=controls,
+                                              contents=["+ $origin/**", "- $origin/optimize/**"]))
+        tabs.append(rrb.Grid(*views, name=title))
     # the views get the room: blueprint and selection panels folded (one click opens them), the time
     # panel on the frame timeline
     panels = (rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),

@@ -43,6 +43,7 @@ from toolkit.viz.blueprint import (
     entity_path,
     STAGE_TABS,
     SUBJECT_CROP,
+    VIEW_BOUNDS_MARGIN,
     image_path,
     make_blueprint,
     subject_eye,
@@ -143,6 +144,7 @@ class RerunObserver:
         self._subject: dict[int | None, np.ndarray] = {}  # frame -> the 3D joints reported in it (all people)
         self._keys: dict[str, tuple[int | None, tuple | None]] = {}  # camera -> last full image: frame, subject box
         self._eye = None
+        self._view_bounds: dict[str, list[float]] | None = None
         self._crop_paths: set[str] = set()
         self._bp_dirty = False
         self._handlers = {
@@ -198,7 +200,8 @@ class RerunObserver:
             names = list(camera_names) if camera_names is not None else list(self._cam_roots)
             self._bp_args = dict(camera_names=names, extra_2d=tuple(extra_2d), include_metrics=include_metrics,
                                  cams_root=cams_root)
-            blueprint = make_blueprint(**self._bp_args, overlays=self._overlays, eye=self._eye)
+            blueprint = make_blueprint(**self._bp_args, overlays=self._overlays, eye=self._eye,
+                                       subject_boxes=self._view_bounds)
         else:
             self._bp_args = None
         self.recording.send_blueprint(blueprint)
@@ -215,7 +218,8 @@ class RerunObserver:
         self._bp_dirty = False
         names = self._bp_args["camera_names"]
         self._bp_args["camera_names"] = names + [c for c in self._cam_roots if c not in names]
-        self.recording.send_blueprint(make_blueprint(**self._bp_args, overlays=self._overlays, eye=self._eye))
+        self.recording.send_blueprint(make_blueprint(**self._bp_args, overlays=self._overlays, eye=self._eye,
+                                       subject_boxes=self._view_bounds))
 
     def flush(self) -> None:
         """Write everything logged so far to the sinks."""
@@ -629,6 +633,15 @@ class RerunObserver:
             if first and self._eye is None:
                 centres = [c.center for c in self._cameras.values()]
                 self._eye = subject_eye(joints.mean(axis=0), np.array(centres) if centres else None)
+                self._view_bounds = {}
+                for name, cam in self._cameras.items():
+                    px = cam.project(joints)
+                    px = px[np.isfinite(px).all(axis=1)]
+                    if len(px) >= 2:
+                        lo, hi = px.min(axis=0), px.max(axis=0)
+                        m = VIEW_BOUNDS_MARGIN * (hi[1] - lo[1]) + CROP_PAD_PX
+                        self._view_bounds[name] = [float(lo[0] - m), float(lo[1] - m), float(hi[0] + m),
+                                                   float(hi[1] + m)]
                 self._refresh_blueprint()
 
     def _points3d(self, kind, data, static):
