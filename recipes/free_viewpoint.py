@@ -73,8 +73,8 @@ def main(argv=None) -> int:
                     help="do not refine the cameras on the dataset's field lines (field_model.json)")
     ap.add_argument("--no-recording", action="store_true", help="do not write recording.rrd")
     ap.add_argument("--jpeg-quality", type=int, default=None,
-                    help="JPEG quality of the images in the recording, 1-100 (default 90; camera frames and the "
-                         "rendered views are most of its size: about 2.5 of 3.3 MB per frame at 90)")
+                    help="JPEG quality of the images in the recording, 1-100 (default 90; camera images and the "
+                         "rendered views, cropped to the subject, are most of its size: docs/recordings.md)")
     ap.add_argument("--replace-stale", action="store_true",
                     help="if OUT holds results of another dataset or other options, move it to OUT.stale-N "
                          "and start afresh (default: refuse)")
