@@ -41,7 +41,7 @@ COLOURS = np.array([[0, 0, 0], [225, 185, 150], [190, 40, 40], [215, 125, 95], [
 MPJPE_BOUND_M = 0.03
 #: Articulated billboards on the held-out view, PSNR over the true mask + 2 px: measured 13.6 dB with seeded
 #: silhouettes, 13.0 dB with the true masks (standard billboards 9.9, visual hull 13.3: near studio cameras,
-#: docs/benchmarks.md); the person is drawn over its blanked region (black where nothing is drawn).
+#: docs/benchmarks.md); the person is drawn over its region filled in from the surroundings.
 HELDOUT_PSNR_DB = 11.0
 #: Share of the held-out person's region drawn with opacity > 0.5 (measured 0.95 seeded, 0.97 true masks).
 HELDOUT_COVERAGE = 0.9

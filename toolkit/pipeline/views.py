@@ -9,8 +9,9 @@ dataset's ``masks/``), the dataset's ground-truth mask (synthetic), or a
 segmentation of that frame seeded by that camera's own keypoints (used for the
 evaluation only: the pipeline never sees them).  The view is rendered over the
 camera's clean plate when the dataset has one, else over its own frame with the
-region (dilated by :data:`BLANK_MARGIN_PX`) blanked to black, so that a part a
-method fails to draw is black, never the real person.  Scores: PSNR over the region
+region (dilated by :data:`BLANK_MARGIN_PX`) filled in from its surroundings
+(:func:`blanked_background`), so that a part a method fails to draw shows the
+background, never the real person.  Scores: PSNR over the region
 dilated by 2 px (``psnr_subject``), PSNR / SSIM in the region's box (``psnr``,
 ``ssim``), and the share of the region drawn with opacity > 0.5 (``coverage``).
 """
@@ -29,7 +30,7 @@ from toolkit.errors import InputError
 __all__ = ["EvaluationView", "HeldOutRegions", "split_rig", "blanked_background", "render_evaluation",
            "BLANK_MARGIN_PX", "HELDOUT_REGION_DOC"]
 
-#: The person's region is blanked in the held-out frame's background this far beyond its mask, pixels.
+#: The person's region is filled in the held-out frame's background this far beyond its mask, pixels.
 BLANK_MARGIN_PX = 6
 
 
@@ -75,11 +76,31 @@ def split_rig(rig: Rig, camera: str) -> tuple[Rig, Camera]:
 
 
 def blanked_background(frame: np.ndarray, region: np.ndarray, margin_px: int = BLANK_MARGIN_PX) -> np.ndarray:
-    """The held-out frame with the person's region (dilated by ``margin_px``) set to black, float32 0..255."""
+    """The held-out frame with the person's region (dilated by ``margin_px``) filled in from its surroundings.
+
+    An estimate of the empty scene without a clean plate: OpenCV's inpainting (Telea's fast
+    marching method) continues the wall, floor and treadmill into the region.  Where a method
+    rightly draws nothing (a gap between an arm and the torso that a loose region holds) the
+    estimate is close to what the camera saw; where it fails to draw the person, it shows the
+    background, never the real person.
+
+    Returns
+    -------
+    ndarray of shape (H, W, 3) float32, 0..255
+    """
     k = 2 * int(margin_px) + 1
-    grown = cv2.dilate(np.asarray(region, np.uint8), np.ones((k, k), np.uint8)) > 0
-    bg = np.asarray(frame, np.float32).copy()
-    bg[grown] = 0.0
+    grown = cv2.dilate(np.asarray(region, np.uint8), np.ones((k, k), np.uint8))
+    img = np.ascontiguousarray(np.asarray(frame, np.uint8))
+    # inpaint on a reduced image (the fill is smooth anyway), then keep the frame outside the region
+    s = min(1.0, 480.0 / max(img.shape[:2]))
+    small = cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_AREA) if s < 1 else img
+    hole = cv2.resize(grown, (small.shape[1], small.shape[0]), interpolation=cv2.INTER_NEAREST) if s < 1 else grown
+    hole = cv2.dilate(hole, np.ones((3, 3), np.uint8))
+    filled = cv2.inpaint(small, hole, 5, cv2.INPAINT_TELEA)
+    if s < 1:
+        filled = cv2.resize(filled, (img.shape[1], img.shape[0]), interpolation=cv2.INTER_LINEAR)
+    bg = img.astype(np.float32)
+    bg[grown > 0] = filled[grown > 0]
     return bg
 
 
@@ -130,7 +151,8 @@ HELDOUT_REGION_DOC = (
     "(evaluation only: the pipeline never sees them); the held-out camera is first corrected by its 2D offset "
     "(the median of its own keypoints minus the run's 3D joints projected: a calibration error is not a rendering "
     "error); rendered over the camera's clean plate when the dataset has "
-    "one, else over its own frame with the region (dilated by %d px) blanked to black; psnr_subject: PSNR over the "
+    "one, else over its own frame with the region (dilated by %d px) filled in from its surroundings (OpenCV "
+    "inpainting: an estimate of the empty scene); psnr_subject: PSNR over the "
     "region dilated by 2 px; psnr, ssim: in the region's box; coverage: share of the region drawn with opacity > 0.5"
     % BLANK_MARGIN_PX)
 
@@ -211,7 +233,10 @@ class HeldOutRegions:
 
             if self._segmenter is None:
                 self._segmenter = SeededSegmenter()
-            return self._segmenter.segment(image, own[0], own[1]).mask, "seeded by its keypoints"
+            res = self._segmenter.segment(image, own[0], own[1])
+            # GrabCut may take patches of the probable-background band: keep the body's envelope only
+            envelope = np.isin(res.trimap, (cv2.GC_FGD, cv2.GC_PR_FGD))
+            return res.mask & envelope, "seeded by its keypoints"
         return None, "none"
 
     def offset(self, frame: int, joints3d: np.ndarray | None) -> np.ndarray:
