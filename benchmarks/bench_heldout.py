@@ -39,6 +39,8 @@ sys.path.insert(0, str(REPO))
 TRIALS = {"balancing": Path("pose2sim_demo/S00_P00_SingleParticipant/S00_P00_T01_BalancingTrial"),
           "static": Path("pose2sim_demo/S00_P00_SingleParticipant/S00_P00_T00_StaticTrial")}
 METHODS = ("articulated", "standard", "visual_hull")
+#: Frames of the run with every camera whose orbit path is pictured (one orbit position per frame).
+ORBIT_FRAMES = 8
 
 
 def load_recipe(name: str):
@@ -146,9 +148,17 @@ def main(argv=None) -> int:
                         cv2.cvtColor(crop_row(imgs, region), cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 85])
     if args.orbit and args.pictures is not None:
         out = args.out / f"{args.trial}_all"
-        n = max(args.frames, 8)
-        rc = fvv.main([str(dataset), "--out", str(out), "--max-frames", str(n), "--no-recording", "--quiet",
-                       "--replace-stale"])
+        n = ORBIT_FRAMES
+        orbit_ds = dataset
+        if args.scale != 1:  # its own copy with enough frames
+            from toolkit.io.resample import resample_dataset
+
+            orbit_ds = args.out / f"dataset_{args.trial}_x{args.scale:g}_{n}f"
+            if not (orbit_ds / "calibration.toml").exists():
+                with Dataset.open(args.out / f"dataset_{args.trial}") as full:
+                    resample_dataset(full, orbit_ds, args.scale, max_frames=n).close()
+        argv_run = [str(orbit_ds), "--out", str(out), "--max-frames", str(n), "--no-recording", "--quiet"]
+        rc = fvv.main(argv_run + ([] if args.reuse_runs else ["--replace-stale"]))
         if rc == 0:
             import cv2
 
