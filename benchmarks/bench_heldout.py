@@ -61,10 +61,9 @@ def crop_row(images: list, region: np.ndarray, margin: float = 0.15, height: int
     if ys.size == 0:
         y0, y1, x0, x1 = 0, H, 0, W
     else:
-        h, w = ys.max() - ys.min() + 1, xs.max() - xs.min() + 1
+        h = ys.max() - ys.min() + 1  # the margin scales with the person's height on both axes
         y0, y1 = max(0, int(ys.min() - margin * h)), min(H, int(ys.max() + margin * h) + 1)
         x0, x1 = max(0, int(xs.min() - margin * h)), min(W, int(xs.max() + margin * h) + 1)
-        del w
     tiles = []
     for img in images:
         c = np.asarray(img)[y0:y1, x0:x1]

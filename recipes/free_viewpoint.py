@@ -114,8 +114,7 @@ def main(argv=None) -> int:
     from toolkit.io.runs import dataset_fingerprint, run_recording, start_run
     from toolkit.rendering import CpuCompositor, birds_eye, orbit_path, source_path
     from toolkit.rendering.evaluation import BackgroundPlates, pose_errors, summarise
-    from toolkit.rendering.freeviewpoint import (METHODS, FrameProcessor, FreeViewpointConfig, render_methods,
-                                                   render_views)
+    from toolkit.rendering.freeviewpoint import METHODS, FrameProcessor, FreeViewpointConfig, render_methods
     from toolkit.pipeline import KeypointStage1Config, estimate_from_keypoints
     from toolkit.pipeline.keypoints import declared_format
     from toolkit.pipeline.views import (HELDOUT_REGION_DOC, EvaluationView, HeldOutRegions, render_evaluation,

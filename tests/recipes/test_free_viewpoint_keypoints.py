@@ -19,6 +19,7 @@ import pytest
 
 from toolkit.anthropometry.proportions import BodyProportions
 from toolkit.cameras import Camera, Rig
+from toolkit.errors import InputError
 from toolkit.io import DatasetWriter, atomic_write_png
 from toolkit.io.frames import read_png
 from toolkit.io.openpose import write_openpose_json
@@ -177,5 +178,5 @@ def test_resampled_dataset_keeps_keypoints_on_the_person(studio, tmp_path):
         err = np.linalg.norm(uv - cam.project(truth), axis=-1)
         assert np.nanmedian(err) < 0.5 * 3 * NOISE_PX  # the synthetic noise, halved
         assert half.frame(cam.name, 0).shape == (120, 160, 3)
-    with pytest.raises(Exception, match="factor"):
+    with pytest.raises(InputError, match="factor"):
         resample_dataset(src, tmp_path / "bad", 1.5)

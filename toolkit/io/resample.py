@@ -65,7 +65,7 @@ def resample_dataset(src, dst: str | os.PathLike, factor: float, max_frames: int
         A factor outside (0, 1], an existing ``dst/calibration.toml``, keypoints that are not OpenPose JSON.
     """
     from toolkit.cameras import Rig
-    from toolkit.io.atomic import atomic_write_text
+    from toolkit.io.atomic import atomic_write_png, atomic_write_text
     from toolkit.io.dataset import Dataset
     from toolkit.io.frames import frame_filename
     from toolkit.io.writer import DatasetWriter
@@ -88,11 +88,7 @@ def resample_dataset(src, dst: str | os.PathLike, factor: float, max_frames: int
                 w.write_frame(new.name, t, resize(src.frame(cam.name, t), new, cv2.INTER_AREA))
             plate = src.background(cam.name)
             if plate is not None:
-                from toolkit.io import atomic_write_png
-
                 atomic_write_png(dst / "background" / f"{new.name}.png", resize(plate, new, cv2.INTER_AREA))
-    from toolkit.io import atomic_write_png
-
     for cam, new in zip(src.rig, rig):
         if src.has_masks:
             for t in range(n):

@@ -261,7 +261,7 @@ def read_mask(folder: str | os.PathLike, camera: str, frame: int, size: tuple[in
     return m > 0
 
 
-def choose_silhouettes(source: str, masks_dir, has_plates: bool, seeded_available: bool = True) -> str:
+def choose_silhouettes(source: str, masks_dir, has_plates: bool) -> str:
     """Resolve ``silhouettes="auto"``: masks given, else clean plates, else keypoint-seeded.
 
     Raises
@@ -279,7 +279,7 @@ def choose_silhouettes(source: str, masks_dir, has_plates: bool, seeded_availabl
         return "masks"
     if has_plates:
         return "background"
-    return "seeded" if seeded_available else "background"
+    return "seeded"
 
 
 class SeededSilhouettes:
