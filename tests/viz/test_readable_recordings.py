@@ -208,3 +208,79 @@ def test_the_saved_file_is_compacted_on_close(recorded, tmp_path):
     a.pop("__properties"), b.pop("__properties")  # start times differ
     assert a == b  # the same data
     assert sorted(p.name for p in tmp_path.iterdir()) == ["compact.rrd", "loose.rrd"]  # no temporary file
+
+
+NOVEL = "novel00"
+
+
+def _record_with_novel_camera(path):
+    """Like the pipeline's free-viewpoint run: the novel camera's rig first, then the source camera;
+    the novel camera has no image of its own, only its rendered view."""
+    rig = _rig()
+    novel = Rig((Camera.look_at(NOVEL, [8.0, -8.0, 2.0], [0.0, 0.0, 1.0], size=SIZE, fov_x_deg=40),))
+    bg = _background()
+    with RerunObserver(path=path, camera_names=rig.names + novel.names) as obs:
+        obs.report("rig", rig=novel)
+        obs.report("skeleton", skeleton=SKELETON_14)
+        obs.report("rig", rig=rig)
+        for t in range(4):
+            obs.report("image", camera="cam", image=_frame(rig[0], t, bg), frame=t)
+            obs.report("joints2d", camera="cam", joints=rig[0].project(_joints(t)), skeleton=SKELETON_14,
+                       name="silhouettes/pose")
+            obs.report("joints3d", joints=_joints(t), skeleton=SKELETON_14, name="multiview/joints3d")
+            obs.report("image", camera=NOVEL, image=_frame(novel[0], t, bg), name="render/articulated")
+            obs.report("image", camera="cam", image=_frame(rig[0], t, bg), name="render/articulated")
+
+
+def _included(entity: str, origin: str, rules: list[str]) -> bool:
+    """Whether a view's contents (rerun query expressions) take ``entity``: the most specific matching
+    rule decides, an exclusion winning a tie."""
+    best = None
+    for rule in rules:
+        sign, pattern = rule.split(" ", 1)
+        pattern = pattern.replace("$origin", origin).strip("/")
+        if pattern.endswith("/**"):
+            base = pattern[:-3]
+            hit = entity == base or entity.startswith(base + "/")
+        else:
+            hit = entity == pattern
+        if hit:
+            key = (len(pattern), sign == "-")
+            if best is None or key > best[0]:
+                best = (key, sign == "+")
+    return best is not None and best[1]
+
+
+def test_the_file_opens_on_the_last_layout_and_every_camera_view_shows_its_images(tmp_path):
+    """The viewer shows the layout whose activation comes last in the file; ``rerun rrd optimize``
+    (the compaction) writes blueprint stores in an order of its own, so the file must hold one: the
+    last.  In it, each camera's 2D view takes image entities logged for that camera, the novel
+    camera's rendered view included (it has no camera image of its own), and starts on the subject."""
+    path = tmp_path / "novel.rrd"
+    _record_with_novel_camera(path)
+    reader = rr.chunk.RrdReader(path)
+    assert len(reader.blueprints()) == 1
+    rows: dict = {}
+    for chunk in reader.stream(store=reader.blueprints()[0]):
+        rb = chunk.to_record_batch()
+        d = rows.setdefault(chunk.entity_path.strip("/"), {})
+        d.update({n: rb.column(n).to_pylist()[-1] for n in rb.schema.names if ":" in n})
+    names = {str(np.ravel(d[k])[0]) for d in rows.values()
+             for k in ("ViewBlueprint:display_name", "ContainerBlueprint:display_name") if d.get(k)}
+    assert STAGE_TABS[2][0] in names  # the layout after the rendered views arrived
+    assert any("EyeControls3D:position" in d for d in rows.values())  # and after the subject's 3D joints
+    images = {e for e, cols in _rows(path).items()
+              if any(c.startswith(("EncodedImage:", "Image:")) for d in cols.values() for c in d)}
+    views = {e: d for e, d in rows.items() if d.get("ViewBlueprint:class_identifier") == ["2D"]}
+    seen = set()
+    for view, d in views.items():
+        origin = str(np.ravel(d["ViewBlueprint:space_origin"])[0])
+        camera = origin.split("/")[2]
+        rules = [str(r) for r in np.ravel(rows[f"{view}/ViewContents"]["ViewContents:query"])]
+        shown = {e for e in images if _included(e, origin, rules)}
+        assert shown and all(e.startswith(origin) for e in shown), (view, origin, rules)
+        assert f"{view}/VisualBounds2D" in rows, (view, origin)  # starts zoomed on the subject
+        seen.add(camera)
+    assert seen == {"cam", NOVEL}
+    novel_overview = [d for v, d in views.items() if np.ravel(d["ViewBlueprint:display_name"])[0] == NOVEL]
+    assert novel_overview

@@ -139,6 +139,7 @@ class RerunObserver:
         self._skeleton_colors: dict[str, tuple] = {}  # classes of a skeleton drawn in a given colour
         self._contexts: set[str] = set()
         self._bp_args: dict | None = None  # arguments of the default blueprint sent (None: the caller's own)
+        self._last_blueprint = None  # the layout sent last: the one the compacted file keeps
         self._overlays: dict[str, set[str]] = {}  # camera -> overlay names seen (first name segment)
         self._cameras: dict = {}  # camera name -> Camera, from rig reports
         self._subject: dict[int | None, np.ndarray] = {}  # frame -> the 3D joints reported in it (all people)
@@ -205,6 +206,7 @@ class RerunObserver:
         else:
             self._bp_args = None
         self.recording.send_blueprint(blueprint)
+        self._last_blueprint = blueprint
         self._blueprint_sent = True
 
     def _refresh_blueprint(self, now: bool = False) -> None:
@@ -218,8 +220,9 @@ class RerunObserver:
         self._bp_dirty = False
         names = self._bp_args["camera_names"]
         self._bp_args["camera_names"] = names + [c for c in self._cam_roots if c not in names]
-        self.recording.send_blueprint(make_blueprint(**self._bp_args, overlays=self._overlays, eye=self._eye,
-                                       subject_boxes=self._view_bounds))
+        self._last_blueprint = make_blueprint(**self._bp_args, overlays=self._overlays, eye=self._eye,
+                                              subject_boxes=self._view_bounds)
+        self.recording.send_blueprint(self._last_blueprint)
 
     def flush(self) -> None:
         """Write everything logged so far to the sinks."""
@@ -244,12 +247,21 @@ class RerunObserver:
             self._compact()
 
     def _compact(self) -> None:
-        """Rewrite the saved file with each entity's rows merged into few chunks (``rerun rrd optimize``),
-        atomically; on failure the file stays as written (complete and valid) and a warning says why."""
+        """Rewrite the saved file with each entity's rows merged into few chunks (``rerun rrd optimize``)
+        and only the layout sent last, atomically; on failure the file stays as written (complete and
+        valid) and a warning says why.
+
+        Every ``send_blueprint`` is a blueprint store of its own, and the viewer shows the one whose
+        activation comes last in the file.  ``rerun rrd optimize`` writes the stores in an order of its
+        own (not the order sent), so a file with several layouts would open on any of them: an early
+        one, without the stage tabs, the subject's framing or the rendered views.  The data is written
+        alone (:meth:`rerun.chunk.LazyStore.write_rrd`) and optimized together with the last layout.
+        """
         import os
         import shutil
         import subprocess
         import sys
+        import tempfile
         import warnings
 
         cli = Path(sys.executable).with_name("rerun")
@@ -259,14 +271,25 @@ class RerunObserver:
             return
         tmp = self.path.with_name(f".{self.path.name}.compact-{os.getpid()}.rrd")
         try:
-            done = subprocess.run([cli, "rrd", "optimize", str(self.path), "-o", str(tmp)],
-                                  capture_output=True, text=True, timeout=COMPACT_TIMEOUT_S)
+            with tempfile.TemporaryDirectory(prefix=".compact-", dir=self.path.parent) as work:
+                inputs = [str(self.path)]
+                reader = rr.chunk.RrdReader(self.path)
+                recordings = reader.recordings()
+                if self._last_blueprint is not None and len(recordings) == 1:
+                    rec = recordings[0]
+                    data, layout = Path(work) / "data.rrd", Path(work) / "layout.rbl"
+                    reader.stream(store=rec).write_rrd(data, application_id=rec.application_id,
+                                                       recording_id=rec.recording_id)
+                    self._last_blueprint.save(rec.application_id, layout)
+                    inputs = [str(data), str(layout)]
+                done = subprocess.run([cli, "rrd", "optimize", *inputs, "-o", str(tmp)],
+                                      capture_output=True, text=True, timeout=COMPACT_TIMEOUT_S)
             if done.returncode == 0 and tmp.is_file() and tmp.stat().st_size > 0:
                 os.replace(tmp, self.path)
             else:
                 warnings.warn(f"{self.path}: not compacted (rerun rrd optimize: {done.stderr.strip()[-300:]})",
                               stacklevel=3)
-        except (OSError, subprocess.TimeoutExpired) as e:
+        except (OSError, ValueError, RuntimeError, subprocess.TimeoutExpired) as e:
             warnings.warn(f"{self.path}: not compacted ({type(e).__name__}: {e})", stacklevel=3)
         finally:
             tmp.unlink(missing_ok=True)
