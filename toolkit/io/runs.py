@@ -64,6 +64,17 @@ def dataset_fingerprint(root: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
+def _flatten(d: dict, prefix: str = "") -> dict:
+    """Nested dicts as one dict with dotted keys (``config.frame.optimize``), to name what differs."""
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict) and v:
+            out.update(_flatten(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
 def start_run(out: str | os.PathLike, identity: dict, *, replace_stale: bool = False, log=print) -> bool:
     """Check (or record) which inputs a resumable output folder belongs to.
 
@@ -111,7 +122,8 @@ def start_run(out: str | os.PathLike, identity: dict, *, replace_stale: bool = F
                 atomic_write_text(path, json.dumps({**ident, RECORDING_ID_KEY: uuid.uuid4().hex}, indent=2,
                                                    sort_keys=True) + "\n")
             return True
-        diff = sorted(k for k in set(old) | set(ident) if old.get(k) != ident.get(k))
+        a, b = _flatten(old), _flatten(ident)
+        diff = sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))
         stale = f"results of another run (differs in: {', '.join(diff)})"
     elif out.is_dir() and any(out.iterdir()):
         stale = f"results without a {RUN_FILE} (made before runs were identified, or by another recipe)"

@@ -2,7 +2,11 @@
 
 :mod:`toolkit.pipeline.keypoints` -- stage 1 from a detector's 2D keypoints (instead of the
 silhouette database), with silhouettes given, from clean plates, or seeded by the keypoints.
-:mod:`toolkit.pipeline.holdout` -- leave one camera out and judge the rendering of its view.
+:mod:`toolkit.pipeline.views` -- the views a run is judged in: novel cameras, a held-out source camera.
+:mod:`toolkit.pipeline.run` -- what every system's run shares: configs from TOML, run identity derived
+from them, per-frame records, :class:`~toolkit.pipeline.run.RunResult`.
+:mod:`toolkit.pipeline.free_viewpoint` -- the articulated-billboard system's run (``run(config, dataset=,
+out=)``), which ``recipes/free_viewpoint.py`` calls.
 """
 
 from toolkit.pipeline.keypoints import (SILHOUETTE_SOURCES, KeypointStage1, KeypointStage1Config,

@@ -1,0 +1,446 @@
+"""The articulated-billboard system's run: every stage, end to end, frame by frame, resumable.
+
+:func:`run` is what ``recipes/free_viewpoint.py`` calls (its docstring lists
+the outputs).  Per frame: stage 1 (the silhouette database, or a detector's
+keypoints) -> :class:`~toolkit.rendering.freeviewpoint.FrameProcessor`
+(segmentation, seams, the stage-3 search, billboards, baselines) -> the novel
+cameras, a held-out source camera and three camera paths rendered and scored
+-> one record per frame.  At the end: ``poses3d.npz``, the paths' videos and
+``metrics.json``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from toolkit.errors import InputError
+from toolkit.pipeline.run import STOPPED_INTERRUPTED, RunResult, open_run
+from toolkit.rendering.freeviewpoint import FreeViewpointConfig
+
+#: Camera paths rendered for every run (``OUT/paths/<name>/``).
+PATHS = ("orbit", "sweep", "birds_eye")
+#: Background models of the foreground stage, and chroma keying.
+FOREGROUNDS = ("median", "mog2", "knn", "chroma")
+#: Renderers of the novel views.
+RENDERERS = ("cpu", "open3d")
+#: Keypoint formats a detector's files may be in.
+KEYPOINT_FORMATS = ("body_25", "body_25b", "coco_17", "coco_18", "halpe_26", "coco_133", "blazepose_33")
+#: Where the silhouettes come from when stage 1 uses keypoints.
+SILHOUETTES = ("auto", "masks", "background", "seeded")
+#: Per-stage timings averaged into ``metrics.json`` ``seconds_per_frame``.
+TIMED = ("total", "foreground", "keypoints", "segmentation", "optimize", "billboards", "standard_billboards",
+         "visual_hull")
+
+
+@dataclass(frozen=True)
+class FreeViewpointRunConfig:
+    """Options of a free-viewpoint run (the recipe's flags; a TOML file holds the same keys).
+
+    Parameters
+    ----------
+    frame : FreeViewpointConfig
+        The per-frame chain (stage 3 on or off and its search, baselines,
+        template, plates); a ``[frame]`` table in TOML.
+    db : Path, optional
+        Silhouette database ``.npz`` (default: the cached one).
+    foreground : str
+        One of :data:`FOREGROUNDS`.
+    max_frames : int, optional
+        Only the first N frames.
+    renderer : str
+        One of :data:`RENDERERS`.
+    refine_calibration : bool
+        Refine the cameras on the dataset's field lines.
+    recording : bool
+        Write ``recording.rrd``.
+    jpeg_quality : int, optional
+        JPEG quality (1-100) of the recording's images (default: the observer's).
+    replace_stale : bool
+        Move another run's results aside instead of refusing them.
+    keypoints : Path, optional
+        A detector's 2D keypoints, one sub-folder per camera (default: the dataset's ``keypoints/``).
+    use_keypoints : bool
+        False ignores the dataset's keypoints (2D poses from the silhouette database).
+    keypoint_format : str, optional
+        One of :data:`KEYPOINT_FORMATS` (default: the dataset's ``import.json``, else found from the files).
+    masks : Path, optional
+        Subject masks from elsewhere (default: the dataset's ``masks/``).
+    silhouettes : str
+        With keypoints: one of :data:`SILHOUETTES`.
+    hold_out : str, optional
+        A source camera left out and judged (``OUT/heldout/``).
+    progress : bool
+        Show a progress bar.
+    """
+
+    frame: FreeViewpointConfig = field(default_factory=FreeViewpointConfig)
+    db: Path | None = None
+    foreground: str = "median"
+    max_frames: int | None = None
+    renderer: str = "cpu"
+    refine_calibration: bool = True
+    recording: bool = True
+    jpeg_quality: int | None = None
+    replace_stale: bool = False
+    keypoints: Path | None = None
+    use_keypoints: bool = True
+    keypoint_format: str | None = None
+    masks: Path | None = None
+    silhouettes: str = "auto"
+    hold_out: str | None = None
+    progress: bool = True
+
+    #: Fields that do not change the results (left out of the run identity).
+    RUNTIME = ("max_frames", "recording", "jpeg_quality", "replace_stale", "progress")
+
+    def __post_init__(self):
+        for name, allowed in (("foreground", FOREGROUNDS), ("renderer", RENDERERS), ("silhouettes", SILHOUETTES)):
+            if getattr(self, name) not in allowed:
+                raise InputError(f"FreeViewpointRunConfig.{name}", f"one of {allowed}", repr(getattr(self, name)))
+        if self.keypoint_format is not None and self.keypoint_format not in KEYPOINT_FORMATS:
+            raise InputError("FreeViewpointRunConfig.keypoint_format", f"one of {KEYPOINT_FORMATS}",
+                             repr(self.keypoint_format))
+        if self.jpeg_quality is not None and not 1 <= int(self.jpeg_quality) <= 100:
+            raise InputError("FreeViewpointRunConfig.jpeg_quality", "an integer in 1..100", repr(self.jpeg_quality))
+        if self.max_frames is not None and int(self.max_frames) < 1:
+            raise InputError("FreeViewpointRunConfig.max_frames", "a positive number of frames", repr(self.max_frames))
+
+
+def _inputs(ds, config: FreeViewpointRunConfig) -> tuple:
+    """The keypoints and masks folders the run uses (None: none), checked."""
+    kp_dir = None if not config.use_keypoints else (
+        config.keypoints if config.keypoints is not None else (ds.root / "keypoints" if ds.has_keypoints else None))
+    if kp_dir is not None and not Path(kp_dir).is_dir():
+        raise InputError("keypoints (--keypoints)", "a folder with one sub-folder of keypoints per camera", f"{kp_dir}")
+    masks_dir = config.masks if config.masks is not None else (ds.root / "masks" if ds.has_masks else None)
+    if masks_dir is not None and not Path(masks_dir).is_dir():
+        raise InputError("masks (--masks)", "a folder with one sub-folder of masks per camera", f"{masks_dir}")
+    if config.hold_out is not None and config.hold_out not in ds.camera_names:
+        raise InputError("hold_out (--hold-out)", f"one of the dataset's cameras {ds.camera_names}", repr(config.hold_out))
+    return kp_dir, masks_dir
+
+
+def _identity_exclude(config: FreeViewpointRunConfig, kp_dir, masks_dir) -> tuple[tuple, dict]:
+    """Config fields left out of the identity, and what is added (the inputs actually used)."""
+    from toolkit.silhouettes import default_database_path
+
+    exclude = FreeViewpointRunConfig.RUNTIME + ("db", "keypoints", "masks")
+    extra = {"db": default_database_path().name if config.db is None else str(Path(config.db).resolve()),
+             "keypoints": str(Path(kp_dir).resolve()) if kp_dir is not None else None,
+             "masks": str(Path(masks_dir).resolve()) if masks_dir is not None else None}
+    return exclude, extra
+
+
+def _camera_paths(rig, n: int) -> dict:
+    """The three camera paths of a run (``OUT/paths/``), one camera per frame each."""
+    from toolkit.cameras import Rig, closest_point_to_rays
+    from toolkit.rendering import birds_eye, orbit_path, source_path
+
+    target = closest_point_to_rays(rig.centers, np.array([c.forward for c in rig]))[0]
+    return {"orbit": orbit_path(target, n, radius_m=float(np.median(np.linalg.norm(rig.centers - target, axis=1))),
+                                height_m=float(np.median(rig.centers[:, 2])), size=rig[0].size,
+                                focal_px=float(rig[0].K[0, 0])),
+            # a path between cameras of different sizes (1080 and 1088 px wide) is drawn at the first one's
+            "sweep": source_path(Rig(tuple(replace(c, size=rig[0].size) for c in rig)), max(n, 2), closed=True)[:n],
+            "birds_eye": [birds_eye(rig, target)] * n}
+
+
+class _Stage1:
+    """Stage 1 of the run: the silhouette database or a detector's keypoints, over the frames to do."""
+
+    def __init__(self, ds, rig, config: FreeViewpointRunConfig, kp_dir, masks_dir, out: Path, observer):
+        self.ds, self.rig, self.config, self.kp_dir, self.masks_dir = ds, rig, config, kp_dir, masks_dir
+        self.out, self.observer = out, observer
+
+    @property
+    def name(self) -> str:
+        return "keypoints" if self.kp_dir is not None else "silhouette database"
+
+    def estimates(self, frames: list):
+        """Yields ``(estimate, masks)`` per frame of ``frames``."""
+        from toolkit.calibration import refined_cameras
+        from toolkit.foreground import BackgroundConfig, ForegroundConfig
+        from toolkit.pipeline.keypoints import KeypointStage1Config, declared_format, estimate_from_keypoints
+        from toolkit.silhouettes import Stage1Config
+        from toolkit.silhouettes.pipeline import estimate_dataset
+
+        c = self.config
+        if not frames:
+            return iter(())
+        fg = ForegroundConfig(method="chroma") if c.foreground == "chroma" else \
+            ForegroundConfig(background=replace(BackgroundConfig(), method=c.foreground))
+        if self.kp_dir is not None:
+            kconf = KeypointStage1Config(fmt=c.keypoint_format or declared_format(self.ds.root))
+            return estimate_from_keypoints(self.ds, self.kp_dir, self.rig, kconf, frames=frames,
+                                           silhouettes=c.silhouettes, masks_dir=self.masks_dir, foreground=fg,
+                                           observer=self.observer)
+        db = self._database()
+        s1config = Stage1Config().with_refined_cameras(refined_cameras(self.out))  # tight prior where refined
+        return estimate_dataset(self.ds, db, s1config, foreground=fg, frames=frames, rig=self.rig,
+                                observer=self.observer)
+
+    def _database(self):
+        from toolkit.silhouettes import SilhouetteDatabase, default_database
+
+        db = self.config.db
+        if db is None or not Path(db).exists():
+            return default_database(db)[0]
+        return SilhouetteDatabase.load(db)
+
+
+def _recording_observer(folder, ds, novel: list, config: FreeViewpointRunConfig):
+    """The rerun observer of this part of the run (None without a recording)."""
+    if folder.recording is None:
+        return None
+    from toolkit.skeleton import SKELETON_14
+    from toolkit.viz import RerunConfig, RerunObserver
+
+    rconf = RerunConfig() if config.jpeg_quality is None else RerunConfig(jpeg_quality=int(config.jpeg_quality))
+    observer = RerunObserver(application_id="free_viewpoint", path=folder.recording,
+                             recording_id=folder.recording_id,
+                             camera_names=ds.camera_names + [c.name for c in novel], config=rconf)
+    if novel:
+        observer.report("rig", rig=ds.novel_rig)
+    observer.report("skeleton", skeleton=SKELETON_14)
+    return observer
+
+
+class _Frames:
+    """The per-frame work of a run after stage 1: process, render, score, write the record."""
+
+    def __init__(self, ds, rig, novel, held, region_of, paths, processor, compositor, plates, source_plates,
+                 out: Path, records, observer):
+        self.ds, self.rig, self.novel, self.held, self.region_of = ds, rig, novel, held, region_of
+        self.paths, self.processor, self.compositor = paths, processor, compositor
+        self.plates, self.source_plates, self.out, self.records = plates, source_plates, out, records
+        self.observer = observer
+
+    def _views(self, t: int, res) -> list:
+        from toolkit.pipeline.views import EvaluationView
+
+        views = [EvaluationView(cam, "novel", self.plates.plate(cam) if self.plates is not None else
+                                np.zeros(cam.size[::-1] + (3,), np.float32),
+                                self.ds.novel_image(cam.name, t), self.ds.novel_mask(cam.name, t))
+                 for cam in self.novel]
+        if self.held is not None:
+            views.append(self.region_of.view(t, res.joints if res.ok else None))
+        return views
+
+    def __call__(self, est, masks) -> None:
+        from toolkit.io import atomic_write_png
+        from toolkit.io.frames import frame_filename
+        from toolkit.pipeline.views import render_evaluation
+        from toolkit.rendering.freeviewpoint import render_methods
+
+        t0 = time.perf_counter()
+        t = est.frame
+        images = {c: self.ds.frame(c, t) for c in self.rig.names}
+        res = self.processor.process(t, images, masks, est, plates=self.source_plates)
+        for c in self.rig.names:
+            atomic_write_png(self.out / "parts" / c / frame_filename(t), res.labels[c])
+        scores, heldout = {}, {}
+        for v in self._views(t, res):
+            for m, sc in render_evaluation(res, v, self.out, t, self.compositor, observer=self.observer).items():
+                (scores if v.kind == "novel" else heldout).setdefault(m, {})[v.camera.name] = sc
+        for p, cams in self.paths.items():
+            bg = self.plates.plate(cams[t]) if self.plates is not None else np.zeros(cams[t].size[::-1] + (3,))
+            img = render_methods(res, cams[t], bg, self.compositor, methods=("articulated",))["articulated"]
+            atomic_write_png(self.out / "paths" / p / frame_filename(t), img)
+        record = {"frame": t, "status": res.status, "joints": res.joints.tolist(),
+                  "joints_stage1": res.joints_stage1.tolist(), "offsets": res.offsets.tolist(),
+                  "scores": scores, "timings": {**res.timings, **{k: v for k, v in est.timings.items()
+                                                                  if k in ("foreground", "keypoints")},
+                                                "total": time.perf_counter() - t0},
+                  "optimize": res.optimize}
+        if self.held is not None:
+            record["heldout"] = heldout
+            record["heldout_region"] = self.region_of.how.get(t, "")
+            record["heldout_offset"] = self.region_of.offsets.get(t, np.zeros(2)).tolist()
+        self.records.write(t, record)
+
+
+def _finish(ds, out: Path, records: list, n: int, novel: list, held, stage1: str) -> dict:
+    """``poses3d.npz``, the paths' videos (when every frame is done) and the metrics (``metrics.json``)."""
+    from toolkit.io import atomic_save_npz, atomic_write_text, write_video
+    from toolkit.io.frames import frame_filename, read_png
+    from toolkit.pipeline.views import HELDOUT_REGION_DOC
+    from toolkit.rendering.evaluation import pose_errors, summarise
+    from toolkit.skeleton import SKELETON_14
+    import json
+
+    joints = np.full((n, 14, 3), np.nan)
+    stage1_joints = np.full((n, 14, 3), np.nan)
+    status = np.array(["not processed"] * n)
+    for r in records:
+        joints[r["frame"]], stage1_joints[r["frame"]], status[r["frame"]] = r["joints"], r["joints_stage1"], r["status"]
+    atomic_save_npz(out / "poses3d.npz", joints=joints, names=np.array(SKELETON_14.joint_names),
+                    joints_stage1=stage1_joints, status=status)
+    if len(records) == n:
+        for p in PATHS:
+            write_video(out / "paths" / f"{p}.mp4", (read_png(out / "paths" / p / frame_filename(t))
+                                                     for t in range(n)), ds.fps)
+    metrics = {"frames": n, "finished": len(records),
+               "optimize": dict(sum((Counter(r.get("optimize", {})) for r in records), Counter())),
+               "stage1": stage1,
+               "seconds_per_frame": {k: float(np.mean([r["timings"].get(k, np.nan) for r in records]))
+                                     for k in TIMED} if records else {}}
+    if ds.has_groundtruth:
+        gt = ds.gt_joints3d()[:n]
+        metrics.update({"methods": summarise([r["scores"] for r in records]),
+                        "pose": pose_errors(joints, gt), "pose_stage1": pose_errors(stage1_joints, gt),
+                        "novel_cameras": [c.name for c in novel]})
+    if held is not None:
+        offs = [r["heldout_offset"] for r in records if "heldout_offset" in r]
+        metrics["heldout"] = {"camera": held.name, "methods": summarise([r.get("heldout", {}) for r in records]),
+                              "region": dict(Counter(r.get("heldout_region", "") for r in records)),
+                              "region_definition": HELDOUT_REGION_DOC,
+                              "offset_px_median": np.median(offs, axis=0).tolist() if offs else None}
+    if ds.has_groundtruth or held is not None:
+        atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=2, allow_nan=True))
+    return metrics
+
+
+def run(config: FreeViewpointRunConfig, *, dataset, out, observer=None, log=print) -> RunResult:
+    """Run the articulated-billboard system on a dataset into ``out``, resuming finished frames.
+
+    Parameters
+    ----------
+    config : FreeViewpointRunConfig
+    dataset : path
+        Dataset folder (``docs/dataset_layout.md``).
+    out : path
+        Output folder (``recipes/free_viewpoint.py`` lists what it holds).
+    observer : Observer, optional
+        Receives every intermediate; default: a rerun recording in ``out``
+        (``config.recording``), one part per resumed run.
+    log : callable or None
+        Receives notes (calibration refinement, stale folders).
+
+    Returns
+    -------
+    RunResult
+        ``extra`` holds ``stage1`` (where the 2D poses came from), ``held_out``
+        (the camera's name or None) and ``has_groundtruth``.
+
+    Raises
+    ------
+    InputError
+        Bad dataset, options, or an output folder of another run.
+    """
+    from tqdm import tqdm
+
+    from toolkit.calibration import cameras_for_run
+    from toolkit.io import Dataset
+    from toolkit.pipeline.keypoints import declared_format
+    from toolkit.pipeline.views import HeldOutRegions, split_rig
+    from toolkit.rendering import CpuCompositor
+    from toolkit.rendering.evaluation import BackgroundPlates
+    from toolkit.rendering.freeviewpoint import FrameProcessor
+
+    out = Path(out)
+    with Dataset.open(dataset) as ds:
+        n = ds.frames_to_process(config.max_frames)
+        kp_dir, masks_dir = _inputs(ds, config)
+        exclude, extra = _identity_exclude(config, kp_dir, masks_dir)
+        folder = open_run(out, "free_viewpoint", ds.root, config, n, exclude=exclude, extra=extra,
+                          replace_stale=config.replace_stale, recording=config.recording and observer is None,
+                          log=log)
+        novel = list(ds.novel_rig) if ds.has_groundtruth and (ds.root / "groundtruth/novel/calibration.toml").exists() \
+            else []
+        earlier = folder.records.done()
+        own = observer is None
+        obs = _recording_observer(folder, ds, novel, config) if own else observer
+        todo = folder.records.todo()
+        if earlier and log is not None:
+            log(f"resuming: {len(earlier)} of {n} frames already finished")
+        # frames of this same run are finished: continue with its cameras
+        full_rig = cameras_for_run(ds, out, refine=config.refine_calibration, resumed=folder.resumed and bool(earlier),
+                                   observer=obs, log=log)
+        rig, held = (full_rig, None) if config.hold_out is None else split_rig(full_rig, config.hold_out)
+        if obs is not None:
+            obs.report("rig", rig=rig)
+        plates = BackgroundPlates(ds.scene_toml) if ds.scene_toml is not None else None
+        if config.renderer == "open3d":
+            from toolkit.rendering import Open3DRenderer
+            compositor = Open3DRenderer(rig[0].size)
+        else:
+            compositor = CpuCompositor()
+        region_of = None if held is None else HeldOutRegions(
+            ds, held, masks_dir=masks_dir, keypoints=kp_dir, out=out,
+            fmt=config.keypoint_format or declared_format(ds.root))
+        stage1 = _Stage1(ds, rig, config, kp_dir, masks_dir, out, obs)
+        step = _Frames(ds, rig, novel, held, region_of, _camera_paths(rig, n), FrameProcessor(rig, config.frame, obs),
+                       compositor, plates, {c: p for c in rig.names if (p := ds.background(c)) is not None}
+                       if todo else {}, out, folder.records, obs)
+        stopped, processed = "", 0
+        t_start = time.perf_counter()
+        try:
+            for est, masks in tqdm(stage1.estimates(todo), total=len(todo), desc="free viewpoint", unit="frame",
+                                   disable=not config.progress):
+                step(est, masks)
+                processed += 1
+        except KeyboardInterrupt:
+            stopped = STOPPED_INTERRUPTED
+        finally:
+            if own and obs is not None:
+                obs.close()
+        records = folder.records.read_all()
+        metrics = _finish(ds, out, records, n, novel, held, stage1.name)
+        return RunResult(out, n, len(records), processed, len(earlier), stopped, time.perf_counter() - t_start,
+                         metrics, folder.recording if own else None,
+                         {"stage1": stage1.name, "held_out": None if held is None else held.name,
+                          "has_groundtruth": bool(ds.has_groundtruth)})
+
+
+def summary_lines(result: RunResult) -> list:
+    """What a free-viewpoint run says when it ends (the recipe prints these)."""
+    from toolkit.rendering.freeviewpoint import METHODS
+
+    m = result.metrics
+    lines = [f"{'stopped early (' + result.stopped + '): ' if result.stopped else ''}{result.finished} of "
+             f"{result.frames} frames finished ({result.processed} this run, {result.seconds:.1f} s)"]
+    if result.extra.get("has_groundtruth") and result.finished:
+        for meth in METHODS:
+            s = m.get("methods", {}).get(meth)
+            if s:
+                lines.append(f"  {meth:12s} PSNR {s['psnr']:.2f} dB  SSIM {s['ssim']:.3f}  on the subject "
+                             f"{s['psnr_subject']:.2f} dB  coverage {s['coverage']:.3f} (worst view "
+                             f"{s['coverage_min']:.3f})  ({s['n']} views)")
+        lines.append(f"  pose error {m['pose']['mpjpe_m'] * 100:.1f} cm (stage 1: {m['pose_stage1']['mpjpe_m'] * 100:.1f} cm)")
+    h = m.get("heldout")
+    if h and result.finished:
+        off = h["offset_px_median"]
+        lines.append(f"  held-out camera {h['camera']} (its person's region: "
+                     + ", ".join(f"{k} {v} frames" for k, v in h["region"].items())
+                     + ("; its calibration corrected by a 2D offset of ({:+.1f}, {:+.1f}) px".format(*off)
+                        if off else "") + "):")
+        for meth in METHODS:
+            s = h["methods"].get(meth)
+            if s:
+                lines.append(f"  {meth:12s} on the person {s['psnr_subject']:.2f} dB  box PSNR {s['psnr']:.2f} dB  "
+                             f"SSIM {s['ssim']:.3f}  coverage {s['coverage']:.3f}  ({s['n']} frames)")
+    outcome = m.get("optimize") or {}
+    if outcome:  # e.g. two cameras far apart: every joint "few_views", stage 3 changed nothing
+        total = sum(outcome.values())
+        lines.append("  stage 3 joints: " + ", ".join(f"{k} {100 * v / total:.0f} %" for k, v in
+                                                      sorted(outcome.items(), key=lambda kv: -kv[1]))
+                     + " (docs/stage3_billboards.md: what each means)")
+    out = result.out
+    if result.recording is None:
+        earlier = any(out.glob("recording*.rrd"))
+        lines.append(f"outputs in {out}" + (f"; every frame was already finished; earlier recordings: "
+                                            f"rerun {out}/recording*.rrd" if earlier and not result.processed
+                                            else ""))
+    elif result.recording.name == "recording.rrd":
+        lines.append(f"outputs in {out}; recording: rerun {result.recording}"
+                     + (f" (frames of this run only: {result.earlier} earlier ones were made without one)"
+                        if result.earlier else ""))
+    else:  # the parts of a resumed run share one recording id: the viewer merges them
+        lines.append(f"outputs in {out}; this run's recording: {result.recording.name}; all of it: "
+                     f"rerun {out}/recording*.rrd")
+    return lines

@@ -1,0 +1,357 @@
+"""The run layer every system's recipe shares: configs, run identity, frame records, results.
+
+A recipe is ``argparse -> config -> run(config, dataset=..., out=...) ->
+summary``.  What sits between (resume bookkeeping, the run's identity, the
+per-frame records, the recording's file, metrics written at the end) lives
+here, once:
+
+* :func:`config_identity` -- the JSON identity of a run, derived from its
+  config dataclasses (nested ones included) minus the fields that do not
+  change results, so no hand-kept dict can forget an option;
+* :func:`config_from_toml` / :func:`load_config` -- any config dataclass from a
+  TOML file (nested tables for nested configs), unknown keys rejected with the
+  file and key named;
+* :class:`FrameRecords` -- ``OUT/frames/NNNNNN.json``: a frame with a record is
+  finished and skipped when the run resumes, records are written atomically;
+* :func:`open_run` -- :func:`toolkit.io.runs.start_run` plus the records and
+  the recording path of this part of the run;
+* :class:`RunResult` -- what a run returns: counts, whether it stopped early,
+  its metrics and recording.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import tomllib
+import types
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from toolkit.errors import InputError
+from toolkit.io.atomic import atomic_write_text
+from toolkit.io.frames import frame_filename
+from toolkit.io.runs import dataset_fingerprint, run_recording, start_run
+
+#: Sub-folder of a run's output holding one JSON record per finished frame.
+FRAMES_DIR = "frames"
+#: How :attr:`RunResult.stopped` says a run was interrupted (Ctrl-C).
+STOPPED_INTERRUPTED = "interrupted"
+
+
+def _jsonable(value):
+    """``value`` as JSON-safe data: dataclasses as dicts, paths as resolved strings, tuples as lists."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _jsonable(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, os.PathLike):
+        return str(Path(value).resolve())
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if hasattr(value, "tolist"):  # numpy scalars and arrays
+        return value.tolist()
+    return value
+
+
+def config_identity(config, *, exclude: tuple = ()) -> dict:
+    """The run identity of a config dataclass: every field, nested configs included, as JSON data.
+
+    Parameters
+    ----------
+    config : dataclass instance
+    exclude : tuple of str
+        Top-level fields that do not change the results (progress bars,
+        how many frames, recording options); left out.
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    InputError
+        ``config`` is not a dataclass instance, or ``exclude`` names no field of it.
+    """
+    if not dataclasses.is_dataclass(config) or isinstance(config, type):
+        raise InputError("config_identity: config", "a dataclass instance", type(config).__name__)
+    names = {f.name for f in dataclasses.fields(config)}
+    unknown = sorted(set(exclude) - names)
+    if unknown:
+        raise InputError("config_identity: exclude", f"fields of {type(config).__name__}", f"{unknown}")
+    return {k: v for k, v in _jsonable(config).items() if k not in exclude}
+
+
+def _field_types(cls) -> dict:
+    return typing.get_type_hints(cls)
+
+
+def _dataclass_in(tp):
+    """The dataclass type a field annotation allows (``X``, ``X | None``), or None."""
+    if dataclasses.is_dataclass(tp):
+        return tp
+    if typing.get_origin(tp) in (typing.Union, types.UnionType):
+        for a in typing.get_args(tp):
+            if dataclasses.is_dataclass(a):
+                return a
+    return None
+
+
+def _allows(tp, kind) -> bool:
+    """Whether annotation ``tp`` admits ``kind`` (e.g. ``Path | None`` admits Path)."""
+    if tp is kind:
+        return True
+    return typing.get_origin(tp) in (typing.Union, types.UnionType) and kind in typing.get_args(tp)
+
+
+def config_from_dict(cls, data: dict, *, where: str = "config"):
+    """A config dataclass from plain data (a parsed TOML table); unknown keys rejected.
+
+    Nested dataclass fields take nested tables; fields annotated ``Path``
+    take strings; lists become tuples where the default is a tuple.  Values
+    are checked by the dataclass itself (its ``__post_init__``).
+
+    Parameters
+    ----------
+    cls : dataclass type
+    data : dict
+    where : str
+        Where the data came from (a file and table), named in errors.
+
+    Returns
+    -------
+    cls instance
+
+    Raises
+    ------
+    InputError
+        A key is no field of ``cls`` (the known ones are listed), or a nested
+        config is given something else than a table.
+    """
+    if not isinstance(data, dict):
+        raise InputError(where, f"a table of {cls.__name__} options", type(data).__name__)
+    flds = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    unknown = sorted(set(data) - set(flds))
+    if unknown:
+        raise InputError(where, f"options of {cls.__name__}: {sorted(flds)}", f"unknown key(s) {unknown}")
+    hints = _field_types(cls)
+    kwargs = {}
+    for k, v in data.items():
+        tp = hints.get(k)
+        sub = _dataclass_in(tp)
+        if sub is not None and isinstance(v, dict):
+            kwargs[k] = config_from_dict(sub, v, where=f"{where}.{k}")
+        elif sub is not None and v is not None:
+            raise InputError(f"{where}.{k}", f"a table of {sub.__name__} options", repr(v))
+        elif isinstance(v, str) and (_allows(tp, Path) or tp is Path):
+            kwargs[k] = Path(v)
+        elif isinstance(v, list) and isinstance(flds[k].default, tuple):
+            kwargs[k] = tuple(v)
+        else:
+            kwargs[k] = v
+    try:
+        return cls(**kwargs)
+    except TypeError as e:
+        raise InputError(where, f"valid {cls.__name__} options", str(e)) from None
+
+
+def load_config(cls, path: str | os.PathLike | None, **overrides):
+    """A config from an optional TOML file, then command-line overrides on top.
+
+    Parameters
+    ----------
+    cls : dataclass type
+    path : path or None
+        TOML file whose top-level keys are ``cls``'s fields (nested configs as
+        tables).  None: the defaults.
+    **overrides
+        Field values that replace the file's (e.g. the recipe's flags); a
+        value of ``None`` leaves the field alone.
+
+    Returns
+    -------
+    cls instance
+
+    Raises
+    ------
+    InputError
+        The file is missing or not TOML, or holds unknown keys.
+    """
+    data = {}
+    if path is not None:
+        p = Path(path)
+        try:
+            data = tomllib.loads(p.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise InputError(str(p), "a TOML config file", "no such file") from None
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
+            raise InputError(str(p), "a TOML config file", f"unreadable: {e}") from None
+    config = config_from_dict(cls, data, where=str(path) if path is not None else cls.__name__)
+    given = {k: v for k, v in overrides.items() if v is not None}
+    return dataclasses.replace(config, **given) if given else config
+
+
+@dataclass(frozen=True)
+class FrameRecords:
+    """The per-frame records of a resumable run, ``OUT/frames/NNNNNN.json``.
+
+    Parameters
+    ----------
+    out : Path
+        The run's output folder.
+    n_frames : int
+        Frames the run covers (0 .. n_frames - 1).
+    """
+
+    out: Path
+    n_frames: int
+
+    def path(self, t: int) -> Path:
+        """File of frame ``t``'s record."""
+        return Path(self.out) / FRAMES_DIR / frame_filename(t, ".json")
+
+    def done(self) -> set:
+        """Frames with a record (finished)."""
+        return {t for t in range(self.n_frames) if self.path(t).exists()}
+
+    def todo(self) -> list:
+        """Frames without a record, in order."""
+        done = self.done()
+        return [t for t in range(self.n_frames) if t not in done]
+
+    def write(self, t: int, record: dict) -> None:
+        """Write frame ``t``'s record atomically (the frame is then finished)."""
+        atomic_write_text(self.path(t), json.dumps(record, allow_nan=True))
+
+    def read_all(self) -> list:
+        """Every finished frame's record, in frame order.
+
+        Raises
+        ------
+        InputError
+            A record is not JSON (e.g. written by a foreign tool).
+        """
+        out = []
+        for t in sorted(self.done()):
+            p = self.path(t)
+            try:
+                out.append(json.loads(p.read_text(encoding="utf-8")))
+            except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+                raise InputError(str(p), "a frame record (JSON) written by this run", f"unreadable: {e}") from None
+        return out
+
+
+@dataclass(frozen=True)
+class RunFolder:
+    """A run's output folder once opened: whether it resumed, its records, its recording part.
+
+    Attributes
+    ----------
+    out : Path
+    resumed : bool
+        The folder held earlier results of this same run.
+    records : FrameRecords
+    recording : Path or None
+        Where this part of the run writes its recording (None: no recording,
+        or nothing left to do).
+    recording_id : str or None
+    """
+
+    out: Path
+    resumed: bool
+    records: FrameRecords
+    recording: Path | None
+    recording_id: str | None
+
+
+def open_run(out: str | os.PathLike, recipe: str, dataset_root, config, n_frames: int, *,
+             exclude: tuple = (), extra: dict | None = None, replace_stale: bool = False,
+             recording: bool = True, log=print) -> RunFolder:
+    """Start or resume a run in ``out``: identity checked, records listed, recording part chosen.
+
+    Parameters
+    ----------
+    out : path
+    recipe : str
+        The system's name, part of the identity.
+    dataset_root : path
+        The dataset folder; its fingerprint is part of the identity.
+    config : dataclass instance
+        The run's config; its fields (less ``exclude``) are the rest of the identity.
+    n_frames : int
+    exclude : tuple of str
+        Config fields that do not change the results.
+    extra : dict, optional
+        More identity (e.g. the name of a default database file whose name
+        holds its build key).
+    replace_stale : bool
+        Move a folder of another run aside instead of refusing it.
+    recording : bool
+        Whether this part writes a recording (none when every frame is done).
+    log : callable or None
+
+    Returns
+    -------
+    RunFolder
+
+    Raises
+    ------
+    InputError
+        ``out`` holds another run's results (and not ``replace_stale``).
+    """
+    identity = {"recipe": recipe, "dataset": dataset_fingerprint(dataset_root),
+                "config": config_identity(config, exclude=exclude), **(extra or {})}
+    resumed = start_run(out, identity, replace_stale=replace_stale, log=log)
+    records = FrameRecords(Path(out), n_frames)
+    rec = rec_id = None
+    if recording and records.todo():
+        rec, rec_id = run_recording(out, resumed)
+    return RunFolder(Path(out), resumed, records, rec, rec_id)
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """What a run returns.
+
+    Attributes
+    ----------
+    out : Path
+        The output folder.
+    frames : int
+        Frames the run covers.
+    finished : int
+        Frames with a record after this run (earlier parts included).
+    processed : int
+        Frames processed by this run.
+    earlier : int
+        Frames that were already finished when this run started (resumed).
+    stopped : str
+        ``""`` when the run went through, else why it stopped early
+        (:data:`STOPPED_INTERRUPTED`).
+    seconds : float
+        Wall time of this run.
+    metrics : dict
+        The run's metrics (also in ``out/metrics.json`` where the system writes one).
+    recording : Path or None
+        This part's recording (None: none written).
+    extra : dict
+        System-specific results (e.g. the held-out camera's name).
+    """
+
+    out: Path
+    frames: int
+    finished: int
+    processed: int
+    earlier: int
+    stopped: str
+    seconds: float
+    metrics: dict
+    recording: Path | None = None
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def complete(self) -> bool:
+        """Every frame is finished."""
+        return self.finished == self.frames
