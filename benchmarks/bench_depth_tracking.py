@@ -46,8 +46,6 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 from toolkit.anthropometry.proportions import BodyProportions  # noqa: E402
 from toolkit.depth import DepthTracker, track_sequence  # noqa: E402
 from toolkit.depth.evaluate import summarise  # noqa: E402

@@ -25,6 +25,7 @@ without it the benchmark prints a message and exits 0.
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import os
 import sys
@@ -34,7 +35,6 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
 
 TRIALS = {"balancing": Path("pose2sim_demo/S00_P00_SingleParticipant/S00_P00_T01_BalancingTrial"),
           "static": Path("pose2sim_demo/S00_P00_SingleParticipant/S00_P00_T00_StaticTrial")}
@@ -44,12 +44,8 @@ ORBIT_FRAMES = 8
 
 
 def load_recipe(name: str):
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location(name, REPO / "recipes" / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    """The module ``recipes.<name>``."""
+    return importlib.import_module(f"recipes.{name}")
 
 
 def crop_row(images: list, region: np.ndarray, margin: float = 0.15, height: int = 480) -> np.ndarray:

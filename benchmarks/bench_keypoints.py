@@ -32,11 +32,8 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-import numpy as np  # noqa: E402
+import numpy as np
 
 #: Rigs: (layout, cameras, spacing in degrees or None for the layout's default).
 RIGS = (("studio", 4, None), ("studio", 3, (70, 110)), ("broadcast", 3, None), ("broadcast", 2, (60, 100)))

@@ -37,16 +37,13 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
-import importlib.util
 import os
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-import numpy as np  # noqa: E402
+import numpy as np
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 #: Scenes: (people, bystanders, cameras).
@@ -86,10 +83,7 @@ def run_scene(n_people: int, n_bystanders: int, n_cams: int, err: float, seed: i
 
 
 def demo(root: Path, out: Path) -> None:
-    recipe = REPO_ROOT / "recipes" / "pose_from_keypoints.py"
-    spec = importlib.util.spec_from_file_location("pose_from_keypoints", recipe)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    from recipes import pose_from_keypoints as mod
     from toolkit.io.keypoint_files import read_camera_detections
 
     calib = root / "S00_Calibration" / "Calib_qualisys.toml"

@@ -34,7 +34,6 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
 
 from toolkit.cameras import Rig  # noqa: E402
 from toolkit.io import read_calibration  # noqa: E402

@@ -26,7 +26,6 @@ Targets (issue 6): articulated >= standard + 2 dB PSNR; CPU compositor >= 30 fps
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import re
 import shutil
@@ -34,10 +33,8 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
+import cv2
+import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 #: Issue 6 targets.
@@ -165,9 +162,8 @@ def main(argv=None) -> int:
         all_cams = list(ds.novel_rig)
         r = {"oracle": q}
         if args.end_to_end:
-            spec = importlib.util.spec_from_file_location("fv", REPO / "recipes" / "free_viewpoint.py")
-            fv = importlib.util.module_from_spec(spec)
-            spec.loader.exec_module(fv)
+            from recipes import free_viewpoint as fv
+
             out = args.cache / f"fvv_s{seed}"
             fv.main([str(root), "--out", str(out), "--max-frames", str(args.end_to_end), "--quiet", "--no-recording",
                      "--replace-stale"])

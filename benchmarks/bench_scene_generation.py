@@ -13,14 +13,11 @@ cast, writing PNG/MP4 files) and the overall camera-frames per second.
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from toolkit.synthetic import generate_scene, parse_spec  # noqa: E402
+from toolkit.synthetic import generate_scene, parse_spec
 
 SPEC = """
 seed = 5

@@ -27,11 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
-
-from toolkit.foreground import SeededConfig, SeededSegmenter, mask_iou, refine_masks  # noqa: E402
-from toolkit.io import Dataset  # noqa: E402
-from toolkit.synthetic import generate_scene, parse_spec  # noqa: E402
+from toolkit.foreground import SeededConfig, SeededSegmenter, mask_iou, refine_masks
+from toolkit.io import Dataset
+from toolkit.synthetic import generate_scene, parse_spec
 
 #: seed -> (cameras, resolution, outfit).  101-102 tuned the defaults; 201-205 are held out.
 SCENES = {101: (3, (640, 360), "random"), 102: (3, (640, 360), "like_background"),

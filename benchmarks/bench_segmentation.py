@@ -51,7 +51,6 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
 from toolkit.io import Dataset  # noqa: E402
 from toolkit.io.layout import load_npz  # noqa: E402

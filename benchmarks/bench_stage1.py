@@ -46,17 +46,15 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from toolkit.calibration import calibration_error_px, refine_dataset  # noqa: E402
-from toolkit.cameras import Rig  # noqa: E402
-from toolkit.foreground import mask_iou  # noqa: E402
-from toolkit.io import Dataset  # noqa: E402
-from toolkit.multiview import offsets_modulo_gauge  # noqa: E402
-from toolkit.silhouettes import SilhouetteDatabase, Stage1Config, default_database  # noqa: E402
-from toolkit.silhouettes.pipeline import FRAME_OK, estimate_dataset  # noqa: E402
-from toolkit.skeleton import SKELETON_14  # noqa: E402
-from toolkit.synthetic import generate_scene, parse_spec  # noqa: E402
+from toolkit.calibration import calibration_error_px, refine_dataset
+from toolkit.cameras import Rig
+from toolkit.foreground import mask_iou
+from toolkit.io import Dataset
+from toolkit.multiview import offsets_modulo_gauge
+from toolkit.silhouettes import SilhouetteDatabase, Stage1Config, default_database
+from toolkit.silhouettes.pipeline import FRAME_OK, estimate_dataset
+from toolkit.skeleton import SKELETON_14
+from toolkit.synthetic import generate_scene, parse_spec
 
 #: Seeds and motions of the benchmark scenes.
 SCENES = ((1, "walk"), (2, "run"), (3, "kick"), (4, "wave"))

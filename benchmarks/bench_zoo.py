@@ -49,9 +49,7 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-import numpy as np  # noqa: E402
+import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 #: Issue 13 targets.
@@ -128,13 +126,10 @@ def scene(cache: Path, name: str, text: str) -> Path:
 
 @functools.cache
 def _free_viewpoint():
-    """The recipe module, loaded once."""
-    import importlib.util
+    """The recipe module, imported on first use."""
+    from recipes import free_viewpoint
 
-    spec = importlib.util.spec_from_file_location("free_viewpoint", REPO / "recipes" / "free_viewpoint.py")
-    fv = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(fv)
-    return fv
+    return free_viewpoint
 
 
 def run_pipeline(dataset: Path, out: Path, frames: int, optimize: bool, reuse: bool) -> dict:

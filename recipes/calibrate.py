@@ -43,9 +43,7 @@ import re
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
-
-from toolkit.errors import InputError  # noqa: E402
+from toolkit.errors import InputError
 
 
 def _board_args(ap, required: bool):

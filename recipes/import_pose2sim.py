@@ -25,11 +25,9 @@ import argparse
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
-
-from toolkit.errors import InputError  # noqa: E402
-from toolkit.io.pose2sim import POSE_FOLDERS  # noqa: E402
-from toolkit.io.pose2sim_import import IMPORT_JSON, import_pose2sim_trial  # noqa: E402
+from toolkit.errors import InputError
+from toolkit.io.pose2sim import POSE_FOLDERS
+from toolkit.io.pose2sim_import import IMPORT_JSON, import_pose2sim_trial
 
 
 def parse_args(argv=None) -> argparse.Namespace:

@@ -35,9 +35,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
-
-from toolkit.errors import InputError  # noqa: E402
+from toolkit.errors import InputError
 
 
 def main(argv=None) -> int:

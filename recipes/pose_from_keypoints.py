@@ -74,9 +74,7 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
-
-from toolkit.errors import InputError  # noqa: E402
+from toolkit.errors import InputError
 
 #: --format names accepted, mapped to the names of toolkit.skeleton.mappings ("auto": found from the files).
 FORMATS = {"auto": None, "body_25b": "body_25b", "body_25": "body_25", "coco17": "coco_17", "coco_17": "coco_17",
@@ -169,7 +167,7 @@ def run(args, session=None, observer=None) -> int:
 
     from toolkit.anthropometry import AnthropometricConstraints
     from toolkit.io import VideoReader, atomic_save_npz, atomic_write_text
-    from toolkit.io.keypoint_session import open_keypoint_session
+    from toolkit.pipeline.keypoint_session import open_keypoint_session
     from toolkit.io.trajectories import skeleton14_trajectories, write_trajectories
     from toolkit.filtering import ButterworthFilter
     from toolkit.multiview import MultiViewConfig, keypoints_to_candidates
@@ -333,7 +331,7 @@ def run_people(args) -> int:
     import numpy as np
 
     from toolkit.io import atomic_write_text
-    from toolkit.io.keypoint_session import open_keypoint_session
+    from toolkit.pipeline.keypoint_session import open_keypoint_session
     from toolkit.multiview.tracking import DEFAULT_FPS, TrackingConfig, frame_detections, track_people
     from toolkit.observe import PrefixedObserver
     from toolkit.skeleton import SKELETON_14

@@ -31,9 +31,7 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
-
-from toolkit.errors import InputError  # noqa: E402
+from toolkit.errors import InputError
 
 #: Frames between two writes of the partial results.
 CHECKPOINT_FRAMES = 50

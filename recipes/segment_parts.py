@@ -32,9 +32,7 @@ import time
 import tomllib
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
-
-from toolkit.errors import InputError  # noqa: E402
+from toolkit.errors import InputError
 
 
 def _config(path: Path | None):

@@ -2,18 +2,11 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 
+from benchmarks import bench_zoo
 from toolkit.motion import MOTIONS
 from toolkit.synthetic import parse_spec
-
-_spec = importlib.util.spec_from_file_location("bench_zoo", Path(__file__).resolve().parents[2] / "benchmarks"
-                                               / "bench_zoo.py")
-bench_zoo = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(bench_zoo)
 
 
 def test_zoo_covers_the_scene_space():

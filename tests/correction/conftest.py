@@ -8,7 +8,7 @@ per test session on it with a small walking database (about 10 s).
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 import shutil
 from pathlib import Path
 from types import SimpleNamespace
@@ -34,10 +34,7 @@ CAMERA_AZIMUTHS_DEG = (-60.0, 30.0, 120.0)
 
 
 def load_recipe(name: str):
-    spec = importlib.util.spec_from_file_location(name, REPO / "recipes" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return importlib.import_module(f"recipes.{name}")
 
 
 def _camera(name, centre, az_deg):

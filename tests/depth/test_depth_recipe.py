@@ -8,8 +8,8 @@ import sys
 
 import numpy as np
 import pytest
+from recipes import depth_tracking
 from tests.depth.conftest import REPO_ROOT
-
 from toolkit.anthropometry.proportions import BodyProportions
 from toolkit.depth.cloud import ViewFrame
 from toolkit.depth.evaluate import plausibility
@@ -18,9 +18,6 @@ from toolkit.depth.readers import default_depth_camera, list_depth_frames, read_
 from toolkit.motion import generate_motion
 from toolkit.synthetic.body import BodyModel
 from toolkit.synthetic.depth_sensor import DepthCameraSpec, render_depth_camera
-
-sys.path.insert(0, str(REPO_ROOT / "recipes"))
-import depth_tracking
 
 #: MPJPE the recipe must reach on the small synthetic dataset (8 standing frames, 320 x 240, noise).
 RECIPE_MPJPE_MM = 45.0

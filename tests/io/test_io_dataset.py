@@ -13,7 +13,8 @@ from toolkit.cameras import Rig
 from toolkit.errors import InputError
 from toolkit.io.atomic import atomic_save_npz
 from toolkit.io.calibration import read_calibration, write_calibration
-from toolkit.io.dataset import Dataset, DatasetLayout, DatasetWriter
+from toolkit.io.dataset import Dataset, DatasetLayout
+from toolkit.io.writer import DatasetWriter
 from toolkit.io.video import write_video
 
 #: mp4v round-trip error bound, as in test_io_video (measured 3.3-4.1 on small frames).

@@ -83,7 +83,7 @@ def test_keypoint_session_from_a_trial(tmp_path):
 
     from toolkit.cameras import Camera, Rig
     from toolkit.io import write_calibration
-    from toolkit.io.keypoint_session import open_keypoint_session
+    from toolkit.pipeline.keypoint_session import open_keypoint_session
 
     trial = _session(tmp_path, session_cfg="[project]\nframe_rate = 50\n[pose]\npose_model = 'COCO_17'\n")
     (tmp_path / "S00_Calibration" / "Calib_board.toml").unlink()

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 import json
 from pathlib import Path
 
@@ -37,10 +37,7 @@ MAX_CHANGE_M = 0.15
 
 
 def _recipe():
-    spec = importlib.util.spec_from_file_location("optimize_joints", ROOT / "recipes" / "optimize_joints.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return importlib.import_module("recipes.optimize_joints")
 
 
 @pytest.fixture(scope="module")

@@ -3,7 +3,7 @@ from people's keypoints, clear errors."""
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 import json
 from pathlib import Path
 
@@ -19,8 +19,6 @@ from toolkit.skeleton import JOINTS_14
 from toolkit.skeleton.mappings import BODY_25B
 from toolkit.synthetic.boards import board_pose, people_sequence, pixel_rays, random_board_poses, render_checkerboard
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
-RECIPE = REPO_ROOT / "recipes" / "calibrate.py"
 #: Rendered boards: relative focal error.
 FOCAL_TOL = 0.01
 #: Scene points / keypoints with 0.5 px noise: camera centres, metres.
@@ -32,10 +30,7 @@ SOURCE_OF = {"LEar": "head", "REar": "head", "UpperNeck": "neck",
 
 
 def load_recipe():
-    spec = importlib.util.spec_from_file_location("calibrate", RECIPE)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return importlib.import_module("recipes.calibrate")
 
 
 def rig(n=3, size=(640, 480)) -> Rig:

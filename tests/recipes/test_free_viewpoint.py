@@ -8,7 +8,7 @@ flat-coloured body over black.
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 import json
 import re
 import subprocess
@@ -49,10 +49,7 @@ MPJPE_BOUND_M = 0.15
 
 
 def _load_recipe():
-    spec = importlib.util.spec_from_file_location("free_viewpoint", REPO / "recipes" / "free_viewpoint.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return importlib.import_module("recipes.free_viewpoint")
 
 
 def _far_camera(name, centre, az_deg):

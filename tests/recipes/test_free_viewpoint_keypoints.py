@@ -10,7 +10,7 @@ filmed.
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 import json
 from pathlib import Path
 
@@ -57,10 +57,7 @@ def _ring_camera(name, centre, az_deg):
 
 
 def _load_recipe():
-    spec = importlib.util.spec_from_file_location("free_viewpoint", REPO / "recipes" / "free_viewpoint.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return importlib.import_module("recipes.free_viewpoint")
 
 
 def make_studio(root: Path, masks: bool = False) -> Path:

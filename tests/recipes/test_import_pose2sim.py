@@ -2,24 +2,18 @@
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 import json
-from pathlib import Path
 
 import pytest
 
 from tests.io.pose2sim_trial import make_trial
 from toolkit.io import Dataset
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
-RECIPE = REPO_ROOT / "recipes" / "import_pose2sim.py"
 
 
 def load_recipe():
-    spec = importlib.util.spec_from_file_location("import_pose2sim", RECIPE)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return importlib.import_module("recipes.import_pose2sim")
 
 
 def test_recipe_imports_a_trial_and_reports_mismatches(tmp_path, capsys):

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 import json
 import os
 from pathlib import Path
@@ -18,7 +18,6 @@ from toolkit.skeleton import JOINTS_14
 from toolkit.skeleton.mappings import BODY_25B
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
-RECIPE = REPO_ROOT / "recipes" / "pose_from_keypoints.py"
 #: Keypoint noise of the synthetic detections, pixels.
 NOISE_PX = 0.5
 #: MPJPE of the synthetic scene: 0.5 px at 4 m with f = 600 px is 3 mm per view; the gauge
@@ -31,10 +30,7 @@ SOURCE_OF = {"LEar": "head", "REar": "head", "UpperNeck": "neck",
 
 
 def load_recipe():
-    spec = importlib.util.spec_from_file_location("pose_from_keypoints", RECIPE)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return importlib.import_module("recipes.pose_from_keypoints")
 
 
 def make_scene(root: Path, n_frames=3, seed=0):

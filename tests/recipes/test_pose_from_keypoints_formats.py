@@ -3,7 +3,6 @@ filtering, Pose2Sim trial folders, bad input."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 from pathlib import Path
@@ -13,13 +12,10 @@ import pytest
 
 from toolkit.io.trajectories import read_c3d, read_csv, read_trc
 from toolkit.skeleton import JOINTS_14
+from tests.recipes.test_pose_from_keypoints import SYNTHETIC_MPJPE_M, make_scene, run
 from toolkit.skeleton.mappings import BODY_25B, POSE2SIM_MARKERS
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
-_spec = importlib.util.spec_from_file_location("_pfk_tests", Path(__file__).with_name("test_pose_from_keypoints.py"))
-_pfk = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(_pfk)
-make_scene, run, SYNTHETIC_MPJPE_M = _pfk.make_scene, _pfk.run, _pfk.SYNTHETIC_MPJPE_M
 #: Written trajectories read back equal the triangulated joints to 0.1 mm (the issue's figure).
 ROUND_TRIP_M = 1e-4
 #: The same detections in another file layout give the same joints.

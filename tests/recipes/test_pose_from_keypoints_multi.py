@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 import json
 import os
 from pathlib import Path
@@ -16,7 +16,6 @@ from toolkit.skeleton.mappings import BODY_25B
 from toolkit.synthetic.crowd import detect_crowd, make_crowd, score_people
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
-RECIPE = REPO_ROOT / "recipes" / "pose_from_keypoints.py"
 #: BODY_25B keypoints that carry our 14 joints (head = mean of the ears, neck = UpperNeck).
 SOURCE_OF = {"LEar": "head", "REar": "head", "UpperNeck": "neck",
              **{f"{s}{n.capitalize()}": f"{s.lower()}_{n}" for s in ("L", "R")
@@ -32,9 +31,7 @@ N_FRAMES = 8
 
 
 def run(argv):
-    spec = importlib.util.spec_from_file_location("pose_from_keypoints", RECIPE)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = importlib.import_module("recipes.pose_from_keypoints")
     return mod.main([str(a) for a in argv])
 
 
@@ -106,11 +103,11 @@ def test_observer_colours_each_person():
     rec = RecordingObserver()
     obs = PrefixedObserver(rec, "person_1", (1, 2, 3))
     obs.report("joints3d", joints=np.zeros((14, 3)), name="multiview/joints3d")
-    obs.report("rig", rig=None)
-    obs.report("scalar", value=1.0)
+    obs.report("rig", rig=())
+    obs.report("points3d", points=np.zeros((2, 3)))
     (k1, d1), (k2, d2), (k3, d3) = rec.reports
     assert d1["name"] == "person_1/multiview/joints3d" and d1["color"] == (1, 2, 3)
-    assert "name" not in d2 and d3["name"] == "person_1/scalar"
+    assert "name" not in d2 and d3["name"] == "person_1/points3d"
 
 
 @pytest.mark.realdata

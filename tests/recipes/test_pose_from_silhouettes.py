@@ -8,7 +8,7 @@ in a few milliseconds per frame.
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -37,10 +37,7 @@ PART_RGB = np.array([[0, 0, 0], [230, 190, 160], [200, 30, 30], [220, 120, 90], 
 
 
 def load_recipe(name: str):
-    spec = importlib.util.spec_from_file_location(name, REPO / "recipes" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return importlib.import_module(f"recipes.{name}")
 
 
 def green_screen(mask_labels: np.ndarray, rng: np.random.Generator) -> np.ndarray:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 import subprocess
 import sys
 from pathlib import Path
@@ -41,9 +41,7 @@ GT_MEAN_IOU_BOUND = 0.85
 
 
 def _main():
-    spec = importlib.util.spec_from_file_location("segment_parts_recipe", RECIPE)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = importlib.import_module("recipes.segment_parts")
     return mod.main
 
 

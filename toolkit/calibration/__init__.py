@@ -30,7 +30,8 @@ from toolkit.calibration.dataset import (
     refine_dataset,
     stage_rig,
 )
-from toolkit.calibration.field import FieldModel, read_field_model, soccer_pitch, write_field_model
+from toolkit.calibration.field import soccer_pitch
+from toolkit.io.field_model import FieldModel, read_field_model, write_field_model  # the file type, re-exported
 from toolkit.calibration.lines import LineDetectorConfig, LinePoints, detect_line_points
 from toolkit.calibration.refine import (
     RefineConfig,

@@ -6,7 +6,7 @@ subject's absolute position undetermined: stage 1's per-view 2D offsets
 body shifts every view alike, so with two views most of the offset is
 confused with moving the skeleton (``docs/stage1_multiview.md``).  The
 static background resolves that: the painted lines have known positions
-(:class:`~toolkit.calibration.field.FieldModel`), so the error of each
+(:class:`~toolkit.io.field_model.FieldModel`), so the error of each
 camera can be measured on them before any person is looked at.
 
 Model.  The camera centre is kept (a broadcast camera's position is
@@ -40,7 +40,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial import cKDTree
 
-from toolkit.calibration.field import FieldModel
+from toolkit.io.field_model import FieldModel
 from toolkit.calibration.lines import LineDetectorConfig, LinePoints, detect_line_points
 from toolkit.cameras import Camera, Rig
 from toolkit.errors import InputError

@@ -1,4 +1,4 @@
-"""File input and output: calibration files, videos, the dataset layout, atomic writes.
+"""File input and output: calibration files, videos, the dataset layout, field models, atomic writes.
 
 Only this subpackage reads and writes files; every write is atomic.
 """
@@ -22,7 +22,8 @@ from toolkit.io.calibration import (
     write_calibration_toml,
     write_calibration_yaml,
 )
-from toolkit.io.dataset import Dataset, DatasetLayout, DatasetWriter
+from toolkit.io.dataset import Dataset, DatasetLayout
+from toolkit.io.field_model import FieldModel, read_field_model, write_field_model
 from toolkit.io.frames import depth_to_mm, frame_filename, mm_to_depth, read_png
 from toolkit.io.pose2sim_import import ImportResult, import_pose2sim_trial
 from toolkit.io.video import (
@@ -33,6 +34,7 @@ from toolkit.io.video import (
     probe_video,
     write_video,
 )
+from toolkit.io.writer import DatasetWriter
 
 __all__ = [
     "atomic_path",
@@ -53,6 +55,9 @@ __all__ = [
     "Dataset",
     "DatasetLayout",
     "DatasetWriter",
+    "FieldModel",
+    "read_field_model",
+    "write_field_model",
     "depth_to_mm",
     "frame_filename",
     "mm_to_depth",

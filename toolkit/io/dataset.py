@@ -24,7 +24,7 @@
 Frames are numbered from 000000.  Real footage uses the same layout without
 ``groundtruth/``.  See ``docs/dataset_layout.md`` for units and conventions.
 
-:class:`DatasetWriter` writes it (every file atomically); :meth:`Dataset.open`
+:class:`~toolkit.io.writer.DatasetWriter` writes it (every file atomically); :meth:`Dataset.open`
 reads and validates it.
 """
 
@@ -39,6 +39,7 @@ import numpy as np
 from toolkit.cameras import Camera, Rig
 from toolkit.errors import InputError
 from toolkit.io.calibration import read_calibration_toml
+from toolkit.io.field_model import read_field_model
 from toolkit.io.frames import FRAME_DIGITS, frame_filename, mm_to_depth, read_png
 from toolkit.io.layout import (
     FPS_RELATIVE_TOLERANCE,
@@ -50,9 +51,7 @@ from toolkit.io.layout import (
     load_npz,
 )
 from toolkit.io.video import VideoReader, probe_video
-from toolkit.io.writer import DatasetWriter
-
-__all__ = ["DatasetLayout", "DatasetWriter", "Dataset", "FPS_RELATIVE_TOLERANCE"]
+__all__ = ["DatasetLayout", "Dataset", "FPS_RELATIVE_TOLERANCE"]
 
 
 class Dataset:
@@ -492,9 +491,7 @@ class Dataset:
         return self._read(path, cam, 3, np.uint8)
 
     def field_model(self):
-        """The ground's painted lines (``field_model.json``) as a :class:`toolkit.calibration.FieldModel`, or None."""
-        from toolkit.calibration.field import read_field_model
-
+        """The ground's painted lines (``field_model.json``) as a :class:`~toolkit.io.field_model.FieldModel`, or None."""
         path = self.layout.field_model
         return read_field_model(path) if path.is_file() else None
 

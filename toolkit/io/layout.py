@@ -107,7 +107,7 @@ class DatasetLayout:
 
     @property
     def field_model(self) -> Path:
-        """``field_model.json``: optional painted lines of the ground (:mod:`toolkit.calibration.field`)."""
+        """``field_model.json``: optional painted lines of the ground (:mod:`toolkit.io.field_model`)."""
         return self.root / self.FIELD_MODEL
 
     @property

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Mapping, Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -12,6 +12,8 @@ from toolkit.cameras import Camera, Rig
 from toolkit.errors import InputError
 from toolkit.io.atomic import atomic_save_npz, atomic_write_png, atomic_write_text
 from toolkit.io.calibration import write_calibration_toml
+from toolkit.io.dataset import Dataset
+from toolkit.io.field_model import write_field_model
 from toolkit.io.frames import depth_to_mm
 from toolkit.io.layout import (
     NOVEL_RESERVED,
@@ -23,9 +25,6 @@ from toolkit.io.layout import (
     check_joints3d,
 )
 from toolkit.io.video import DEFAULT_FOURCC, VideoWriter
-
-if TYPE_CHECKING:  # the reader imports this module; the writer opens the reader only in close()
-    from toolkit.io.dataset import Dataset
 
 __all__ = ["DatasetWriter"]
 
@@ -301,9 +300,7 @@ class DatasetWriter:
         return atomic_write_png(self.layout.background_dir / f"{camera}.png", img)
 
     def write_field_model(self, model) -> Path:
-        """Write the ground's painted lines (a :class:`toolkit.calibration.FieldModel`) to ``field_model.json``."""
-        from toolkit.calibration.field import write_field_model
-
+        """Write the ground's painted lines (a :class:`~toolkit.io.field_model.FieldModel`) to ``field_model.json``."""
         self._open_check("write_field_model")
         return write_field_model(self.layout.field_model, model)
 
@@ -318,7 +315,7 @@ class DatasetWriter:
         return self.layout.scene_rrd
 
     # -- end
-    def close(self) -> "Dataset":
+    def close(self) -> Dataset:
         """Finish the videos and validate the dataset by opening it.
 
         Returns
@@ -336,8 +333,6 @@ class DatasetWriter:
         self._closed = True
         for w in self._videos.values():
             w.close()
-        from toolkit.io.dataset import Dataset
-
         return Dataset.open(self.root)
 
     def abort(self) -> None:

@@ -1,5 +1,9 @@
 """Everything a keypoint triangulation needs, from a keypoints folder or a Pose2Sim trial.
 
+It reads the files through :mod:`toolkit.io` and picks one person per frame with the
+multi-view association of :mod:`toolkit.multiview.tracking`, so it lives in the layer
+between the stages, not in ``io`` (which runs no algorithm).
+
 :func:`open_keypoint_session` resolves, in one place, what ``recipes/pose_from_keypoints.py``
 is given: a folder of per-camera keypoints or a Pose2Sim trial (toolkit.io.pose2sim), the
 calibration (given, or the session's), the cameras matched to the keypoint sources
@@ -19,6 +23,7 @@ from toolkit.io.calibration import read_calibration
 from toolkit.io.keypoint_files import camera_sources, match_cameras
 from toolkit.io.keypoint_formats import KeypointInput, read_keypoints
 from toolkit.io.pose2sim import Pose2SimTrial, is_pose2sim_trial, read_pose2sim_trial
+from toolkit.multiview.tracking import DEFAULT_FPS, TrackingConfig, frame_detections, main_person
 
 __all__ = ["KeypointSession", "open_keypoint_session"]
 
@@ -112,8 +117,6 @@ def open_keypoint_session(keypoints: str | os.PathLike, calibration: str | os.Pa
     if fps is None and trial is not None and trial.frame_rate is not None:
         fps, fps_from = trial.frame_rate, "Pose2Sim Config.toml"
     if person == "consensus":
-        from toolkit.multiview.tracking import DEFAULT_FPS, TrackingConfig, frame_detections, main_person
-
         dets = frame_detections(data.cameras, data.frames, data.keypoints.shape[2])
         data = replace(data, keypoints=main_person(dets, Rig(tuple(cams)),
                                                    TrackingConfig(fps=fps if fps is not None else DEFAULT_FPS)))

@@ -55,7 +55,7 @@ class KeypointStage1Config:
     min_view_confidence : float
         A view whose kept keypoints' mean confidence is below this is left out of a frame.
     person : str
-        How one person is picked per frame (``toolkit.io.keypoint_session.open_keypoint_session``).
+        How one person is picked per frame (``toolkit.pipeline.keypoint_session.open_keypoint_session``).
     """
 
     keypoint: object = field(default_factory=lambda: _default_keypoint_config())

@@ -299,13 +299,6 @@ class SilhouetteDatabase:
                                   frame=self._frame[idx], source=self._source[idx],
                                   flows=None if self._flows is None else self._flows[idx])
 
-    # ---------------------------------------------------------------- query
-    def query(self, descriptor, previous=None, config=None, *, flow=None):
-        """The k best entries by E_S; see :func:`toolkit.silhouettes.query.query_database`."""
-        from toolkit.silhouettes.query import QueryConfig, query_database
-
-        return query_database(self, descriptor, previous, QueryConfig() if config is None else config, flow=flow)
-
     # ------------------------------------------------------------- file I/O
     def save(self, path: str | os.PathLike) -> Path:
         """Write the database to one ``.npz`` file atomically.

@@ -96,7 +96,6 @@ __all__ = [
     "iter_depth_frames",
     "make_second_person",
     "render_depth_camera",
-    "render_depth_dataset",
     "render_depth_sequence",
 ]
 
@@ -563,32 +562,3 @@ def render_depth_camera(root: str | Path, spec: DepthCameraSpec, body_model, joi
     files += [s13, s17]
     return DepthCameraOutput(cam, files[0], base / "depth", base / "background.png", s13, s17, J.shape[0], files)
 
-
-def render_depth_dataset(spec, out: str | Path, observer=None) -> DepthCameraOutput:
-    """Write only the depth camera of a scene spec (no colour videos).
-
-    The person, motion and random streams are those of
-    :func:`toolkit.synthetic.generator.build_scene`, so the depth data match the
-    colour dataset ``recipes/make_scene.py`` would write for the same spec.
-
-    Parameters
-    ----------
-    spec : SceneSpec
-        A parsed scene spec with a ``[depth_camera]`` table.
-    out : str or Path
-        Dataset folder.
-    observer : Observer, optional
-
-    Raises
-    ------
-    InputError
-        If the spec has no ``[depth_camera]`` table.
-    """
-    from toolkit.synthetic.generator import build_scene
-
-    if spec.depth_camera is None:
-        raise InputError(f"{spec.source}: [depth_camera]", "a [depth_camera] table", "none")
-    dspec = DepthCameraSpec.from_table(spec.depth_camera, spec.source)
-    scene = build_scene(spec)
-    return render_depth_camera(out, dspec, scene.body, scene.joints, scene.rngs["depth"], observer=observer,
-                               fps=spec.fps)

@@ -24,11 +24,13 @@ import numpy as np
 
 from toolkit.anthropometry import BodyProportions
 from toolkit.cameras import Rig
+from toolkit.errors import InputError
 from toolkit.io import DatasetWriter, atomic_write_text
 from toolkit.motion import generate_motion, motion_from_bvh
 from toolkit.observe import Observer, as_observer
 from toolkit.skeleton import SKELETON_14
 from toolkit.synthetic.body import BodyMesh, BodyModel, BodyShape, dress
+from toolkit.synthetic.depth_sensor import DepthCameraOutput, DepthCameraSpec, render_depth_camera
 from toolkit.synthetic.environment import BACKGROUND_COLOUR, SURROUNDING_COLOURS, field_model, make_environment
 from toolkit.synthetic.render import Raycaster, RaycastRenderer, SceneRenderer
 from toolkit.synthetic.rigs import make_rig, novel_rig, perturb_rig
@@ -230,10 +232,37 @@ def generate_scene(spec: SceneSpec, out: str | Path, observer: Observer | None =
                         obs.report("joints2d", frame=t, camera=cam_path, joints=joints2d[cam.name][t],
                                    name="groundtruth/joints2d", skeleton=SKELETON_14)
         if spec.depth_camera is not None:
-            from toolkit.synthetic.depth_sensor import DepthCameraSpec, render_depth_camera
             dspec = DepthCameraSpec.from_table(spec.depth_camera, spec.source)
             render_depth_camera(out, dspec, scene.body, scene.joints, scene.rngs["depth"], observer=obs, fps=spec.fps)
     except BaseException:
         writer.abort()
         raise
     return writer.close()
+
+
+def render_depth_dataset(spec, out: str | Path, observer=None) -> DepthCameraOutput:
+    """Write only the depth camera of a scene spec (no colour videos).
+
+    The person, motion and random streams are those of :func:`build_scene`, so
+    the depth data match the colour dataset :func:`generate_scene` writes for
+    the same spec.
+
+    Parameters
+    ----------
+    spec : SceneSpec
+        A parsed scene spec with a ``[depth_camera]`` table.
+    out : str or Path
+        Dataset folder.
+    observer : Observer, optional
+
+    Raises
+    ------
+    InputError
+        If the spec has no ``[depth_camera]`` table.
+    """
+    if spec.depth_camera is None:
+        raise InputError(f"{spec.source}: [depth_camera]", "a [depth_camera] table", "none")
+    dspec = DepthCameraSpec.from_table(spec.depth_camera, spec.source)
+    scene = build_scene(spec)
+    return render_depth_camera(out, dspec, scene.body, scene.joints, scene.rngs["depth"], observer=observer,
+                               fps=spec.fps)
