@@ -174,5 +174,5 @@ def test_observer_receives_every_intermediate(idle_sequence):
             "depth/radial_contour", "depth/skeleton", "depth/keypoints"} <= names
     assert len(obs.of_kind("depth_energy")) >= 3 and obs.of_kind("depth_radial")
     e = obs.of_kind("depth_energy")[0]
-    assert {"surface", "centres", "contour", "previous", "length", "topology", "collision"} <= set(e)
+    assert {"surface", "centres", "contour", "previous", "length", "topology", "collision"} <= set(e["blocks"])
     assert any(d.get("name") == "depth/state" for d in obs.of_kind("scalar"))

@@ -215,7 +215,7 @@ def fit_local(X0: np.ndarray, data: FitData, dims: BodyDimensions, X_pred: np.nd
         history.append(terms)
         if observer is not None:
             obs.report("depth_energy", frame=frame, stage=tag, iteration=it, total=float(sum(terms.values())),
-                       **terms)
+                       blocks=dict(terms))
         moved = float(np.max(np.linalg.norm(Xn - X, axis=1)))
         X = Xn
         if moved < config.converged_m:

@@ -4,16 +4,25 @@ Algorithms never import rerun.  They take an optional ``observer`` and call
 ``observer.report(kind, **data)`` with plain numpy arrays; an observer decides
 what to do with the report (log it to rerun, keep it for a test, ignore it).
 
-Report kinds and their fields are listed in :data:`REPORT_KINDS`, so that the
-rerun observer and tests agree on them.  Every report may carry ``frame``
-(int) and ``camera`` (str) to place it on the timeline and in the camera tree,
-and ``static=True`` to log it once for all times.
+Report kinds and their fields are declared in :data:`REPORT_KINDS` (one
+:class:`ReportKind` each), so that the algorithms, the rerun observer
+(:mod:`toolkit.viz.rerun_observer`, which maps every declared kind) and the
+tests agree on them.  Every report may also carry the :data:`COMMON_FIELDS`:
+``frame`` (int) and ``camera`` (str) to place it on the timeline and in the
+camera tree, and ``static=True`` to log it once for all times.
+:func:`check_report` checks one report against its declaration;
+:class:`RecordingObserver`, the fake observer of the tests, checks every
+report it receives, so a misspelt kind or field fails the test that sends it.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any, Protocol, runtime_checkable
+
+from toolkit.errors import InputError
 
 
 @runtime_checkable
@@ -33,16 +42,27 @@ class NullObserver:
 
 @dataclass
 class RecordingObserver:
-    """Keeps every report in memory (for tests and for post-hoc inspection).
+    """Keeps every report in memory after checking it (the fake observer of the tests).
+
+    Every report is checked by :func:`check_report` before it is kept: an
+    undeclared kind, a field its kind does not declare (e.g. a misspelling) or
+    a missing required field raises, so a test that drives an algorithm with
+    this observer fails on a report the rerun observer would drop or reject.
 
     Attributes
     ----------
     reports : list of (str, dict)
+
+    Raises
+    ------
+    InputError
+        From :meth:`report`, naming the kind and field (see :func:`check_report`).
     """
 
     reports: list = field(default_factory=list)
 
     def report(self, kind: str, **data: Any) -> None:
+        check_report(kind, data)
         self.reports.append((kind, data))
 
     def of_kind(self, kind: str) -> list[dict]:
@@ -51,6 +71,7 @@ class RecordingObserver:
 
     @property
     def kinds(self) -> set[str]:
+        """The kinds received so far."""
         return {k for k, _ in self.reports}
 
 
@@ -96,28 +117,142 @@ def as_observer(observer: Observer | None) -> Observer:
     return NullObserver() if observer is None else observer
 
 
-#: Report kinds understood by :mod:`toolkit.viz.rerun_observer`, with their fields.
-#: Arrays are numpy; shapes and units as documented.
-REPORT_KINDS: dict[str, str] = {
-    "rig": "rig: Rig; path: str = 'world/cams' (static: cameras as Transform3D + Pinhole)",
-    "skeleton": "skeleton: Skeleton; class_id: int (static AnnotationContext with keypoint connections)",
-    "image": "camera: str; image: (H, W, 3) uint8 RGB; name: str = 'image'",
-    "mask": "camera: str; mask: (H, W) bool or uint8; name: str",
-    "labels": "camera: str; labels: (H, W) uint8 part ids (0 background); name: str; skeleton optional (default SKELETON_14)",
-    "depth": "camera: str; depth: (H, W) float metres (0 = none); name: str",
-    "joints2d": "camera: str; joints: (J, 2) pixels, NaN missing; name: str; skeleton: Skeleton; "
-                "color: (3,) uint8 optional (bones drawn in it: one colour per person)",
-    "joints3d": "joints: (J, 3) metres; name: str; skeleton: Skeleton; color: (3,) uint8 optional",
-    "points3d": "points: (N, 3) metres; colors: (N, 3) uint8 optional; radii optional; name: str",
-    "rays": "origins: (N, 3); ends: (N, 3) metres; name: str; colors optional",
-    "scalar": "name: str; value: float",
-    "text": "name: str; text: str; level optional (e.g. 'WARN')",
-    "mesh": "name: str; vertices: (V, 3); triangles: (F, 3); vertex_colors: (V, 3) uint8 optional; vertex_normals optional",
-    "boxes2d": "camera: str; mins: (N, 2); sizes: (N, 2) pixels; name: str; labels optional; colors optional",
-    "quads": ("name: str; corners: (N, 4, 3) metres, ordered top-left, top-right, bottom-right, bottom-left of the "
-              "texture; textures: list of (h, w, 4) uint8 RGBA optional; colors optional (untextured)"),
-    "points2d": "camera: str; points: (N, 2) pixels, NaN missing; colors: (N, 3) uint8 optional; name: str",
-    "lines2d": "camera: str; strips: list of (K, 2) pixels; colors: (S, 3) uint8 optional; name: str",
-    "lines3d": "strips: list of (K, 3) metres (e.g. trajectories, seams); colors optional; name: str",
-    "series": "name: str; values: (N,) float; steps: (N,) int optional (a curve over iterations, e.g. score per sweep)",
-}
+@dataclass(frozen=True)
+class ReportKind:
+    """The declaration of one report kind: its required and optional fields.
+
+    Parameters
+    ----------
+    name : str
+        The kind, as passed to ``observer.report(kind, ...)``.
+    doc : str
+        What the report shows.
+    required : Mapping of str to str
+        Field name -> type, shape and units; the report must carry each.
+    optional : Mapping of str to str
+        Field name -> type, shape, units and the default when absent.
+
+    Every kind also accepts the :data:`COMMON_FIELDS` (a kind may make
+    ``camera`` required).
+    """
+
+    name: str
+    doc: str
+    required: Mapping[str, str]
+    optional: Mapping[str, str] = field(default_factory=dict)
+
+    def __post_init__(self):
+        both = set(self.required) & set(self.optional)
+        if both:
+            raise InputError(f"ReportKind {self.name!r}", "each field either required or optional",
+                             f"both: {sorted(both)}")
+        object.__setattr__(self, "required", MappingProxyType(dict(self.required)))
+        object.__setattr__(self, "optional", MappingProxyType(
+            {**{k: v for k, v in COMMON_FIELDS.items() if k not in self.required}, **self.optional}))
+
+    @property
+    def fields(self) -> frozenset[str]:
+        """Every field a report of this kind may carry (required, optional and common)."""
+        return frozenset(self.required) | frozenset(self.optional)
+
+
+#: Fields every report may carry.
+COMMON_FIELDS: Mapping[str, str] = MappingProxyType({
+    "frame": "int: the frame on the timeline (default: the observer's current frame)",
+    "camera": "str: the camera the report belongs to (its image tree)",
+    "static": "bool: logged once for all times (default: True for 'rig' and 'skeleton')",
+})
+
+_NAME = "str: entity path under the camera's image or the world (default: the kind)"
+_COLORS = "(N, 3) or (3,) uint8 RGB (default: the viewer's)"
+
+
+def _kind(name: str, doc: str, required: dict, optional: dict | None = None) -> tuple[str, ReportKind]:
+    return name, ReportKind(name, doc, required, optional or {})
+
+
+#: Every report kind, with its fields.  Arrays are numpy, shapes and units as
+#: documented; pixels are in the camera's image, metres in the world frame.
+REPORT_KINDS: Mapping[str, ReportKind] = MappingProxyType(dict([
+    _kind("rig", "the cameras as Transform3D + Pinhole (static)",
+          {"rig": "Rig"}, {"path": "str: entity path of the camera tree (default 'world/cams')"}),
+    _kind("skeleton", "a skeleton's joints and bones as a static AnnotationContext",
+          {"skeleton": "Skeleton"}, {"class_id": "int (default: the next free id)"}),
+    _kind("image", "a camera's image",
+          {"camera": "str", "image": "(H, W, 3) uint8 RGB, (H, W) grey, or float in [0, 1]"},
+          {"name": "str (default 'image': the camera's own picture)"}),
+    _kind("mask", "a binary mask (or a soft matte) over a camera's image",
+          {"camera": "str", "mask": "(H, W) bool, uint8 {0, 1, 255}, or grey levels"}, {"name": _NAME}),
+    _kind("labels", "body-part ids over a camera's image",
+          {"camera": "str", "labels": "(H, W) integer part ids, 0 = background"},
+          {"name": _NAME, "skeleton": "Skeleton naming the parts (default SKELETON_14)"}),
+    _kind("depth", "a depth image",
+          {"camera": "str", "depth": "(H, W) float metres, 0 or NaN = no reading"}, {"name": _NAME}),
+    _kind("joints2d", "2D joints over a camera's image, bones drawn",
+          {"camera": "str", "joints": "(J, 2) pixels, NaN = missing"},
+          {"name": _NAME, "skeleton": "Skeleton with J joints",
+           "color": "(3,) uint8: the bones' colour (one per person)"}),
+    _kind("joints3d", "3D joints, bones drawn",
+          {"joints": "(J, 3) metres, NaN = missing"},
+          {"name": _NAME, "skeleton": "Skeleton with J joints",
+           "color": "(3,) uint8: the bones' colour (one per person)"}),
+    _kind("points3d", "3D points",
+          {"points": "(N, 3) metres"}, {"name": _NAME, "colors": _COLORS, "radii": "(N,) or float, metres"}),
+    _kind("points2d", "2D points over a camera's image",
+          {"camera": "str", "points": "(N, 2) pixels, NaN = missing"}, {"name": _NAME, "colors": _COLORS}),
+    _kind("rays", "3D segments from origins to ends (camera rays)",
+          {"origins": "(N, 3) metres", "ends": "(N, 3) metres"}, {"name": _NAME, "colors": _COLORS}),
+    _kind("lines2d", "polylines over a camera's image",
+          {"camera": "str", "strips": "list of (K, 2) pixels"}, {"name": _NAME, "colors": "(S, 3) uint8"}),
+    _kind("lines3d", "3D polylines (trajectories, seams)",
+          {"strips": "list of (K, 3) metres"}, {"name": _NAME, "colors": "(S, 3) uint8"}),
+    _kind("boxes2d", "boxes over a camera's image",
+          {"camera": "str", "mins": "(N, 2) pixels", "sizes": "(N, 2) pixels"},
+          {"name": _NAME, "labels": "list of N str", "colors": _COLORS}),
+    _kind("mesh", "a triangle mesh",
+          {"vertices": "(V, 3) metres", "triangles": "(F, 3) int"},
+          {"name": _NAME, "vertex_colors": "(V, 3) uint8", "vertex_normals": "(V, 3)"}),
+    _kind("quads", "textured quadrilaterals (billboards)",
+          {"corners": "(N, 4, 3) metres: top-left, top-right, bottom-right, bottom-left of the texture"},
+          {"name": _NAME, "textures": "list of N (h, w, 4) uint8 RGBA", "colors": "(N, 3) uint8 (untextured)"}),
+    _kind("scalar", "one number on the timeline", {"name": "str: metric path", "value": "float"}),
+    _kind("series", "a curve over iterations (e.g. a score per sweep)",
+          {"name": "str: metric path", "values": "(N,) float"}, {"steps": "(N,) int"}),
+    _kind("text", "a line of the log",
+          {"text": "str"}, {"name": "str: log path (default 'text')", "level": "str, e.g. 'WARN'"}),
+    _kind("depth_energy", "the depth tracker's energy blocks after one Levenberg-Marquardt round",
+          {"stage": "str: which fit (e.g. 'track')", "iteration": "int: the round",
+           "total": "float: sum of the blocks", "blocks": "dict of str to float: each residual block's energy"}),
+    _kind("depth_move", "one global change tried by the depth tracker",
+          {"move": "str: the move's name", "won": "bool: it lowered the energy",
+           "weight": "float: the move's current weight", "energy": "float: the best energy after it"}),
+    _kind("depth_radial", "the radial profile of the user's silhouette",
+          {"angles_deg": "(n,) degrees from up, towards the image's right",
+           "distances": "(n,) metres from the centroid to the contour", "peaks": "(p,) int indices of the peaks"}),
+]))
+
+
+def check_report(kind: str, data: Mapping[str, Any]) -> None:
+    """Check one report's kind and field names against :data:`REPORT_KINDS`.
+
+    Parameters
+    ----------
+    kind : str
+    data : Mapping of str to Any
+        The report's fields.
+
+    Raises
+    ------
+    InputError
+        If ``kind`` is not declared, a field is not declared for it (a
+        misspelling) or a required field is missing or None.
+    """
+    decl = REPORT_KINDS.get(kind)
+    if decl is None:
+        raise InputError("report: kind", f"one of {sorted(REPORT_KINDS)}", repr(kind))
+    unknown = sorted(set(data) - decl.fields)
+    if unknown:
+        raise InputError(f"report {kind!r}: fields", f"only {sorted(decl.fields)}", f"unknown {unknown}")
+    missing = sorted(k for k in decl.required if data.get(k) is None)
+    if missing:
+        raise InputError(f"report {kind!r}: fields", f"all of {sorted(decl.required)}", f"missing {missing}")

@@ -154,7 +154,8 @@ class RerunObserver:
             "joints3d": self._joints3d, "points2d": self._points2d, "points3d": self._points3d,
             "rays": self._rays, "lines2d": self._lines2d, "lines3d": self._lines3d,
             "scalar": self._scalar, "series": self._series, "text": self._text, "mesh": self._mesh, "boxes2d": self._boxes2d,
-            "quads": self._quads,
+            "quads": self._quads, "depth_energy": self._depth_energy, "depth_move": self._depth_move,
+            "depth_radial": self._depth_radial,
         }
         self._log(WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         if camera_names is not None:
@@ -767,6 +768,45 @@ class RerunObserver:
         if values.size == 0:
             raise InputError(f"report {kind!r}: values", "a non-empty 1-D array of numbers", "an empty array")
         self._log(entity_path(METRICS, name), rr.BarChart(values), static=static)
+
+    # ----------------------------------------------------------- kind: depth
+    def _number(self, kind, data, key) -> float:
+        raw = _field(kind, data, key)
+        try:
+            return float(raw)
+        except (TypeError, ValueError):
+            raise InputError(f"report {kind!r}: {key}", "a number", f"{raw!r}") from None
+
+    def _depth_energy(self, kind, data, static):
+        """Each residual block's energy and the total after one LM round, under ``metrics/depth_energy/<stage>``."""
+        stage = str(_field(kind, data, "stage"))
+        blocks = _field(kind, data, "blocks")
+        if not isinstance(blocks, Mapping):
+            raise InputError(f"report {kind!r}: blocks", "a dict of block name -> energy", type(blocks).__name__)
+        values = {"total": self._number(kind, data, "total")}
+        values.update({str(k): self._number(kind, blocks, k) for k in blocks})
+        for name, value in values.items():
+            self._log(entity_path(METRICS, kind, stage, name), rr.Scalars(value), static=static)
+
+    def _depth_move(self, kind, data, static):
+        """A global change tried: its weight, whether it won (1) or not (0), the energy after it."""
+        move = str(_field(kind, data, "move"))
+        for key in ("weight", "energy"):
+            self._log(entity_path(METRICS, kind, move, key), rr.Scalars(self._number(kind, data, key)), static=static)
+        self._log(entity_path(METRICS, kind, move, "won"), rr.Scalars(float(bool(_field(kind, data, "won")))),
+                  static=static)
+
+    def _depth_radial(self, kind, data, static):
+        """The radial profile as a bar chart of distances by angle; its peaks' angles as a log line."""
+        angles = _array(kind, data, "angles_deg", (None,))
+        distances = _array(kind, data, "distances", (len(angles),))
+        peaks = _array(kind, data, "peaks", (None,), np.int64)
+        if peaks.size and (peaks.min() < 0 or peaks.max() >= len(angles)):
+            raise InputError(f"report {kind!r}: peaks", f"indices in [0, {len(angles)})",
+                             f"{peaks.min()}..{peaks.max()}")
+        self._log(entity_path(METRICS, kind, "distances"), rr.BarChart(distances), static=static)
+        self._log(entity_path(LOGS, kind), rr.TextLog("peaks at " + ", ".join(f"{angles[i]:.0f} deg" for i in peaks)
+                                                       if peaks.size else "no peaks", level="DEBUG"), static=static)
 
     def _text(self, kind, data, static):
         text = _field(kind, data, "text")
