@@ -2,7 +2,7 @@
 
 Used for the pictures in ``docs/`` (``docs/recordings.md``, ``docs/correction.md``)::
 
-    python -m toolkit.viz.webshot OUT/recording.rrd docs/images/recording_overview.png --frame-wait 40
+    python -m toolkit.viz.webshot OUT/recording.rrd docs/images/recording_overview.png --wait 300
 
 Chromium is Debian's package (``scripts/setup.sh``), driven by Playwright's Python
 package (the test extra) with ``executable_path``; WebGL runs on SwiftShader
