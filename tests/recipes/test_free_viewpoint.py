@@ -190,3 +190,25 @@ def test_bad_dataset_is_a_clear_error(tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         recipe.main([str(tmp_path / "missing"), "--out", str(tmp_path / "o"), "--jpeg-quality", "0"])
     assert e.value.code == 2 and "--jpeg-quality" in capsys.readouterr().err
+
+
+def test_each_frame_is_decoded_once(dataset, tmp_path, monkeypatch):
+    """Stage 1 and the frame's stages read a camera's frame through one decoder (issue 16 item 4)."""
+    from collections import Counter
+
+    from toolkit.io import video
+
+    root, db_path = dataset
+    decoded = Counter()
+    original = video.VideoReader._decode_next
+
+    def counting(self):
+        decoded[(self.path.name, self._next)] += 1
+        return original(self)
+
+    monkeypatch.setattr(video.VideoReader, "_decode_next", counting)
+    rc = _load_recipe().main([str(root), "--out", str(tmp_path / "o"), "--db", str(db_path), "--foreground",
+                              "chroma", "--quiet", "--no-recording", "--no-optimize", "--no-baselines"])
+    assert rc == 0
+    assert len(decoded) == 2 * N_FRAMES  # every (camera, frame) was read
+    assert set(decoded.values()) == {1}, f"frames decoded more than once: {decoded}"

@@ -390,7 +390,12 @@ def estimate_from_keypoints(dataset, keypoints: str | os.PathLike, rig: Rig | No
     obs.report("text", name="stage1/keypoints", text=(
         f"keypoints {stage1.format}, cameras matched {stage1.matching}; offsets: "
         f"{stage1.sequence.offset_decision.reason}; silhouettes: {source}"))
-    readers = {c: VideoReader(dataset.video_path(c)) for c in names}
+    # a background model without a plate learns from a pass over the video on its own decoder; the frames
+    # themselves are read through the dataset, whose reader keeps the last one (the caller's
+    # dataset.frame(c, t) after this yields frame t decodes nothing again)
+    shared = getattr(dataset, "frame", None)  # a Dataset; any object with video_path() works too
+    readers = {c: VideoReader(dataset.video_path(c)) for c in names
+               if (source == "background" and c not in plates) or shared is None}
     try:
         extractors = seeded = None
         if source == "background":
@@ -407,7 +412,7 @@ def estimate_from_keypoints(dataset, keypoints: str | os.PathLike, rig: Rig | No
             images = {}
             for c in names:
                 try:
-                    images[c] = readers[c].read(t)
+                    images[c] = shared(c, t) if shared is not None else readers[c].read(t)
                 except (InputError, IndexError):
                     images[c] = None
                 if log_images and images[c] is not None:

@@ -467,11 +467,15 @@ def estimate_dataset(dataset, database: SilhouetteDatabase, config: Stage1Config
     if any(b <= a for a, b in zip(todo, todo[1:])) or (todo and not 0 <= todo[0] <= todo[-1] < dataset.n_frames):
         raise InputError("frames", f"increasing frame indices in [0, {dataset.n_frames})", f"{todo[:5]}...")
     estimator = SilhouettePoseEstimator(rig, database, config, observer)
-    readers = {c: VideoReader(dataset.video_path(c)) for c in names}
+    if backgrounds is None:  # the dataset's clean plates, where it has them
+        plate = getattr(dataset, "background", None)  # readers without clean plates have none
+        backgrounds = {} if plate is None else {c: [img] for c in names if (img := plate(c)) is not None}
+    # a background model without a plate learns from a pass over the video, on its own decoder; the frames
+    # themselves are read through the dataset, whose reader keeps the last one: the caller's
+    # dataset.frame(c, t) after this generator yields frame t decodes nothing again
+    shared = getattr(dataset, "frame", None)  # a Dataset; any object with video_path() works too
+    readers = {c: VideoReader(dataset.video_path(c)) for c in names if c not in backgrounds or shared is None}
     try:
-        if backgrounds is None:  # the dataset's clean plates, where it has them
-            plate = getattr(dataset, "background", None)  # readers without clean plates have none
-            backgrounds = {} if plate is None else {c: [img] for c in names if (img := plate(c)) is not None}
         extractors = {c: ForegroundExtractor(foreground).fit(backgrounds[c] if c in backgrounds else readers[c])
                       for c in names}
         ended: dict[str, bool] = {c: False for c in names}
@@ -486,7 +490,7 @@ def estimate_dataset(dataset, database: SilhouetteDatabase, config: Stage1Config
                 frame = None
                 if not ended[c]:
                     try:
-                        frame = readers[c].read(t)
+                        frame = shared(c, t) if shared is not None else readers[c].read(t)
                     except (InputError, IndexError) as e:
                         ended[c] = True
                         obs.report("text", name=f"{REPORT_PREFIX}/{c}", level="WARN", frame=t,
