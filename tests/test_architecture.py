@@ -23,11 +23,8 @@ MAX_RECIPE_FUNCTION_LINES = 60
 LONG_RECIPE_FUNCTIONS_ISSUE_16 = frozenset({
     "calibrate.run_extrinsics",
     "depth_tracking.main",
-    "optimize_joints.main",
     "pose_from_keypoints.parse_args",
     "pose_from_keypoints.run",
-    "pose_from_silhouettes.main",
-    "segment_parts.main",
 })
 
 
