@@ -23,7 +23,7 @@ from toolkit.silhouettes import BuildConfig, SilhouetteDatabase, build_database
 from toolkit.silhouettes.descriptor import STATE_NO_FRAME, STATE_OK
 from toolkit.silhouettes.pipeline import FRAME_OK, estimate_dataset
 from toolkit.skeleton import SKELETON_14
-from toolkit.synthetic.body import BodyModel
+from toolkit.body.model import BodyModel
 from toolkit.synthetic.render import Raycaster
 
 REPO = Path(__file__).resolve().parents[2]

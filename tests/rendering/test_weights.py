@@ -76,6 +76,19 @@ def test_back_faces_fade_and_mirrored_angle():
         grazing_fade(n, p, src[0], src, side="top")
 
 
+def test_foreshortening_ratio():
+    from toolkit.rendering import foreshortening
+
+    src = np.array([[5.0, 0.0, 1.0]])
+    p = np.zeros((1, 1, 3))
+    n = np.array([[[-1.0, 0.0, 0.0]]])  # any sign: turned towards the source
+    assert abs(foreshortening(n, p, src[0], src)[0, 0] - 1.0) < EXACT  # at the source
+    assert abs(foreshortening(n, p, np.array([-5.0, 0.0, 1.0]), src)[0, 0] + 1.0) < EXACT  # mirrored
+    a = np.radians(80.0)  # 80 degrees off the normal, the source on it: cos 80
+    r = foreshortening(n, p, np.array([5.0 * np.cos(a), 5.0 * np.sin(a), 0.0]), np.array([[5.0, 0.0, 0.0]]))
+    assert abs(r[0, 0] - np.cos(a)) < 1e-9
+
+
 def test_bad_input_is_named():
     with pytest.raises(InputError, match="anchors"):
         camera_weights(np.zeros(3), np.zeros(3), _rig_centres())

@@ -38,6 +38,9 @@ SMOOTHING_SIGMA_PX = 0.8
 SMOOTHING_BAND_PX = 0
 #: Colour jump (grey levels, largest channel) that makes a fan-to-fan or camera-switch border a discontinuity.
 SMOOTHING_MIN_JUMP = 24.0
+#: Colour weight of the back faces drawn under a part (``BlendConfig.back_underlay``), relative to the part's
+#: nearest billboard, for the back face with the best mirrored angle.
+BACK_UNDERLAY_WEIGHT = 0.3
 
 
 @dataclass(frozen=True)
@@ -57,6 +60,18 @@ class BlendConfig:
         Where a view sees every billboard of a part from behind, draw their back
         faces (the fallback that keeps the subject in reverse-angle views) instead
         of nothing.
+    grazing_front : bool
+        Where no billboard of a part passes the fade but the view sees some of
+        them from the front (edge-on, past the fade), draw those, the least
+        foreshortened one opaque, before any back face: they show the side of
+        the part the view sees, a back face shows the other side mirrored.
+    back_underlay : float
+        With ``back_faces``, draw the back faces the view sees under every
+        part, the billboards not drawn from the front: their colour weight
+        is this times their omega of the mirrored angle (relative to the best
+        back face), the part's nearest billboard's 1, so they fill the
+        part's outline where the billboards seen from the front do not reach
+        (0: off; :func:`toolkit.rendering.blend.fan_weights`).
     normalise_fade : bool
         Take each fan's nearest camera as the one with the largest
         ``omega * fade`` and divide the fan's fades by its fade, so the
@@ -114,6 +129,8 @@ class BlendConfig:
     fade_low: float = FADE_RATIO_LOW
     fade_high: float = FADE_RATIO_HIGH
     back_faces: bool = True
+    grazing_front: bool = True
+    back_underlay: float = BACK_UNDERLAY_WEIGHT
     normalise_fade: bool = True
     face_view: bool = True
     turn_free_deg: float = TURN_FREE_DEG
@@ -146,6 +163,8 @@ class BlendConfig:
                                  f"(part name in {tuple(LATERAL_JOINTS)}, ratio in (0, 1]) pairs", repr(entry))
         if not 0.0 <= self.thickness <= 2.0:
             raise InputError("BlendConfig.thickness", "a number of part depths in [0, 2]", repr(self.thickness))
+        if not 0.0 <= self.back_underlay <= 1.0:
+            raise InputError("BlendConfig.back_underlay", "a colour weight in [0, 1]", repr(self.back_underlay))
         if self.smoothing_band_px < 0:
             raise InputError("BlendConfig.smoothing_band_px", "a non-negative integer", repr(self.smoothing_band_px))
 

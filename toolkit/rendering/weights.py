@@ -116,14 +116,39 @@ def grazing_fade(normals: np.ndarray, points: np.ndarray, virtual_center: np.nda
     """
     if side not in ("front", "back"):
         raise InputError("grazing_fade: side", "'front' or 'back'", repr(side))
+    r = foreshortening(normals, points, virtual_center, source_centers) * (1.0 if side == "front" else -1.0)
+    fade = np.clip((r - low) / (high - low), 0.0, 1.0)
+    return np.where(r > 0, fade, 0.0)
+
+
+def foreshortening(normals: np.ndarray, points: np.ndarray, virtual_center: np.ndarray,
+                   source_centers: np.ndarray) -> np.ndarray:
+    """Ratio ``cos(angle to V) / cos(angle to the billboard's own source camera)`` of each billboard.
+
+    The angles are those between the billboard's normal, turned towards its
+    source camera, and the directions from its point to V and to that source:
+    1 at the source, 0 edge-on, negative when V is behind the plane (V sees
+    its back face; ``-1`` for V at the source mirrored through the plane).
+
+    Parameters
+    ----------
+    normals : ndarray of shape (F, C, 3)
+        Billboard normals (any sign).
+    points : ndarray of shape (F, C, 3)
+        A point on each billboard (metres).
+    virtual_center : ndarray of shape (3,)
+    source_centers : ndarray of shape (C, 3)
+
+    Returns
+    -------
+    ndarray of shape (F, C)
+        Dimensionless.
+    """
     n = _oriented(normals, points, source_centers)
     p = np.asarray(points, np.float64)
     cos_src = np.einsum("fck,fck->fc", n, _unit(np.asarray(source_centers, np.float64)[None] - p))
-    to_v = _unit(np.asarray(virtual_center, np.float64)[None, None] - p)
-    cos_v = np.einsum("fck,fck->fc", n, to_v) * (1.0 if side == "front" else -1.0)
-    r = cos_v / np.maximum(cos_src, 1e-6)
-    fade = np.clip((r - low) / (high - low), 0.0, 1.0)
-    return np.where(cos_v > 0, fade, 0.0)
+    cos_v = np.einsum("fck,fck->fc", n, _unit(np.asarray(virtual_center, np.float64)[None, None] - p))
+    return cos_v / np.maximum(cos_src, 1e-6)
 
 
 def _oriented(normals: np.ndarray, points: np.ndarray, source_centers: np.ndarray) -> np.ndarray:
