@@ -22,6 +22,8 @@ DISPLACEMENT = np.array([0.03, -0.035, 0.0])
 #: A 3 cm displacement that keeps the pose within the anthropometric rules (a start that breaks
 #: one must move, whatever the score says).
 FLAT_DISPLACEMENT = np.array([0.02, -0.02, 0.01])
+#: Stretch of the left forearm (share of its length) that breaks the 10 % symmetry rule with the right one.
+BREAKING_STRETCH = 0.2
 
 
 @pytest.fixture(scope="module")
@@ -114,3 +116,20 @@ def test_bad_config_and_position(scene):
     scorer = PositionScorer(scene.images, scene.labels, scene.rig)
     with pytest.raises(InputError, match="position"):
         scorer.move_evidence(scene.joints, WRIST, np.array([np.nan, 0.0, 0.0]))
+
+
+def test_a_start_that_breaks_a_rule_needs_evidence_too(scene):
+    """A stage-1 wrist that makes the forearm too long (asymmetric), on a flat score: the rules say
+    the wrist is wrong, not where it belongs, so it stays; the source's rule moves it anyway."""
+    flat = {c: np.full_like(im, 128) for c, im in scene.images.items()}
+    scorer = PositionScorer(flat, scene.labels, scene.rig)
+    start = scene.joints.copy()
+    start[WRIST] += BREAKING_STRETCH * (start[WRIST] - start[ELBOW])
+    cons = AnthropometricConstraints()
+    assert not cons.valid_positions(start, WRIST, start[WRIST][None], joint_rules_only=True)[0][0]
+    st = optimize_joint(scorer, start, WRIST, cons, anchor=start[WRIST].copy())
+    assert st.status in ("kept", "not_decisive") and np.array_equal(st.position, start[WRIST])
+    assert "breaks an anthropometric rule" in st.reason and np.isfinite(st.start_score) and st.start_score > 0
+    source = optimize_joint(scorer, start, WRIST, cons, OptimizeConfig(decisive=False), anchor=start[WRIST].copy())
+    assert source.status == "moved" and cons.valid_positions(start, WRIST, source.position[None],
+                                                             joint_rules_only=True)[0][0]

@@ -70,7 +70,12 @@ class OptimizeConfig:
         confirms it (rises by more than ``view_noise``) and at least ``min_pairs`` camera
         pairs each raise the joint's score (:meth:`PositionScorer.move_evidence`).
         A move that fails ends with status ``"not_decisive"`` and the joint
-        keeps its position.  False: the source's rule (the best candidate wins).
+        keeps its position.  This holds for a start that breaks an anthropometric
+        rule too: it is not a candidate, but it keeps its real score, so a move
+        away from it needs the margin and the evidence (the rules say the joint
+        is wrong, not where it belongs).  False: the source's rule (the best
+        candidate wins; a start that breaks a rule scores 0, so any valid
+        candidate replaces it).
     view_noise : float
         :data:`VIEW_NOISE`.
     min_pairs : int

@@ -44,7 +44,10 @@ class JointStep:
     position : ndarray of shape (3,)
         Accepted position, metres.
     score, start_score : float
-        Score after and before (0 for a start that breaks a constraint, NaN if unscorable).
+        Score after and before (NaN if unscorable; 0 for ``all_invalid``).  A start
+        that breaks a rule has its real score when moves must be decisive (a move
+        away from it needs the same margin and evidence as any other), 0 under the
+        source's rule (``decisive=False``: any valid candidate beats it).
     n_evaluations : int
         Position-score evaluations spent.
     n_rejected : int
@@ -167,27 +170,38 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
     start_valid, _ = joint_rule_reasons(cons, J, joint, x0[None])
     vis = {p: scorer.visibility(J, p) for p in scorer.adjacent_parts(joint)}
     start = scorer.joint_score(J, joint, vis)
+
+    def keep(status: str, why: str, score: float, n_rej: int = 0) -> JointStep:
+        """The joint stays at its start."""
+        if not start_valid[0]:
+            why += " (its start breaks an anthropometric rule; no decisive move obeys them)"
+        return JointStep(joint, x0, score, score, scorer.n_evaluations - n0, n_rej, status, why)
+
     if not np.isfinite(start):
         why = (f"{name}: kept: no camera pair sees its bones "
                f"({', '.join(sk.parts[p].name for p in scorer.adjacent_parts(joint))}): "
                "empty segments or edge-on billboards")
         obs.report("text", name="optimize/kept", text=why, frame=frame)
-        return JointStep(joint, x0, start, start, scorer.n_evaluations - n0, 0, "unscorable", why)
+        return keep("unscorable", why, start)
     n_views = int(np.any([(v.sum(axis=1) >= 2) for v in vis.values()], axis=0).sum()) if vis else 0
     if n_views < config.min_views:
         why = (f"{name}: kept: its bones are scored in {n_views} view(s), fewer than {config.min_views} "
                "(the cameras see each other's billboards edge-on)")
         obs.report("text", name="optimize/kept", text=why, frame=frame)
-        return JointStep(joint, x0, start, start, scorer.n_evaluations - n0, 0, "few_views", why)
+        return keep("few_views", why, start)
     n_pairs = _scoring_pairs(vis)
-    if config.decisive and n_pairs < config.min_pairs and start_valid[0]:
+    if config.decisive and n_pairs < config.min_pairs:
         # no move could be decisive: skip the search (two cameras: one pair, every view compares
         # the same two images)
         why = (f"{name}: kept: its bones are scored by {n_pairs} camera pair(s), a decisive move needs "
                f"{config.min_pairs}")
         obs.report("text", name="optimize/kept", text=why, frame=frame)
-        return JointStep(joint, x0, start, start, scorer.n_evaluations - n0, 0, "not_decisive", why)
-    start_score = start if start_valid[0] else 0.0
+        return keep("not_decisive", why, start)
+    # A start that breaks a rule is not a candidate, but with decisive moves it keeps its real
+    # score: the rules say the joint is wrong, not where it should be, so a move still needs the
+    # margin and the evidence (taking the best valid candidate, the source's rule, moved stage-1
+    # knees 3 cm the wrong way on zoo seed 13 z00: +7 % MPJPE, docs/stage3_billboards.md)
+    start_score = start if start_valid[0] or config.decisive else 0.0
     prior_w = config.prior_weight / config.prior_sigma_m ** 2 if anchor is not None else 0.0
 
     def penalty(p):
@@ -250,7 +264,7 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
     # one nearest the start, so that unobservable directions keep the previous estimate
     near = np.flatnonzero(S_valid >= S_valid.max() - config.tie_tol)
     b = int(near[np.argmin(np.linalg.norm(P[near] - x0, axis=1))])
-    if not start_valid[0]:  # a start that breaks a rule: any valid candidate is better
+    if not start_valid[0] and not config.decisive:  # the source's rule: any valid candidate is better
         return JointStep(joint, P[b].copy(), float(S[b]), start_score, n_eval, n_rej, "moved")
     if S_valid[b] > start_score - penalty(x0) + config.min_gain:
         why = decisive_reason(scorer, J, joint, P[b], vis, config) if config.decisive else ""
@@ -259,10 +273,8 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
                              "moved")
         why = f"{name}: kept: a gain of {S[b] - start_score:.3f} {why}"
         obs.report("text", name="optimize/kept", text=why, frame=frame)
-        return JointStep(joint, x0, start_score, start_score, scorer.n_evaluations - n0, n_rej, "not_decisive",
-                         why)
-    return JointStep(joint, x0, start_score, start_score, n_eval, n_rej, "kept",
-                     f"{name}: no candidate scores higher")
+        return keep("not_decisive", why, start_score, n_rej)
+    return keep("kept", f"{name}: no candidate scores higher", start_score, n_rej)
 
 
 def _scoring_pairs(visibility: dict) -> int:
