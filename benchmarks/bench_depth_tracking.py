@@ -51,7 +51,7 @@ from toolkit.depth import DepthTracker, track_sequence  # noqa: E402
 from toolkit.depth.evaluate import summarise  # noqa: E402
 from toolkit.motion import generate_motion  # noqa: E402
 from toolkit.skeleton import JOINTS_13  # noqa: E402
-from toolkit.synthetic.body import BodyModel  # noqa: E402
+from toolkit.body.model import BodyModel  # noqa: E402
 from toolkit.synthetic.depth_sensor import DepthCameraSpec, render_depth_sequence  # noqa: E402
 
 #: Camera placement per motion: (azimuth from the initial facing direction in degrees, distance in metres).

@@ -22,7 +22,7 @@ from toolkit.io import DatasetWriter
 from toolkit.motion import generate_motion
 from toolkit.silhouettes import BuildConfig, build_database
 from toolkit.skeleton import SKELETON_14
-from toolkit.synthetic.body import BodyModel
+from toolkit.body.model import BodyModel
 from toolkit.synthetic.render import Raycaster
 
 REPO = Path(__file__).resolve().parents[2]

@@ -10,7 +10,7 @@ import pytest
 
 from toolkit.anthropometry.proportions import BodyProportions
 from toolkit.motion import generate_motion
-from toolkit.synthetic.body import BodyModel
+from toolkit.body.model import BodyModel
 from toolkit.synthetic.depth_sensor import DepthCameraSpec, render_depth_sequence
 
 REPO_ROOT = Path(__file__).resolve().parents[2]

@@ -6,15 +6,15 @@ import numpy as np
 import pytest
 
 from toolkit.cameras import Camera
-from toolkit.depth.cloud import (
+from toolkit.pointcloud.cloud import (
     ViewFrame,
     depth_to_points,
     open3d_points_from_depth,
     principal_direction,
     user_cloud,
 )
-from toolkit.depth.mask import BackgroundModel, MaskConfig, user_mask
-from toolkit.depth.normals import grid_normals, normal_map
+from toolkit.pointcloud.mask import BackgroundModel, MaskConfig, user_mask
+from toolkit.pointcloud.normals import grid_normals, normal_map
 from toolkit.errors import InputError
 
 #: Back-projection agrees with Open3D to float32 rounding.

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from toolkit.depth.cloud import ViewFrame, user_cloud
+from toolkit.pointcloud.cloud import ViewFrame, user_cloud
 from toolkit.depth.complete import CompletionConfig, PointKalman, complete
 from toolkit.depth.constraints import (
     COLLISION_PAIRS,
@@ -22,7 +22,7 @@ from toolkit.depth.constraints import (
 )
 from toolkit.depth.curvature import curvature_centres
 from toolkit.depth.energy import EnergyConfig, Residuals, assign, fit_data
-from toolkit.depth.model import (
+from toolkit.body.control_points import (
     L_ELBOW,
     L_FOOT,
     L_HAND,
@@ -39,7 +39,7 @@ from toolkit.depth.model import (
     mirror13,
     rest_pose13,
 )
-from toolkit.depth.normals import normal_map
+from toolkit.pointcloud.normals import normal_map
 from toolkit.depth.orus import OrusConfig, build_orus
 from toolkit.depth.stabilise import Stabiliser, StabiliserConfig
 

@@ -6,13 +6,13 @@ from dataclasses import replace
 
 import numpy as np
 
-from toolkit.depth.cloud import ViewFrame, user_cloud
+from toolkit.pointcloud.cloud import ViewFrame, user_cloud
 from toolkit.depth.curvature import curvature_centres
 from toolkit.depth.energy import EnergyTerms, fit_data
 from toolkit.depth.fit import FitConfig, GlobalSearch, LocalFit, Move, fit_local
 from toolkit.depth.init import head_candidates, initial_poses, key_points, top_contour_peaks
-from toolkit.depth.model import HEAD, LENGTH_PAIRS, BodyDimensions
-from toolkit.depth.normals import normal_map
+from toolkit.body.control_points import HEAD, LENGTH_PAIRS, BodyDimensions
+from toolkit.pointcloud.normals import normal_map
 from toolkit.depth.orus import OrusConfig, build_orus
 from toolkit.depth.radial import radial_profile
 

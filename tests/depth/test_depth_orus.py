@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from tests.depth.conftest import make_sequence
 
-from toolkit.depth.cloud import ViewFrame, user_cloud
+from toolkit.pointcloud.cloud import ViewFrame, user_cloud
 from toolkit.depth.curvature import CONCAVE, CONVEX, PLANAR, curvature_centres
-from toolkit.depth.normals import normal_map
+from toolkit.pointcloud.normals import normal_map
 from toolkit.depth.orus import ORUS_BIN_SIZE_M, OrusConfig, build_orus
 from toolkit.depth.radial import radial_profile
 from toolkit.errors import InputError

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from toolkit.cameras import Camera
-from toolkit.depth.readers import (
+from toolkit.io.depth_readers import (
     KINECT_V1_FOCAL_PX,
     default_depth_camera,
     depth_intrinsics_text,

@@ -11,12 +11,12 @@ import pytest
 from recipes import depth_tracking
 from tests.depth.conftest import REPO_ROOT
 from toolkit.anthropometry.proportions import BodyProportions
-from toolkit.depth.cloud import ViewFrame
+from toolkit.pointcloud.cloud import ViewFrame
 from toolkit.depth.evaluate import plausibility
-from toolkit.depth.mask import user_mask
-from toolkit.depth.readers import default_depth_camera, list_depth_frames, read_depth
+from toolkit.pointcloud.mask import user_mask
+from toolkit.io.depth_readers import default_depth_camera, list_depth_frames, read_depth
 from toolkit.motion import generate_motion
-from toolkit.synthetic.body import BodyModel
+from toolkit.body.model import BodyModel
 from toolkit.synthetic.depth_sensor import DepthCameraSpec, render_depth_camera
 
 #: MPJPE the recipe must reach on the small synthetic dataset (8 standing frames, 320 x 240, noise).

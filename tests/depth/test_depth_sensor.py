@@ -7,12 +7,12 @@ import pytest
 
 from toolkit.anthropometry.proportions import BodyProportions
 from toolkit.cameras import Camera
-from toolkit.depth.readers import read_depth, read_depth_intrinsics
+from toolkit.io.depth_readers import read_depth, read_depth_intrinsics
 from toolkit.errors import InputError
 from toolkit.io import read_png
 from toolkit.motion import generate_motion
 from toolkit.skeleton import JOINTS_13, JOINTS_17, SKELETON_14
-from toolkit.synthetic.body import BodyModel
+from toolkit.body.model import BodyModel
 from toolkit.synthetic.depth_sensor import (
     KINECT_AXIAL_NOISE,
     KINECT_BASELINE_M,

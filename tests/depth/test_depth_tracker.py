@@ -7,7 +7,7 @@ import pytest
 from tests.depth.conftest import make_sequence, mpjpe
 
 from toolkit.depth.constraints import ConstraintConfig, constraint_violations
-from toolkit.depth.model import BodyDimensions
+from toolkit.body.control_points import BodyDimensions
 from toolkit.depth.tracker import LOST, RECOVERING, TRACKING, DepthTracker, TrackerConfig
 from toolkit.errors import InputError
 from toolkit.observe import RecordingObserver

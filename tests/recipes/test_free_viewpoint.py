@@ -25,7 +25,7 @@ from toolkit.io.frames import read_png
 from toolkit.motion import generate_motion
 from toolkit.silhouettes import BuildConfig, build_database
 from toolkit.skeleton import SKELETON_14
-from toolkit.synthetic.body import BodyModel
+from toolkit.body.model import BodyModel
 from toolkit.synthetic.render import Raycaster
 
 RERUN = Path(sys.executable).with_name("rerun")

@@ -26,7 +26,7 @@ from toolkit.io.openpose import write_openpose_json
 from toolkit.motion import generate_motion
 from toolkit.skeleton import SKELETON_14
 from toolkit.skeleton.mappings import from_skeleton14
-from toolkit.synthetic.body import BodyModel
+from toolkit.body.model import BodyModel
 from toolkit.synthetic.render import Raycaster
 
 REPO = Path(__file__).resolve().parents[2]

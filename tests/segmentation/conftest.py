@@ -11,7 +11,7 @@ import pytest
 from toolkit.anthropometry.proportions import BodyProportions
 from toolkit.cameras import Camera
 from toolkit.motion import generate_motion
-from toolkit.synthetic.body import BodyModel, BodyShape, dress
+from toolkit.body.model import BodyModel, BodyShape, dress
 
 
 @dataclass

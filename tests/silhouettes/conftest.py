@@ -9,7 +9,7 @@ from toolkit.anthropometry.proportions import BodyProportions
 from toolkit.cameras import Camera, Rig
 from toolkit.motion import generate_motion
 from toolkit.silhouettes import BuildConfig, build_database
-from toolkit.synthetic.body import BodyModel
+from toolkit.body.model import BodyModel
 from toolkit.synthetic.render import Raycaster
 
 #: A database of walking poses (2 people x 20 poses x 12 views x 2 mirror = 960 entries, ~2 s).

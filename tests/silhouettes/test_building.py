@@ -19,7 +19,7 @@ from toolkit.silhouettes import (
 )
 from toolkit.silhouettes.building import CACHE_ENV, subject_frame
 from toolkit.skeleton import SKELETON_14
-from toolkit.synthetic.body import BodyModel
+from toolkit.body.model import BodyModel
 
 TINY = BuildConfig(motions=("walk", "kick"), sequences_per_motion=1, frames_per_sequence=10, frame_stride=5,
                    views_per_pose=4)

@@ -45,6 +45,7 @@ __all__ = [
     "HAND_HALF_LENGTH",
     "HEAD",
     "HEAD_CENTRE_UP",
+    "INDEX",
     "LENGTH_BOUNDS",
     "LENGTH_NAMES",
     "LENGTH_PAIRS",
@@ -69,9 +70,13 @@ __all__ = [
     "rest_pose13",
 ]
 
-(HEAD, L_SHOULDER, R_SHOULDER, L_ELBOW, R_ELBOW, L_HAND, R_HAND, L_HIP, R_HIP, L_KNEE, R_KNEE, L_FOOT,
- R_FOOT) = range(13)
-N_POINTS = 13
+#: Index of each control point, from the skeleton data (:data:`toolkit.skeleton.JOINTS_13`), not by hand.
+INDEX = {name: i for i, name in enumerate(JOINTS_13)}
+HEAD, L_SHOULDER, R_SHOULDER = INDEX["head"], INDEX["l_shoulder"], INDEX["r_shoulder"]
+L_ELBOW, R_ELBOW, L_HAND, R_HAND = INDEX["l_elbow"], INDEX["r_elbow"], INDEX["l_hand"], INDEX["r_hand"]
+L_HIP, R_HIP, L_KNEE, R_KNEE = INDEX["l_hip"], INDEX["r_hip"], INDEX["l_knee"], INDEX["r_knee"]
+L_FOOT, R_FOOT = INDEX["l_foot"], INDEX["r_foot"]
+N_POINTS = len(JOINTS_13)
 
 #: Head centre above the head joint of the 14-joint skeleton, fraction of s = stature / 1.75.
 HEAD_CENTRE_UP = 0.02

@@ -7,14 +7,9 @@ resolution.  Stages, one module each:
 =================  ============================================================
 module             stage
 =================  ============================================================
-``readers``        depth files (16-bit PNG, raw uint16, Open3D images) and intrinsics
-``cloud``          depth to points, the gravity-aligned view frame, centroid, PCA
-``mask``           the user mask (given, or background model + components)
-``normals``        normal maps from depth gradients with a 3 x 3 kernel
 ``orus``           the orthographic user grid (fixed bin size)
 ``curvature``      curvature centres and osculating spheres
 ``radial``         the radial-distance profile and its peaks
-``model``          the 13 control points, body primitives and dimensions
 ``init``           the initial pose (key points, head candidates, back-tracking)
 ``primitives``     the body primitives (capsules, spheres, torso) and distances to them
 ``energy``         the fitting energy as stacked residual blocks
@@ -27,22 +22,27 @@ module             stage
 ``evaluate``       scores against ground truth, plausibility, pictures
 =================  ============================================================
 
+Shared with other systems and re-exported here: depth files and intrinsics
+(:mod:`toolkit.io.depth_readers`), depth to points, the view frame, the user
+mask and normal maps (:mod:`toolkit.pointcloud`), the 13 control points, body
+primitives' radii and dimensions (:mod:`toolkit.body.control_points`).
+
 See ``docs/depth_tracking.md``.
 """
 
-from toolkit.depth.cloud import ViewFrame, depth_to_points, principal_direction, user_cloud
+from toolkit.pointcloud.cloud import ViewFrame, depth_to_points, principal_direction, user_cloud
 from toolkit.depth.complete import CompletionConfig, PointKalman, complete
 from toolkit.depth.constraints import ConstraintConfig, LengthEstimator, constraint_violations
 from toolkit.depth.curvature import CONCAVE, CONVEX, PLANAR, CurvatureConfig, curvature_centres
 from toolkit.depth.energy import EnergyConfig, fit_data
 from toolkit.depth.fit import FitConfig, GlobalSearch, fit_local, levenberg_marquardt
 from toolkit.depth.init import InitConfig
-from toolkit.depth.mask import BackgroundModel, MaskConfig, user_mask
-from toolkit.depth.model import BodyDimensions, control_points, rest_pose13
-from toolkit.depth.normals import grid_normals, normal_map
+from toolkit.pointcloud.mask import BackgroundModel, MaskConfig, user_mask
+from toolkit.body.control_points import BodyDimensions, control_points, rest_pose13
+from toolkit.pointcloud.normals import grid_normals, normal_map
 from toolkit.depth.orus import ORUS_BIN_SIZE_M, OrusConfig, OrusGrid, build_orus
 from toolkit.depth.radial import RadialConfig, radial_profile
-from toolkit.depth.readers import (
+from toolkit.io.depth_readers import (
     KINECT_V1_FOCAL_PX,
     DepthCameraInfo,
     DepthInput,

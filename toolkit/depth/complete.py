@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from toolkit.depth.constraints import enforce_joint_limits
-from toolkit.depth.model import (
+from toolkit.body.control_points import (
     HEAD,
     L_ELBOW,
     L_FOOT,

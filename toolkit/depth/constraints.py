@@ -6,7 +6,7 @@
   shoulders) is isosceles with the head above the middle of the shoulders;
   the legs do not cross (each knee and foot stays on its side of the other
   along the hip line, within ``crossing_margin_m``).
-* **Geometric**: each :data:`~toolkit.depth.model.LENGTH_PAIRS` distance near
+* **Geometric**: each :data:`~toolkit.body.control_points.LENGTH_PAIRS` distance near
   its expected length (soft, ``length_sigma_m``) and inside its anthropometric
   bounds (hard, :func:`enforce_lengths`); the expected lengths are refined over
   time by a running average of reliable frames (:class:`LengthEstimator`).
@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from toolkit.depth.model import (
+from toolkit.body.control_points import (
     HEAD,
     L_ELBOW,
     L_FOOT,

@@ -43,10 +43,10 @@ from functools import cached_property
 import cv2
 import numpy as np
 
-from toolkit.depth.cloud import ViewFrame
+from toolkit.pointcloud.cloud import ViewFrame
 from toolkit.depth.constraints import ConstraintConfig, constraint_residuals
 from toolkit.depth.curvature import PLANAR, CurvatureResult
-from toolkit.depth.model import (
+from toolkit.body.control_points import (
     HEAD,
     L_ELBOW,
     L_FOOT,

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from toolkit.depth.cloud import ViewFrame
-from toolkit.depth.model import (
+from toolkit.pointcloud.cloud import ViewFrame
+from toolkit.body.control_points import (
     HEAD,
     L_ELBOW,
     L_HAND,

@@ -37,7 +37,7 @@ from toolkit.depth.energy import (
     assign,
     unexplained_penalty,
 )
-from toolkit.depth.model import N_POINTS, BodyDimensions
+from toolkit.body.control_points import N_POINTS, BodyDimensions
 from toolkit.observe import as_observer
 
 __all__ = ["FitConfig", "GlobalSearch", "LocalFit", "Move", "MoveRecord", "fit_local", "levenberg_marquardt"]

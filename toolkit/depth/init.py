@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.cluster.vq import kmeans2
 
-from toolkit.depth.model import (
+from toolkit.body.control_points import (
     HEAD,
     L_ELBOW,
     L_FOOT,

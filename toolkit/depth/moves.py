@@ -29,10 +29,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from toolkit.depth.cloud import principal_direction
+from toolkit.pointcloud.cloud import principal_direction
 from toolkit.depth.fit import Move
 from toolkit.depth.init import head_candidates, initial_poses, key_points
-from toolkit.depth.model import (
+from toolkit.body.control_points import (
     HEAD,
     L_ELBOW,
     L_FOOT,

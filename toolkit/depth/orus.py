@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from toolkit.depth.normals import grid_normals
+from toolkit.pointcloud.normals import grid_normals
 from toolkit.errors import InputError
 
 __all__ = ["ORUS_BIN_SIZE_M", "OrusConfig", "OrusGrid", "build_orus"]

@@ -1,7 +1,7 @@
 """Body primitives of the fitting energy and the distances of points to them.
 
-The body around the 13 control points (:mod:`toolkit.depth.model`) is made of
-8 tapered limb capsules (:data:`~toolkit.depth.model.LIMBS`), 5 end spheres
+The body around the 13 control points (:mod:`toolkit.body.control_points`) is made of
+8 tapered limb capsules (:data:`~toolkit.body.control_points.LIMBS`), 5 end spheres
 (head, hands, feet) and an elliptic cylinder on the torso patch whose
 half-width follows the shoulder and hip spans (plus the flesh beyond the
 joints) and whose half-depth is a fraction of stature; primitive ``k`` is
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from toolkit.depth.model import (
+from toolkit.body.control_points import (
     END_SPHERES,
     L_HIP,
     L_SHOULDER,

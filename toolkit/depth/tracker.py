@@ -34,7 +34,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from toolkit.cameras import Camera
-from toolkit.depth.cloud import ViewFrame, user_cloud
+from toolkit.pointcloud.cloud import ViewFrame, user_cloud
 from toolkit.depth.complete import PointKalman, complete
 from toolkit.depth.constraints import (
     LengthEstimator,
@@ -52,10 +52,10 @@ from toolkit.depth.init import (
     key_points,
     top_contour_peaks,
 )
-from toolkit.depth.mask import BackgroundModel, user_mask
-from toolkit.depth.model import END_SPHERES, LIMBS, N_POINTS
+from toolkit.pointcloud.mask import BackgroundModel, user_mask
+from toolkit.body.control_points import END_SPHERES, LIMBS, N_POINTS
 from toolkit.depth.moves import MoveContext, default_moves
-from toolkit.depth.normals import normal_map
+from toolkit.pointcloud.normals import normal_map
 from toolkit.depth.orus import build_orus
 from toolkit.depth.radial import radial_profile
 from toolkit.depth.stabilise import Stabiliser

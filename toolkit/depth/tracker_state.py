@@ -12,7 +12,7 @@ from toolkit.depth.curvature import CurvatureConfig
 from toolkit.depth.energy import EnergyConfig
 from toolkit.depth.fit import FitConfig
 from toolkit.depth.init import InitConfig
-from toolkit.depth.mask import MaskConfig
+from toolkit.pointcloud.mask import MaskConfig
 from toolkit.depth.orus import OrusConfig
 from toolkit.depth.radial import RadialConfig
 from toolkit.depth.stabilise import StabiliserConfig

@@ -36,7 +36,7 @@ import numpy as np
 
 from toolkit.cameras import Camera
 from toolkit.errors import InputError
-from toolkit.io import mm_to_depth, read_png
+from toolkit.io.frames import mm_to_depth, read_png
 from toolkit.io.frames import DEPTH_UNITS_PER_METRE
 
 __all__ = [

@@ -243,7 +243,7 @@ def user_cloud(depth: np.ndarray, mask: np.ndarray, frame: ViewFrame, normals: n
         User pixels.
     frame : ViewFrame
     normals : ndarray of shape (H, W, 3), optional
-        Camera-frame normal map (see :func:`toolkit.depth.normals.normal_map`).
+        Camera-frame normal map (see :func:`toolkit.pointcloud.normals.normal_map`).
     border_px : int
         Mask pixels this close to an image side count as touching it.
     with_pca : bool

@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 
 from toolkit.cameras import Camera
-from toolkit.depth.cloud import _check_depth
+from toolkit.pointcloud.cloud import _check_depth
 from toolkit.errors import InputError
 
 __all__ = ["BackgroundModel", "MaskConfig", "UserMask", "user_mask"]

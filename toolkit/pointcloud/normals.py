@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 
 from toolkit.cameras import Camera
-from toolkit.depth.cloud import _check_depth, pixel_rays
+from toolkit.pointcloud.cloud import _check_depth, pixel_rays
 from toolkit.errors import InputError
 
 __all__ = ["NORMAL_MAX_JUMP_M", "SOBEL_X", "SOBEL_Y", "grid_normals", "normal_map"]

@@ -2,7 +2,7 @@
 
 For each pose (frames of the procedural motions of :mod:`toolkit.motion`,
 several seeded sequences per motion, and of any BVH file), the body of
-:mod:`toolkit.synthetic.body` is posed once and seen from many virtual
+:mod:`toolkit.body.model` is posed once and seen from many virtual
 cameras around it: azimuths stratified over the full circle relative to the
 subject's facing, elevations in 0-35 degrees, distances from studio to
 broadcast range (log-uniform in 4-40 m) with the focal length chosen so the
@@ -45,7 +45,7 @@ from toolkit.silhouettes.descriptor import (
 )
 from toolkit.skeleton import SKELETON_14
 from toolkit.skeleton.mappings import CMU_BVH_TO_14, SKELETON14_BVH_TO_14
-from toolkit.synthetic.body import BodyModel
+from toolkit.body.model import BodyModel
 
 #: Subject stature in pixels in the virtual views (the 40-cell grid gets about 3 pixels per cell).
 SUBJECT_HEIGHT_PX = 120.0
@@ -95,7 +95,7 @@ class BuildConfig:
     with_flow : bool
         Store optical-flow descriptors (costs a second mesh per pose).
     mesh_detail : float
-        Body tessellation (:class:`toolkit.synthetic.body.BodyModel`).
+        Body tessellation (:class:`toolkit.body.model.BodyModel`).
     bvh_frame_stride : int
         One pose every this many frames of each BVH file (at ``fps``).
     """

@@ -1,6 +1,6 @@
 """Synthetic multi-camera scenes of a moving person with exact ground truth."""
 
-from toolkit.synthetic.body import BodyMesh, BodyModel, BodyShape
+from toolkit.body.model import BodyMesh, BodyModel, BodyShape
 from toolkit.synthetic.environment import make_environment
 from toolkit.synthetic.generator import Scene, build_scene, generate_scene
 from toolkit.synthetic.render import Raycaster, RaycastRenderer, SceneRenderer

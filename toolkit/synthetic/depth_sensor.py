@@ -3,7 +3,7 @@
 A scene spec with a ``[depth_camera]`` table makes the generator call
 :func:`render_depth_camera`, which writes::
 
-    <root>/depth_camera/intrinsics.toml        K, size, cam_from_world (see toolkit.depth.readers)
+    <root>/depth_camera/intrinsics.toml        K, size, cam_from_world (see toolkit.io.depth_readers)
     <root>/depth_camera/depth/NNNNNN.png       uint16 millimetres, 0 = no reading
     <root>/depth_camera/background.png         the empty scene seen by the sensor (same noise)
     <root>/groundtruth/skeleton13.npz          joints (T, 13, 3) metres, world; names (13,); visible (T, 13)
@@ -31,7 +31,7 @@ for free) and then degraded like a structured-light sensor:
 5. readings outside :data:`KINECT_RANGE_M` are 0.
 
 Control points of the depth skeletons (source 001, figure 1) are derived from the
-14-joint skeleton and the body geometry of :class:`toolkit.synthetic.body.BodyModel`:
+14-joint skeleton and the body geometry of :class:`toolkit.body.model.BodyModel`:
 
 =============================  ==========================================================
 control point                  definition
@@ -49,7 +49,7 @@ feet (17)                      the tip of the toes: foot centre ``+ 0.125 s w``
 with ``s = stature / 1.75``, ``up`` the neck-to-head direction, ``f`` the
 elbow-to-wrist direction, ``d`` the knee-to-ankle direction and ``w`` the foot's
 forward direction, exactly as the body mesh is built (the constants live in
-:mod:`toolkit.depth.model` and mirror ``BodyModel.mesh``; a test checks them
+:mod:`toolkit.body.control_points` and mirror ``BodyModel.mesh``; a test checks them
 against the mesh).
 """
 
@@ -63,7 +63,7 @@ import numpy as np
 
 from toolkit.anthropometry.proportions import BodyProportions
 from toolkit.cameras import Camera, Rig
-from toolkit.depth.model import control_points
+from toolkit.body.control_points import control_points
 from toolkit.errors import InputError
 from toolkit.io import (
     atomic_save_npz,
@@ -303,7 +303,7 @@ def make_second_person(spec: SecondPerson, subject_joints: np.ndarray, fps: floa
     joints : ndarray of shape (T, 14, 3)
     """
     from toolkit.motion import generate_motion
-    from toolkit.synthetic.body import BodyModel
+    from toolkit.body.model import BodyModel
 
     rng = np.random.default_rng(rng)
     S = np.asarray(subject_joints, float)
@@ -524,7 +524,7 @@ def render_depth_camera(root: str | Path, spec: DepthCameraSpec, body_model, joi
     -------
     DepthCameraOutput
     """
-    from toolkit.depth.readers import depth_intrinsics_text
+    from toolkit.io.depth_readers import depth_intrinsics_text
 
     root = Path(root)
     rng = np.random.default_rng(rng)

@@ -29,7 +29,7 @@ from toolkit.io import DatasetWriter, atomic_write_text
 from toolkit.motion import generate_motion, motion_from_bvh
 from toolkit.observe import Observer, as_observer
 from toolkit.skeleton import SKELETON_14
-from toolkit.synthetic.body import BodyMesh, BodyModel, BodyShape, dress
+from toolkit.body.model import BodyMesh, BodyModel, BodyShape, dress
 from toolkit.synthetic.depth_sensor import DepthCameraOutput, DepthCameraSpec, render_depth_camera
 from toolkit.synthetic.environment import BACKGROUND_COLOUR, SURROUNDING_COLOURS, field_model, make_environment
 from toolkit.synthetic.render import Raycaster, RaycastRenderer, SceneRenderer

@@ -21,7 +21,7 @@ from open3d.visualization import rendering
 
 from toolkit.cameras import Camera
 from toolkit.errors import InputError
-from toolkit.synthetic.body import BodyMesh
+from toolkit.body.model import BodyMesh
 from toolkit.synthetic.environment import Surface
 
 #: Geometry id of the body in the ray caster's answers (surfaces follow).

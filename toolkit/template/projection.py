@@ -1,6 +1,6 @@
 """The pre-segmented body template, posed and projected (source 000 §2.2-2.3).
 
-The template is the synthetic body's volumes (:class:`toolkit.synthetic.body.BodyModel`
+The template is the synthetic body's volumes (:class:`toolkit.body.model.BodyModel`
 with a generic, average shape) whose triangles carry part ids.  Posed on a 3D
 pose, it is ray cast in a camera into a part-label image and a depth image.
 
@@ -31,7 +31,7 @@ from toolkit.anthropometry.proportions import BodyProportions
 from toolkit.cameras import Camera
 from toolkit.errors import InputError
 from toolkit.skeleton import SKELETON_14
-from toolkit.synthetic.body import BodyModel, BodyShape
+from toolkit.body.model import BodyModel, BodyShape
 
 #: Thinning / thickening radius as a fraction of the subject's image height
 #: (measured, see docs/stage2_segmentation.md): 0.01 = 2 px on a 200 px subject.
@@ -103,7 +103,7 @@ class Template:
     height : float
         Stature of the template body, metres (its part radii scale with it).
     detail : float
-        Mesh tessellation (see :class:`toolkit.synthetic.body.BodyModel`).
+        Mesh tessellation (see :class:`toolkit.body.model.BodyModel`).
     """
 
     def __init__(self, height: float = 1.75, detail: float = TEMPLATE_DETAIL):
@@ -113,7 +113,7 @@ class Template:
         self.model = BodyModel(BodyShape(BodyProportions.from_height(self.height)), rng=0, detail=detail)
 
     def mesh(self, joints3d: np.ndarray):
-        """The template posed on ``joints3d`` (14, 3): a :class:`toolkit.synthetic.body.BodyMesh`."""
+        """The template posed on ``joints3d`` (14, 3): a :class:`toolkit.body.model.BodyMesh`."""
         return self.model.mesh(joints3d)
 
     def render(self, joints3d: np.ndarray, camera: Camera, margin_px: int = 4) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,20 @@
+"""Point clouds from depth maps, the generic half every point-cloud system starts from.
+
+* :mod:`toolkit.pointcloud.cloud` -- depth to points, the gravity-aligned view
+  frame, centroid and principal direction, the user's cloud, Open3D point clouds;
+* :mod:`toolkit.pointcloud.mask` -- the user mask (given, or a background model
+  and connected components);
+* :mod:`toolkit.pointcloud.normals` -- normal maps from depth gradients.
+
+Depth files and the depth camera's intrinsics are read by :mod:`toolkit.io.depth_readers`.
+The depth tracker (:mod:`toolkit.depth`) builds on these; so will the soft-body
+and marker systems.
+"""
+
+from toolkit.pointcloud.cloud import (UserCloud, ViewFrame, depth_to_points, pixel_rays, principal_direction,
+                                      to_open3d_pointcloud, user_cloud)
+from toolkit.pointcloud.mask import BackgroundModel, MaskConfig, UserMask, user_mask
+from toolkit.pointcloud.normals import grid_normals, normal_map
+
+__all__ = ["BackgroundModel", "MaskConfig", "UserCloud", "UserMask", "ViewFrame", "depth_to_points", "grid_normals",
+           "normal_map", "pixel_rays", "principal_direction", "to_open3d_pointcloud", "user_cloud", "user_mask"]
