@@ -23,8 +23,6 @@ MAX_RECIPE_FUNCTION_LINES = 60
 LONG_RECIPE_FUNCTIONS_ISSUE_16 = frozenset({
     "calibrate.run_extrinsics",
     "depth_tracking.main",
-    "pose_from_keypoints.parse_args",
-    "pose_from_keypoints.run",
 })
 
 

@@ -225,3 +225,28 @@ def test_pose2sim_static_trial_is_not_mirrored(tmp_path):
     mirrored = np.concatenate([np.linalg.norm(joints[:, JOINTS_14.index(a)] - theirs[:, names.index(
         ("R" if b[0] == "L" else "L") + b[1:])], axis=-1) for a, b in pairs])
     assert np.nanmedian(mirrored) > 10 * np.nanmedian(d)
+
+
+def test_config_file_flags_win_unknown_keys_rejected(tmp_path, capsys):
+    _, poses, kp_root = make_scene(tmp_path, n_frames=3)
+    cfg = tmp_path / "run.toml"
+    cfg.write_text('export = ["csv"]\nflips = []\noffsets = "frame"\nfilter_cutoff = 6.0\nfps = 25.0\n')
+    out = tmp_path / "out"
+    assert run(["--calibration", tmp_path / "calib.toml", "--keypoints", kp_root, "--out", out, "--quiet",
+                "--no-recording", "--config", cfg, "--offsets", "none"]) == 0
+    assert sorted(p.name for p in out.glob("poses3d*.*")) == ["poses3d.csv", "poses3d.json", "poses3d.npz",
+                                                              "poses3d_filt_butterworth.csv"]
+    assert str(np.load(out / "offsets.npz")["mode"]) == "none"            # the flag won over the file
+    meta = json.loads((out / "poses3d.json").read_text())
+    ident = meta["run"]["config"]
+    assert ident["flips"] == [] and ident["offsets"] == "none" and ident["export"] == ["csv"]
+    assert "progress" not in ident and "recording" not in ident           # runtime options: not the identity
+    assert np.linalg.norm(np.load(out / "poses3d.npz")["joints"][:2] - poses[:2], axis=-1).mean() < SYNTHETIC_MPJPE_M
+    cfg.write_text('offset = "frame"\n')
+    assert run(["--calibration", tmp_path / "calib.toml", "--keypoints", kp_root, "--out", tmp_path / "o2",
+                "--quiet", "--config", cfg]) == 2
+    err = capsys.readouterr().err
+    assert str(cfg) in err and "offset" in err and "offsets" in err
+    assert run(["--calibration", tmp_path / "calib.toml", "--keypoints", kp_root, "--out", tmp_path / "o3",
+                "--quiet", "--export", "trc,pdf"]) == 2
+    assert "--export" in capsys.readouterr().err

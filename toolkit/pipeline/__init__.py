@@ -7,6 +7,8 @@ silhouette database), with silhouettes given, from clean plates, or seeded by th
 from them, per-frame records, :class:`~toolkit.pipeline.run.RunResult`.
 :mod:`toolkit.pipeline.free_viewpoint` -- the articulated-billboard system's run (``run(config, dataset=,
 out=)``), which ``recipes/free_viewpoint.py`` calls.
+:mod:`toolkit.pipeline.pose_from_keypoints` -- a detector's keypoints triangulated (one person or
+every person found), which ``recipes/pose_from_keypoints.py`` calls.
 """
 
 from toolkit.pipeline.keypoints import (SILHOUETTE_SOURCES, KeypointStage1, KeypointStage1Config,
