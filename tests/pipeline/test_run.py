@@ -46,7 +46,7 @@ def test_config_from_dict_nested_tables_paths_tuples():
 def test_unknown_keys_are_rejected_with_where_and_the_known_ones():
     with pytest.raises(InputError) as e:
         config_from_dict(Outer, {"inner": {"step": 0.5}}, where="f.toml")
-    assert "f.toml.inner" in str(e.value) and "step" in str(e.value) and "step_m" in str(e.value)
+    assert "f.toml: inner.step" in str(e.value) and "step_m" in str(e.value)  # the key at fault, the known ones
     with pytest.raises(InputError, match="a table of Inner"):
         config_from_dict(Outer, {"inner": 3}, where="f.toml")
 
@@ -94,3 +94,14 @@ def test_open_run_identity_from_config_names_what_differs(tmp_path):
     other = replace(c, frame=replace(c.frame, optimize=False))
     with pytest.raises(InputError, match=r"config\.frame\.optimize"):
         open_run(out, "free_viewpoint", ds, other, 2, exclude=c.RUNTIME, log=None)
+
+
+def test_config_from_dict_tuples_of_tables_and_nested_arrays():
+    from toolkit.silhouettes import Stage1Config
+
+    # nested configs, a tuple of (camera, px) pairs, a tuple of joint-limit tables
+    c = Stage1Config().with_refined_cameras(["a", "b"])
+    back = config_from_dict(Stage1Config, json.loads(json.dumps(config_identity(c))))  # as TOML gives it
+    assert back == c and back.multiview.camera_offset_prior_px == (("a", 1.5), ("b", 1.5))
+    with pytest.raises(InputError, match=r"camera_offset_prior_px"):
+        config_from_dict(Stage1Config, {"multiview": {"camera_offset_prior_px": [["a", 1.0]], "nope": 1}})

@@ -210,3 +210,24 @@ def test_recipe_with_the_flow_term(tiny_dataset, tmp_path):
     assert rc == 0
     with np.load(out / "poses3d.npz") as z:
         assert np.all(z["state"] == FRAME_OK) and np.isfinite(z["joints"]).all()
+
+
+def test_recipe_config_file_and_run_identity(tiny_dataset, small_db_path, tmp_path, capsys):
+    """--config: the estimator's options from TOML tables (flags win); another run's folder is refused."""
+    recipe = load_recipe("pose_from_silhouettes")
+    cfg = tmp_path / "stage1.toml"
+    cfg.write_text('foreground = "chroma"\nmax_frames = 2\n[stage1.query]\nk = 2\n')
+    out = tmp_path / "out"
+    args = [str(tiny_dataset.root), "--out", str(out), "--db", str(small_db_path), "--config", str(cfg),
+            "--no-recording", "--quiet"]
+    assert recipe.main(args) == 0
+    with np.load(out / "poses2d.npz") as z:
+        assert z["candidates"].shape == (2, 2, 2, 14, 2)  # max_frames and k from the file
+    assert recipe.main(args + ["--k", "3"]) == 2  # other options: OUT holds another run's results
+    assert "stage1.query.k" in capsys.readouterr().err
+    assert recipe.main(args + ["--k", "3", "--replace-stale"]) == 0
+    assert (tmp_path / "out.stale-1" / "poses3d.npz").is_file()
+    with np.load(out / "poses2d.npz") as z:
+        assert z["candidates"].shape[2] == 3
+    cfg.write_text('[stage1.query]\nkk = 2\n')
+    assert recipe.main(args) == 2 and "kk" in capsys.readouterr().err

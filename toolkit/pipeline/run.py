@@ -99,6 +99,21 @@ def _dataclass_in(tp):
     return None
 
 
+def _tuple_item(tp):
+    """The item type of ``tuple[X, ...]`` (or of ``tuple[X, ...] | None``), else None."""
+    for t in (tp, *(typing.get_args(tp) if typing.get_origin(tp) in (typing.Union, types.UnionType) else ())):
+        if typing.get_origin(t) is tuple:
+            args = typing.get_args(t)
+            if len(args) == 2 and args[1] is Ellipsis:
+                return args[0]
+    return None
+
+
+def _tuples(value):
+    """Lists (nested ones included) as tuples: TOML arrays for tuple-valued options."""
+    return tuple(_tuples(v) for v in value) if isinstance(value, list) else value
+
+
 def _allows(tp, kind) -> bool:
     """Whether annotation ``tp`` admits ``kind`` (e.g. ``Path | None`` admits Path)."""
     if tp is kind:
@@ -106,11 +121,17 @@ def _allows(tp, kind) -> bool:
     return typing.get_origin(tp) in (typing.Union, types.UnionType) and kind in typing.get_args(tp)
 
 
+def _key(where: str, key: str) -> str:
+    """``FILE: table.key``: where a key of a (nested) table is, for errors."""
+    return f"{where}.{key}" if ": " in where else f"{where}: {key}"
+
+
 def config_from_dict(cls, data: dict, *, where: str = "config"):
     """A config dataclass from plain data (a parsed TOML table); unknown keys rejected.
 
-    Nested dataclass fields take nested tables; fields annotated ``Path``
-    take strings; lists become tuples where the default is a tuple.  Values
+    Nested dataclass fields take nested tables (a tuple of dataclasses an
+    array of tables); fields annotated ``Path`` take strings; lists (nested
+    ones included) become tuples where the field is a tuple.  Values
     are checked by the dataclass itself (its ``__post_init__``).
 
     Parameters
@@ -118,7 +139,8 @@ def config_from_dict(cls, data: dict, *, where: str = "config"):
     cls : dataclass type
     data : dict
     where : str
-        Where the data came from (a file and table), named in errors.
+        Where the data came from (a file), named in errors with the key at
+        fault (``FILE: table.key``).
 
     Returns
     -------
@@ -135,20 +157,25 @@ def config_from_dict(cls, data: dict, *, where: str = "config"):
     flds = {f.name: f for f in dataclasses.fields(cls) if f.init}
     unknown = sorted(set(data) - set(flds))
     if unknown:
-        raise InputError(where, f"options of {cls.__name__}: {sorted(flds)}", f"unknown key(s) {unknown}")
+        raise InputError(_key(where, unknown[0]) if len(unknown) == 1 else where,
+                         f"options of {cls.__name__}: {sorted(flds)}", f"unknown key(s) {unknown}")
     hints = _field_types(cls)
     kwargs = {}
     for k, v in data.items():
         tp = hints.get(k)
         sub = _dataclass_in(tp)
         if sub is not None and isinstance(v, dict):
-            kwargs[k] = config_from_dict(sub, v, where=f"{where}.{k}")
+            kwargs[k] = config_from_dict(sub, v, where=_key(where, k))
         elif sub is not None and v is not None:
-            raise InputError(f"{where}.{k}", f"a table of {sub.__name__} options", repr(v))
+            raise InputError(_key(where, k), f"a table of {sub.__name__} options", repr(v))
         elif isinstance(v, str) and (_allows(tp, Path) or tp is Path):
             kwargs[k] = Path(v)
-        elif isinstance(v, list) and isinstance(flds[k].default, tuple):
-            kwargs[k] = tuple(v)
+        elif isinstance(v, list) and dataclasses.is_dataclass(item := _tuple_item(tp)):
+            # an array of tables for a tuple of configs (e.g. joint limits)
+            kwargs[k] = tuple(config_from_dict(item, x, where=_key(where, f"{k}[{i}]")) for i, x in enumerate(v))
+        elif isinstance(v, list) and (isinstance(flds[k].default, tuple) or _tuple_item(tp) is not None
+                                      or typing.get_origin(tp) is tuple):
+            kwargs[k] = _tuples(v)
         else:
             kwargs[k] = v
     try:

@@ -1,0 +1,247 @@
+"""Stage 1 from silhouettes as a run: 2D poses, 3D joints and offsets of a whole dataset.
+
+:func:`run` is what ``recipes/pose_from_silhouettes.py`` calls (its docstring
+lists the outputs).  Per frame: foreground silhouettes per camera -> the k
+best database silhouettes per view -> multi-view selection with per-view 2D
+offsets (:func:`toolkit.silhouettes.pipeline.estimate_dataset`).  The stacked
+arrays are written every :data:`CHECKPOINT_FRAMES` frames and when the run
+ends, also when it stops early.
+
+The run is identified (``OUT/run.json``: the dataset, the config less its
+runtime fields, the database, the edits' content) like every run of
+:mod:`toolkit.pipeline.run`, so an output folder of other options is never
+overwritten; but it is not resumed frame by frame: the temporal term ties each
+frame to the one before, so a run always goes through the frames from the
+first one.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from toolkit.errors import InputError
+from toolkit.pipeline.run import STOPPED_INTERRUPTED, RunResult, open_run
+from toolkit.silhouettes.estimate import Stage1Config
+
+#: Frames between two writes of the partial results.
+CHECKPOINT_FRAMES = 50
+#: Background models of the foreground stage, and chroma keying.
+FOREGROUNDS = ("median", "mog2", "knn", "chroma")
+#: The arrays written, ``OUT/<name>.npz`` (:func:`toolkit.silhouettes.stack_estimates`).
+OUTPUTS = ("poses2d", "poses3d", "offsets")
+
+
+@dataclass(frozen=True)
+class PoseFromSilhouettesConfig:
+    """Options of a stage-1 run from silhouettes (the recipe's flags; a TOML file holds the same keys).
+
+    Parameters
+    ----------
+    stage1 : Stage1Config
+        The estimator (``[stage1]``, ``[stage1.query]`` tables in TOML: k,
+        metric, flow weight, ...).  Its offset priors of refined cameras are
+        set by the run.
+    db : Path, optional
+        Silhouette database ``.npz``, built there if missing (default: the cached default database).
+    edits : Path, optional
+        Joint corrections (``.toml`` or ``.json``, docs/correction.md).
+    foreground : str
+        One of :data:`FOREGROUNDS`.
+    plates : Path, optional
+        Folder of clean plates ``<camera>.png`` to learn the backgrounds from (default: each video).
+    check_sizes : bool
+        Refuse videos whose size differs from the calibration.
+    refine_calibration : bool
+        Refine the cameras on the dataset's field lines.
+    max_frames : int, optional
+        Only the first N frames.
+    log_images : bool
+        Put the camera images into the recording.
+    recording : bool
+        Write ``recording.rrd``.
+    replace_stale : bool
+        Move another run's results aside instead of refusing them.
+    progress : bool
+        Show a progress bar.
+    """
+
+    stage1: Stage1Config = field(default_factory=Stage1Config)
+    db: Path | None = None
+    edits: Path | None = None
+    foreground: str = "median"
+    plates: Path | None = None
+    check_sizes: bool = True
+    refine_calibration: bool = True
+    max_frames: int | None = None
+    log_images: bool = True
+    recording: bool = True
+    replace_stale: bool = False
+    progress: bool = True
+
+    #: Fields that do not change the results (left out of the run identity).
+    RUNTIME = ("max_frames", "log_images", "recording", "replace_stale", "progress")
+
+    def __post_init__(self):
+        if self.foreground not in FOREGROUNDS:
+            raise InputError("PoseFromSilhouettesConfig.foreground", f"one of {FOREGROUNDS}", repr(self.foreground))
+        if self.max_frames is not None and int(self.max_frames) < 1:
+            raise InputError("PoseFromSilhouettesConfig.max_frames", "a positive number of frames",
+                             repr(self.max_frames))
+
+
+def _database(config: PoseFromSilhouettesConfig, log):
+    """The silhouette database (built once when missing) and its file; an empty one is refused."""
+    from toolkit.silhouettes import SilhouetteDatabase, default_database, default_database_path
+
+    path = Path(config.db) if config.db is not None else default_database_path()
+    if path.exists():
+        db = SilhouetteDatabase.load(path)
+        log(f"silhouette database: {path} ({len(db)} entries)")
+    else:
+        log(f"building the silhouette database into {path} (once, about a minute) ...")
+        t0 = time.perf_counter()
+        db, path = default_database(path)
+        log(f"silhouette database: {path} ({len(db)} entries, built in {time.perf_counter() - t0:.0f} s)")
+    if len(db) == 0:
+        raise InputError(str(path), "a silhouette database with at least one entry", "an empty database")
+    return db, path
+
+
+def _identity(config: PoseFromSilhouettesConfig, db_path: Path) -> tuple[tuple, dict]:
+    """Config fields left out of the identity, and what stands for them (files by name and content)."""
+    from toolkit.io.runs import file_fingerprint
+    from toolkit.silhouettes import default_database_path
+
+    extra = {"db": default_database_path().name if config.db is None else str(db_path.resolve()),
+             "edits": None if config.edits is None else
+             {"file": str(Path(config.edits).resolve()), "content": file_fingerprint(config.edits)},
+             "plates": None if config.plates is None else str(Path(config.plates).resolve())}
+    return PoseFromSilhouettesConfig.RUNTIME + ("db", "edits", "plates"), extra
+
+
+def _write(out: Path, estimates: list, n: int, names: list, k: int) -> dict:
+    """The stacked arrays of the estimates so far, written to ``OUT/<name>.npz`` (:data:`OUTPUTS`)."""
+    from toolkit.io import atomic_save_npz
+    from toolkit.silhouettes import stack_estimates
+
+    arrays = stack_estimates(estimates, n, names, k)
+    for name in OUTPUTS:
+        atomic_save_npz(out / f"{name}.npz", **arrays[name])
+    return arrays
+
+
+def _observer(out: Path, names: list, recording_id: str | None):
+    """The rerun observer of the run, ``OUT/recording.rrd`` (a rerun replaces the earlier recording)."""
+    from toolkit.skeleton import SKELETON_14
+    from toolkit.viz import RerunObserver
+
+    observer = RerunObserver(application_id="pose_from_silhouettes", path=out / "recording.rrd",
+                             recording_id=recording_id, camera_names=names)
+    observer.report("skeleton", skeleton=SKELETON_14)
+    return observer
+
+
+def run(config: PoseFromSilhouettesConfig, *, dataset, out, observer=None, log=print) -> RunResult:
+    """Run stage 1 (silhouette database, multi-view selection) over a dataset into ``out``.
+
+    Parameters
+    ----------
+    config : PoseFromSilhouettesConfig
+    dataset : path
+        Dataset folder (``docs/dataset_layout.md``).
+    out : path
+        Output folder (``recipes/pose_from_silhouettes.py`` lists what it holds).
+    observer : Observer, optional
+        Receives every intermediate; default: a rerun recording ``OUT/recording.rrd`` (``config.recording``).
+    log : callable or None
+        Receives notes (the database, calibration refinement, database growth).
+
+    Returns
+    -------
+    RunResult
+        ``metrics``: ``states`` (frames per ``FRAME_*`` code, str keys) and ``ok``
+        (frames with a 3D estimate); ``extra``: ``db`` (the database file).
+
+    Raises
+    ------
+    InputError
+        Bad dataset, options, database, edits, or an output folder of another run.
+    """
+    import numpy as np
+    from tqdm import tqdm
+
+    from toolkit.calibration import cameras_for_run, refined_cameras
+    from toolkit.foreground import BackgroundConfig, ForegroundConfig
+    from toolkit.io import Dataset, atomic_write_text, read_png
+    from toolkit.io.runs import run_recording
+    from toolkit.silhouettes import edits_template, read_edits
+    from toolkit.silhouettes.pipeline import FRAME_OK, estimate_dataset
+
+    log = log or (lambda *_: None)
+    out = Path(out)
+    with Dataset.open(dataset, check_sizes=config.check_sizes) as ds:
+        names = ds.camera_names
+        edits = read_edits(config.edits, names, ds.n_frames) if config.edits is not None else None
+        db, db_path = _database(config, log)
+        fg = ForegroundConfig(method="chroma") if config.foreground == "chroma" else \
+            ForegroundConfig(background=replace(BackgroundConfig(), method=config.foreground))
+        plates = None if config.plates is None else \
+            {c: [read_png(Path(config.plates) / f"{c}.png", channels=3, dtype=np.uint8)] for c in names}
+        n = ds.frames_to_process(config.max_frames)
+        exclude, extra = _identity(config, db_path)
+        folder = open_run(out, "pose_from_silhouettes", ds.root, config, n, exclude=exclude, extra=extra,
+                          replace_stale=config.replace_stale, recording=False, log=log)
+        own = observer is None
+        obs = _observer(out, names, run_recording(out, False)[1]) if own and config.recording else observer
+        rig = cameras_for_run(ds, out, refine=config.refine_calibration, observer=obs, log=log)
+        s1config = config.stage1.with_refined_cameras(refined_cameras(out))  # tight offset prior where refined
+        if obs is not None:
+            obs.report("rig", rig=rig)
+        n_db, k = len(db), s1config.query.k
+        estimates, stopped = [], ""
+        t0 = time.perf_counter()
+        try:
+            frames = estimate_dataset(ds, db, s1config, foreground=fg, frames=range(n), edits=edits,
+                                      backgrounds=plates, rig=rig, observer=obs, log_images=config.log_images)
+            for est, _ in tqdm(frames, total=n, desc="stage 1", unit="frame", disable=not config.progress):
+                estimates.append(est)
+                if len(estimates) % CHECKPOINT_FRAMES == 0:
+                    _write(out, estimates, n, names, k)
+        except KeyboardInterrupt:
+            stopped = STOPPED_INTERRUPTED
+        finally:
+            arrays = _write(out, estimates, n, names, k)
+            atomic_write_text(out / "edits_template.toml",
+                              edits_template({c: arrays["poses2d"][c] for c in names}, range(len(estimates)),
+                                             header=f"Edits for {dataset} (pose_from_silhouettes.py)"))
+            if len(db) > n_db:
+                db.save(db_path)
+                log(f"added {len(db) - n_db} corrected pose(s) to {db_path} ({len(db)} entries)")
+            if own and obs is not None:
+                obs.close()
+    states = arrays["poses3d"]["state"][:len(estimates)]
+    metrics = {"ok": int((states == FRAME_OK).sum()),
+               "states": {str(c): int(v) for c, v in sorted(Counter(states.tolist()).items())}}
+    return RunResult(out, n, len(estimates), len(estimates), 0, stopped, time.perf_counter() - t0, metrics,
+                     out / "recording.rrd" if own and config.recording else None, {"db": db_path})
+
+
+def summary_lines(result: RunResult) -> list:
+    """What a stage-1 run says when it ends (the recipe prints these)."""
+    from toolkit.silhouettes.pipeline import FRAME_OK, FRAME_STATES
+
+    out, m, done, dt = result.out, result.metrics, result.finished, result.seconds
+    lines = [f"{'stopped early (' + result.stopped + '): ' if result.stopped else ''}{done} of {result.frames} "
+             f"frames in {dt:.1f} s ({dt / max(done, 1):.2f} s/frame); 3D estimate in {m['ok']}"]
+    lines += [f"  {v} frame(s): {FRAME_STATES[int(c)]}" for c, v in m["states"].items() if int(c) != FRAME_OK]
+    lines += [f"  2D poses:  {out / 'poses2d.npz'}  (one (T, 14, 2) array per camera, pixels)",
+              f"  3D joints: {out / 'poses3d.npz'}  (joints (T, 14, 3) metres, names, state)",
+              f"  offsets:   {out / 'offsets.npz'}  (offsets (T, cameras, 2) pixels)",
+              f"  cameras:   {out / 'calibration.toml'}  (the calibration used: refined on field lines or measured)",
+              f"  edits:     {out / 'edits_template.toml'}  (copy the frames to correct into an edits file)"]
+    if result.recording is not None:
+        lines.append(f"  recording: {result.recording}   (open with: rerun {result.recording})")
+    return lines
