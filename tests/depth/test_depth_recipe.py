@@ -86,3 +86,31 @@ def test_real_kinect_frames_are_plausible(kinect_dir, tmp_path):
         p = plausibility(z["joints"][i], frame, user_mask(d, cam).mask)
         ok += p.ok()
     assert ok >= MIN_PLAUSIBLE_REAL
+
+
+def test_recipe_run_identity_and_config_file(tmp_path, capsys):
+    """One sequence is one identified run: the same run again replaces it, other options are refused
+    (or moved aside); options come from a TOML file too, unknown keys rejected."""
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for i in range(2):
+        np.zeros((48, 64), "<u2").tofile(frames / f"depth-{i}")
+    out = tmp_path / "out"
+    common = [str(frames), "--out", str(out), "--size", "64", "48", "--quiet", "--no-recording"]
+    assert depth_tracking.main(common) == 0
+    assert depth_tracking.main(common + ["--frames", "1"]) == 0            # how many frames: not the identity
+    assert len(np.load(out / "skeleton.npz")["state"]) == 1
+    capsys.readouterr()
+    assert depth_tracking.main(common + ["--seed", "5"]) == 2
+    assert "seed" in capsys.readouterr().err
+    cfg = tmp_path / "run.toml"
+    cfg.write_text("seed = 5\n[tracker]\nfps = 15.0\n[tracker.orus]\nbin_size_m = 0.06\n")
+    assert depth_tracking.main(common + ["--config", str(cfg), "--replace-stale"]) == 0
+    assert (tmp_path / "out.stale-1" / "skeleton.npz").is_file()
+    ident = json.loads((out / "run.json").read_text())["config"]
+    assert ident["seed"] == 5 and ident["tracker"]["fps"] == 15.0 and ident["tracker"]["orus"]["bin_size_m"] == 0.06
+    assert depth_tracking.main(common + ["--config", str(cfg), "--fps", "20"]) == 2   # the flag wins: another run
+    cfg.write_text("[tracker]\nfsp = 15.0\n")
+    assert depth_tracking.main(common + ["--config", str(cfg)]) == 2
+    err = capsys.readouterr().err
+    assert f"{cfg}: tracker.fsp" in err and "fps" in err

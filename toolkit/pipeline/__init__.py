@@ -9,6 +9,8 @@ from them, per-frame records, :class:`~toolkit.pipeline.run.RunResult`.
 out=)``), which ``recipes/free_viewpoint.py`` calls.
 :mod:`toolkit.pipeline.pose_from_keypoints` -- a detector's keypoints triangulated (one person or
 every person found), which ``recipes/pose_from_keypoints.py`` calls.
+:mod:`toolkit.pipeline.depth_tracking` -- one sequence of depth frames tracked (source 001), which
+``recipes/depth_tracking.py`` calls.
 """
 
 from toolkit.pipeline.keypoints import (SILHOUETTE_SOURCES, KeypointStage1, KeypointStage1Config,

@@ -1,0 +1,285 @@
+"""The depth system's run: one sequence of depth frames tracked into a 13-point skeleton (source 001).
+
+:func:`run` is what ``recipes/depth_tracking.py`` calls (its docstring lists
+the outputs).  One run is one sequence: the input is opened by
+:func:`~toolkit.io.depth_readers.open_depth_input` (a dataset folder with
+``depth_camera/`` or a folder of depth frames), every frame goes through
+:class:`~toolkit.depth.DepthTracker` (:func:`~toolkit.depth.track_sequence`),
+and ``skeleton.npz`` (plus ``metrics.json`` with ground truth) is written at
+the end.  Several sequences are several runs, each in its own output folder.
+
+The run is identified like every run of :mod:`toolkit.pipeline.run`
+(``OUT/run.json``: the input's frames, camera and background by content, and
+the config less its runtime fields), so a folder of another input or other
+options is refused (or moved aside with ``replace_stale``); it is not resumed
+frame by frame: the tracker carries its state from frame to frame, so a run
+always tracks from the first frame and replaces the earlier results.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from toolkit.depth.tracker_state import TrackerConfig
+from toolkit.errors import InputError
+from toolkit.pipeline.run import RunResult, open_run
+
+#: Depth file readers (``"auto"``: by suffix).
+READERS = ("auto", "png", "raw", "open3d", "npy")
+
+
+@dataclass(frozen=True)
+class DepthTrackingRunConfig:
+    """Options of a depth-tracking run (the recipe's flags; a TOML file holds the same keys).
+
+    Parameters
+    ----------
+    tracker : TrackerConfig
+        The tracker (``[tracker]`` table in TOML, nested ``[tracker.orus]`` ...;
+        the recipe's ``--fps``, ``--output`` and ``--bin-size`` set ``fps``,
+        ``output`` and ``orus.bin_size_m``).
+    size : tuple of int, optional
+        Image size (W, H) of raw frames and of the default camera (default 640 x 480).
+    focal : float, optional
+        Focal length in pixels of the default camera.
+    intrinsics : Path, optional
+        ``intrinsics.toml`` for a folder of frames.
+    reader : str
+        One of :data:`READERS`.
+    background : Path, optional
+        Depth file of the empty scene.
+    independent : bool
+        Track each frame on its own (unrelated still frames).
+    seed : int
+        Seed of the key-point clustering.
+    max_frames : int, optional
+        Track at most this many frames (the first ones).
+    images : Path, optional
+        Write the skeleton over each depth frame into this folder.
+    recording : bool
+        Write ``recording.rrd``.
+    replace_stale : bool
+        Move another run's results aside instead of refusing them.
+    progress : bool
+        Show a progress bar.
+    """
+
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    size: tuple[int, int] | None = None
+    focal: float | None = None
+    intrinsics: Path | None = None
+    reader: str = "auto"
+    background: Path | None = None
+    independent: bool = False
+    seed: int = 0
+    max_frames: int | None = None
+    images: Path | None = None
+    recording: bool = True
+    replace_stale: bool = False
+    progress: bool = True
+
+    #: Fields that do not change the results (left out of the run identity).
+    RUNTIME = ("max_frames", "images", "recording", "replace_stale", "progress")
+
+    def __post_init__(self):
+        if self.reader not in READERS:
+            raise InputError("DepthTrackingRunConfig.reader (--reader)", f"one of {READERS}", repr(self.reader))
+        if self.size is not None and (len(self.size) != 2 or min(int(s) for s in self.size) < 1):
+            raise InputError("DepthTrackingRunConfig.size (--size)", "two positive integers W H", repr(self.size))
+        if self.max_frames is not None and int(self.max_frames) < 0:
+            raise InputError("DepthTrackingRunConfig.max_frames (--frames)", "a number of frames >= 0",
+                             repr(self.max_frames))
+
+
+def input_identity(inp) -> dict:
+    """What a depth input's results depend on: its frame files, camera and background, by content.
+
+    Parameters
+    ----------
+    inp : DepthInput
+
+    Returns
+    -------
+    dict
+        ``frames`` (SHA-256 over every frame file's name and content), ``camera``
+        (K, size, ``cam_from_world``, whether the pose is known), ``background``
+        (SHA-256 of the array, or None), ``kind``.
+    """
+    from toolkit.io.runs import file_fingerprint
+
+    h = hashlib.sha256()
+    for p in inp.frames:
+        h.update(Path(p).name.encode())
+        h.update(file_fingerprint(p).encode())
+    cam = inp.camera
+    bg = None if inp.background is None else hashlib.sha256(np.ascontiguousarray(inp.background).tobytes()).hexdigest()
+    return {"kind": inp.kind, "frames": h.hexdigest(), "n_frames": len(inp.frames), "background": bg,
+            "camera": {"K": np.asarray(cam.K).tolist(), "size": list(cam.size),
+                       "cam_from_world": np.asarray(cam.cam_from_world).tolist(), "pose_known": bool(inp.pose_known)},
+            "reader": inp.reader, "raw_size": list(inp.size), "units_per_metre": float(inp.units_per_metre)}
+
+
+class _Images:
+    """The skeleton drawn over each depth frame (``config.images``), in the input's frame order."""
+
+    def __init__(self, folder: Path | None, inp, tracker):
+        self.folder, self.inp, self.tracker, self.depths = folder, inp, tracker, {}
+
+    def keep(self, i: int, depth: np.ndarray) -> None:
+        if self.folder is not None:
+            self.depths[i] = depth
+
+    def draw(self, r) -> None:
+        from toolkit.depth.evaluate import draw_skeleton
+        from toolkit.io import atomic_write_png
+
+        if self.folder is None:
+            return
+        d = self.depths.pop(r.index)
+        uv = self.tracker.frame.project(r.joints_view)
+        lo, hi = np.nanpercentile(d, [1, 99]) if np.isfinite(d).any() else (0.5, 4.5)
+        img = draw_skeleton(d, uv, r.observed, f"{self.inp.frames[r.index].name} {r.state_name}", scale=0.5,
+                            depth_range=(float(lo), float(hi) + 0.3))
+        atomic_write_png(Path(self.folder) / f"skeleton_{r.index:03d}.png", img)  # frame order of the input
+
+
+def _track(config: DepthTrackingRunConfig, inp, n: int, observer):
+    """Track the first ``n`` frames of ``inp`` (:class:`~toolkit.depth.TrackResult`)."""
+    from tqdm import tqdm
+
+    from toolkit.depth import STATE_NAMES, DepthTracker, track_sequence
+
+    tracker = DepthTracker(inp.camera, inp.pose_known, config.tracker, background=inp.background, rng=config.seed,
+                           observer=observer)
+    images = _Images(config.images, inp, tracker)
+    bar = tqdm(total=n, unit="frame", disable=not config.progress)
+
+    def frames():
+        for i in range(n):
+            d = inp.read(i)
+            images.keep(i, d)
+            yield d
+
+    def step(r):
+        bar.update(1)
+        bar.set_postfix(state=STATE_NAMES[r.state])
+        images.draw(r)
+
+    try:
+        return track_sequence(tracker, frames(), independent=config.independent, progress=step)
+    finally:
+        bar.close()
+
+
+def _write(out: Path, res, inp, n: int) -> dict | None:
+    """``skeleton.npz`` and, with ground truth in world coordinates, ``metrics.json`` (returned)."""
+    from toolkit.depth import STATE_NAMES
+    from toolkit.depth.evaluate import summarise
+    from toolkit.io import atomic_save_npz, atomic_write_text
+    from toolkit.skeleton import SKELETON_13
+
+    atomic_save_npz(out / "skeleton.npz", joints=res.joints, names=np.array(SKELETON_13.joint_names),
+                    state=res.states, state_names=np.array(STATE_NAMES), observed=res.observed,
+                    explained=res.explained, supported=res.supported, reason=res.reasons,
+                    frames=np.array([p.name for p in inp.frames[:n]]), coordinates=np.array(res.coordinates))
+    if inp.truth is None or res.coordinates != "world":
+        return None
+    s = summarise(res.joints, inp.truth["joints"][:n], res.states,
+                  inp.truth["visible"][:n] if "visible" in inp.truth else None)
+    metrics = {"mpjpe_mm": 1000 * s.mpjpe_m, "mpjpe_visible_mm": 1000 * s.mpjpe_visible_m,
+               "mpjpe_unoccluded_mm": 1000 * s.mpjpe_unoccluded_m, "tracked_share": s.tracked_share,
+               "estimated_share": s.estimated_share, "frames": s.n_frames,
+               "per_point_mm": {k: 1000 * float(v) for k, v in zip(SKELETON_13.joint_names, s.per_point_m)}}
+    atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
+    return metrics
+
+
+def _recording(out: Path, recording_id: str):
+    from toolkit.viz import RerunObserver
+
+    return RerunObserver(application_id="depth_tracking", path=out / "recording.rrd", recording_id=recording_id)
+
+
+def run(config: DepthTrackingRunConfig, *, dataset, out, observer=None, log=print) -> RunResult:
+    """Track one sequence of depth frames into ``out``.
+
+    Parameters
+    ----------
+    config : DepthTrackingRunConfig
+    dataset : path
+        A dataset folder with ``depth_camera/``, or a folder of depth frames.
+    out : path
+        Output folder (``recipes/depth_tracking.py`` lists what it holds).
+    observer : Observer, optional
+        Receives every intermediate; default: ``OUT/recording.rrd`` (``config.recording``).
+    log : callable or None
+        Receives notes (a stale folder moved aside).
+
+    Returns
+    -------
+    RunResult
+        ``metrics``: ``states`` (frames per state name), ``cpu_ms_median`` and,
+        with ground truth, the scores of ``metrics.json``; ``extra``: ``input``,
+        ``kind``, ``size``, ``coordinates``, ``skeleton`` (the file), ``images``.
+
+    Raises
+    ------
+    InputError
+        Bad input or options, or an output folder of another run.
+    """
+    from toolkit.depth import STATE_NAMES
+    from toolkit.io.runs import run_recording
+
+    out = Path(out)
+    inp = _open(config, dataset)
+    n = len(inp) if config.max_frames is None else min(len(inp), max(int(config.max_frames), 0))
+    open_run(out, "depth_tracking", dataset, config, n, exclude=DepthTrackingRunConfig.RUNTIME,
+             extra={"input": input_identity(inp)}, replace_stale=config.replace_stale, recording=False, log=log)
+    own = observer is None and config.recording
+    obs = _recording(out, run_recording(out, False)[1]) if own else observer
+    t0 = time.perf_counter()
+    try:
+        res = _track(config, inp, n, obs)
+    finally:
+        if own:
+            obs.close()
+    wall = time.perf_counter() - t0
+    scores = _write(out, res, inp, n)
+    metrics = {"states": {name: int((res.states == k).sum()) for k, name in enumerate(STATE_NAMES)},
+               "cpu_ms_median": float(np.nanmedian(res.timings("total")) * 1000) if n else float("nan"),
+               **(scores or {})}
+    return RunResult(out, n, n, n, 0, "", wall, metrics, out / "recording.rrd" if own else None,
+                     {"input": str(dataset), "kind": inp.kind, "size": tuple(inp.camera.size),
+                      "coordinates": res.coordinates, "skeleton": out / "skeleton.npz", "images": config.images,
+                      "has_groundtruth": scores is not None})
+
+
+def _open(config: DepthTrackingRunConfig, dataset):
+    from toolkit.io.depth_readers import open_depth_input
+
+    return open_depth_input(dataset, size=config.size, focal_px=config.focal, intrinsics=config.intrinsics,
+                            reader=config.reader, background=config.background)
+
+
+def summary_lines(result: RunResult) -> list:
+    """What a depth-tracking run says when it ends (the recipe prints these)."""
+    m, x, out = result.metrics, result.extra, result.out
+    w, h = x["size"]
+    lines = [f"tracked {result.frames} frames of {x['input']} ({x['kind']}, {w}x{h}) in {result.seconds:.1f} s: "
+             + ", ".join(f"{v} {k}" for k, v in m["states"].items())
+             + f"; median {m['cpu_ms_median']:.1f} ms CPU per frame",
+             f"  skeleton ({x['coordinates']} coordinates): {x['skeleton']}"]
+    if result.recording is not None:
+        lines.append(f"  recording:                  {result.recording}  (open with: rerun {result.recording})")
+    if x["has_groundtruth"]:
+        lines.append(f"  metrics:                    {out / 'metrics.json'}  (MPJPE {m['mpjpe_mm']:.1f} mm, "
+                     f"{100 * m['tracked_share']:.0f} % of frames tracked)")
+    if x["images"] is not None:
+        lines.append(f"  images:                     {x['images']}/")
+    return lines
