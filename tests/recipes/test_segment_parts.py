@@ -119,3 +119,19 @@ def test_bad_inputs_are_clear_errors(dataset, tmp_path, capsys):
                     "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "c.toml: segmentation.colour_spcae" in err
+
+
+def test_segment_parts_resumes_the_frames_left(dataset, tmp_path, capsys):
+    """Frames with a record are skipped; a frame whose record is gone is segmented again, identically."""
+    out = tmp_path / "parts"
+    args = [str(dataset), "--out", str(out), "--gt-joints", "--gt-masks", "--quiet", "--no-recording"]
+    assert _main()(args) == 0
+    before = read_png(out / "parts" / "cam00" / "000001.png")
+    (out / "frames" / "000001.json").unlink()
+    (out / "parts" / "cam00" / "000001.png").unlink()
+    capsys.readouterr()
+    assert _main()(args) == 0
+    text = capsys.readouterr().out
+    assert "segmented 2 views (1 frames x 2 cameras)" in text and "1 frame(s) were already finished" in text
+    np.testing.assert_array_equal(read_png(out / "parts" / "cam00" / "000001.png"), before)
+    assert "IoU against groundtruth/parts" in text  # over every finished frame, the earlier ones included

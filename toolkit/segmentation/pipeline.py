@@ -79,7 +79,8 @@ class PoseSource:
 def segment_views(frames: Callable[[str, int], np.ndarray], silhouettes: Callable[[str, int], np.ndarray],
                   poses: PoseSource, n_frames: int, template: Template,
                   config: SegmentationConfig = SegmentationConfig(), observer=None,
-                  database: PoseDatabase | None = None, cameras=None) -> Iterator[tuple[int, str, SegmentationResult]]:
+                  database: PoseDatabase | None = None, cameras=None,
+                  frame_indices=None) -> Iterator[tuple[int, str, SegmentationResult]]:
     """Segment every camera of every frame.
 
     Parameters
@@ -91,13 +92,16 @@ def segment_views(frames: Callable[[str, int], np.ndarray], silhouettes: Callabl
         As for :func:`segment_frame`.
     cameras : sequence of str, optional
         Default: every camera of ``poses.rig``.
+    frame_indices : sequence of int, optional
+        The frames to segment, in order (default: ``0 .. n_frames - 1``; a
+        resumed run passes those without results).
 
     Yields
     ------
     (t, camera, SegmentationResult)
     """
     names = list(poses.rig.names if cameras is None else cameras)
-    for t in range(int(n_frames)):
+    for t in (range(int(n_frames)) if frame_indices is None else frame_indices):
         for c in names:
             cam, J, x, off = poses.view(c, t)
             yield t, c, segment_frame(frames(c, t), silhouettes(c, t), J, cam, template, config, observer,

@@ -1,0 +1,223 @@
+"""Stage 2 as a run: body-part labels for every camera and frame, resumable.
+
+:func:`run` is what ``recipes/segment_parts.py`` calls (its docstring lists
+the outputs).  Per frame and camera: the template fitted to the pose
+(:func:`toolkit.segmentation.segment_views`), the part labels written to
+``OUT/parts/<camera>/NNNNNN.png``, one record per frame (parts without a
+colour model, IoU against ground truth) in ``OUT/frames/``; a frame with a
+record is skipped when the run resumes.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from toolkit.errors import InputError
+from toolkit.pipeline.run import STOPPED_INTERRUPTED, RunResult, open_run
+from toolkit.segmentation.segment import SegmentationConfig
+from toolkit.segmentation.pipeline import TEMPLATE_POSES
+
+
+@dataclass(frozen=True)
+class SegmentPartsConfig:
+    """Options of a stage-2 run (the recipe's flags; a TOML file holds the same keys).
+
+    Parameters
+    ----------
+    segmentation : SegmentationConfig
+        The segmentation (a ``[segmentation]`` table in TOML).
+    poses : Path, optional
+        Stage-1 output folder (``poses3d.npz``, ``offsets.npz``, ``poses2d.npz``
+        with ``template_pose="per_view"``, ``calibration.toml``).
+    gt_joints : bool
+        Fit the template to the ground-truth joints through the true cameras instead.
+    gt_masks : bool
+        Use the ground-truth silhouettes instead of foreground extraction
+        (median background of the frames processed).
+    template_pose : str
+        One of :data:`~toolkit.segmentation.TEMPLATE_POSES`: fit to the stage-1
+        3D joints projected (``multiview``) or to each view's 2D pose (``per_view``).
+    template_height_m : float
+        Stature of the generic template, metres.
+    max_frames : int, optional
+        Only the first N frames (part of the identity: the backgrounds are
+        learned from the frames processed).
+    recording : bool
+        Write ``recording.rrd``.
+    replace_stale : bool
+        Move another run's results aside instead of refusing them.
+    progress : bool
+        Show a progress bar.
+    """
+
+    segmentation: SegmentationConfig = field(default_factory=SegmentationConfig)
+    poses: Path | None = None
+    gt_joints: bool = False
+    gt_masks: bool = False
+    template_pose: str = "multiview"
+    template_height_m: float = 1.75
+    max_frames: int | None = None
+    recording: bool = True
+    replace_stale: bool = False
+    progress: bool = True
+
+    #: Fields that do not change the results (left out of the run identity).
+    RUNTIME = ("recording", "replace_stale", "progress")
+
+    def __post_init__(self):
+        if self.template_pose not in TEMPLATE_POSES:
+            raise InputError("SegmentPartsConfig.template_pose", f"one of {TEMPLATE_POSES}", repr(self.template_pose))
+        if self.poses is not None and self.gt_joints:
+            raise InputError("SegmentPartsConfig", "poses (a stage-1 folder) or gt_joints, not both",
+                             f"poses={self.poses}, gt_joints=True")
+        if self.max_frames is not None and int(self.max_frames) < 1:
+            raise InputError("SegmentPartsConfig.max_frames", "a positive number of frames", repr(self.max_frames))
+
+
+def _poses(ds, config: SegmentPartsConfig, log):
+    """The poses the template is fitted to: stage 1's, the ground truth's, or none (a standing pose)."""
+    from toolkit.pipeline.stage_inputs import read_stage1
+    from toolkit.segmentation import PoseSource
+
+    if config.gt_joints:
+        return PoseSource(ds.gt_rig, ds.gt_joints3d(), ds.gt_joints2d(), name="groundtruth")
+    if config.poses is not None:
+        s1 = read_stage1(ds, config.poses, poses2d=config.template_pose == "per_view")
+        return PoseSource(s1.rig, s1.joints, s1.poses2d or None, s1.image_offsets, name=str(config.poses))
+    log("no --poses or --gt-joints: the template is a standing pose fitted to each silhouette's box")
+    return PoseSource(ds.rig, name="none")
+
+
+def _silhouettes(ds, config: SegmentPartsConfig, n: int, todo: list):
+    """``(camera, t) -> (H, W) bool``: ground-truth masks, or foreground of a background learned on frames 0..n-1."""
+    from toolkit.foreground import extract_silhouettes
+
+    if config.gt_masks:
+        return ds.gt_mask
+    fg = {c: extract_silhouettes([ds.frame(c, t) for t in range(n)], camera=c) for c in ds.camera_names} \
+        if todo else {}
+    return lambda c, t: fg[c][t].mask
+
+
+def _observer(folder, rig, names: list):
+    from toolkit.skeleton import SKELETON_14
+    from toolkit.viz import RerunObserver
+
+    observer = RerunObserver(application_id="segment_parts", path=folder.recording,
+                             recording_id=folder.recording_id, camera_names=names)
+    observer.report("rig", rig=rig)
+    observer.report("skeleton", skeleton=SKELETON_14)
+    return observer
+
+
+def run(config: SegmentPartsConfig, *, dataset, out, observer=None, log=print) -> RunResult:
+    """Segment every camera of every frame of a dataset into body parts, into ``out``, resuming finished frames.
+
+    Parameters
+    ----------
+    config : SegmentPartsConfig
+    dataset : path
+        Dataset folder (``docs/dataset_layout.md``).
+    out : path
+        Output folder (``recipes/segment_parts.py`` lists what it holds).
+    observer : Observer, optional
+        Receives every intermediate; default: a rerun recording in ``out``
+        (``config.recording``), one part per resumed run.
+    log : callable or None
+
+    Returns
+    -------
+    RunResult
+        ``metrics``: ``views`` segmented by this run, ``missing`` (part id ->
+        views without a colour model) and ``iou`` (mean per part over every
+        finished view, with ground truth; else None); ``extra``: ``poses``
+        (where the poses came from) and ``cameras``.
+
+    Raises
+    ------
+    InputError
+        Bad dataset, options, stage-1 folder, or an output folder of another run.
+    """
+    import numpy as np
+    from tqdm import tqdm
+
+    from toolkit.io import Dataset, atomic_write_png, frame_filename
+    from toolkit.segmentation import part_iou, segment_views
+    from toolkit.template import Template
+
+    log = log or (lambda *_: None)
+    out = Path(out)
+    with Dataset.open(dataset) as ds:
+        names = ds.camera_names
+        n = ds.frames_to_process(config.max_frames)
+        poses = _poses(ds, config, log)
+        extra = {"poses": None if config.poses is None else str(Path(config.poses).resolve())}
+        folder = open_run(out, "segment_parts", ds.root, config, n, exclude=SegmentPartsConfig.RUNTIME + ("poses",),
+                          extra=extra, replace_stale=config.replace_stale,
+                          recording=config.recording and observer is None, log=log)
+        todo = folder.records.todo()
+        silhouette = _silhouettes(ds, config, n, todo)
+        own = observer is None
+        obs = _observer(folder, poses.rig, names) if own and folder.recording is not None else observer
+        views = segment_views(ds.frame, silhouette, poses, n, Template(config.template_height_m),
+                              config.segmentation, obs, frame_indices=todo)
+        record, count, stopped = None, 0, ""
+        t0 = time.perf_counter()
+        try:
+            for t, c, r in tqdm(views, total=len(todo) * len(names), desc="segmentation", unit="view",
+                                disable=not config.progress):
+                if obs is not None:
+                    obs.report("image", camera=c, image=ds.frame(c, t), frame=t)
+                atomic_write_png(out / "parts" / c / frame_filename(t), r.labels)
+                count += 1
+                record = record if record is not None and record["frame"] == t else {"frame": t, "missing": {},
+                                                                                      "iou": {}}
+                for p in r.parts_without_model:
+                    record["missing"][str(p)] = record["missing"].get(str(p), 0) + 1
+                if ds.has_groundtruth:
+                    record["iou"][c] = part_iou(r.labels, ds.gt_parts(c, t)).tolist()
+                if c == names[-1]:
+                    folder.records.write(t, record)
+        except KeyboardInterrupt:
+            stopped = STOPPED_INTERRUPTED
+        finally:
+            if own and obs is not None:
+                obs.close()
+        records = folder.records.read_all()
+    missing: dict = {}
+    for rec in records:
+        for p, k in rec["missing"].items():
+            missing[int(p)] = missing.get(int(p), 0) + k
+    ious = [v for rec in records for v in rec["iou"].values()]
+    metrics = {"views": count, "missing": dict(sorted(missing.items())),
+               "iou": np.nanmean(np.array(ious, float), 0).tolist() if ious else None}
+    return RunResult(out, n, len(records), count // max(len(names), 1), n - len(todo), stopped,
+                     time.perf_counter() - t0, metrics, folder.recording if own else None,
+                     {"poses": poses.name, "cameras": len(names)})
+
+
+def summary_lines(result: RunResult) -> list:
+    """What a stage-2 run says when it ends (the recipe prints these)."""
+    import numpy as np
+
+    from toolkit.skeleton import SKELETON_14
+
+    m, dt, count = result.metrics, result.seconds, result.metrics["views"]
+    lines = [f"{'stopped early (' + result.stopped + '): ' if result.stopped else ''}segmented {count} views "
+             f"({result.processed} frames x {result.extra['cameras']} cameras) in {dt:.1f} s "
+             f"({dt / max(count, 1):.2f} s/view); poses: {result.extra['poses']}"]
+    if result.earlier:
+        lines.append(f"  {result.earlier} frame(s) were already finished (resumed); {result.finished} of "
+                     f"{result.frames} now")
+    if m["missing"]:
+        lines.append("parts without a colour model: " + ", ".join(
+            f"{SKELETON_14.part_names[p - 1]} ({k} views)" for p, k in m["missing"].items()))
+    if m["iou"] is not None:
+        lines.append("IoU against groundtruth/parts: mean {:.3f}; ".format(np.nanmean(m["iou"])) + ", ".join(
+            f"{nm} {v:.2f}" for nm, v in zip(SKELETON_14.part_names, m["iou"])))
+    lines.append(f"  part labels: {result.out / 'parts'}/<camera>/NNNNNN.png")
+    if result.recording is not None:
+        lines.append(f"  recording:   {result.recording}   (open with: rerun {result.recording})")
+    return lines
