@@ -186,6 +186,29 @@ def test_pose2sim_participant_height_read_from_the_settings(tmp_path):
     a, b = tmp_path / "Config.toml", tmp_path / "trial.toml"
     a.write_text("[markerAugmentation]\nparticipant_height = 1.72 # m\n")
     b.write_text("[markerAugmentation]\n# participant_height = 1.80\n")
-    h, where = load_recipe().pose2sim_height([a, b])
+    from toolkit.io.pose2sim import participant_height
+
+    h, where = participant_height([a, b])
     assert h == 1.72 and str(a) in where
-    assert load_recipe().pose2sim_height([b]) == (None, None)
+    assert participant_height([b]) == (None, None)
+
+
+def test_options_from_a_config_file_flags_win_unknown_keys_refused(tmp_path, capsys):
+    recipe = load_recipe()
+    cfg = tmp_path / "calib.toml"
+    cfg.write_text('seed = 3\nformat = "body_25b"\n[board]\nkind = "charuco"\ncorners = [5, 7]\nsquare_mm = 40.0\n'
+                   'marker_mm = 30.0\nmax_frames = 20\n')
+    args = recipe.parser().parse_args(["extrinsics", "--intrinsics", "i.toml", "--board-images", "b", "--out", "o.toml",
+                                       "--config", str(cfg), "--corners", "4,6", "--seed", "5", "--no-recording"])
+    c = recipe.config_from_args(args)
+    assert c.seed == 5 and c.format == "body_25b" and not c.recording               # the flag wins, the file stands
+    assert c.board.kind == "charuco" and c.board.corners == (4, 6) and c.board.max_frames == 20
+    b = c.board.board()
+    assert (b.rows, b.cols, b.square, b.marker) == (4, 6, 0.04, 0.03)
+    cfg.write_text("[board]\nsquare = 40.0\n")
+    rc = recipe.main(["intrinsics", str(tmp_path), "--config", str(cfg), "--out", str(tmp_path / "i.toml")])
+    err = capsys.readouterr().err
+    assert rc == 2 and f"{cfg}: board.square" in err and "square_mm" in err
+    rc = recipe.main(["extrinsics", "--intrinsics", str(tmp_path / "i.toml"), "--keypoints", str(tmp_path),
+                      "--height-m", "3.1", "--out", str(tmp_path / "c.toml")])
+    assert rc == 2 and "--height-m" in capsys.readouterr().err

@@ -26,7 +26,7 @@ from pathlib import Path
 
 from toolkit.errors import InputError
 
-__all__ = ["POSE_MODELS", "Pose2SimTrial", "is_pose2sim_trial", "read_pose2sim_trial"]
+__all__ = ["POSE_MODELS", "Pose2SimTrial", "is_pose2sim_trial", "participant_height", "read_pose2sim_trial"]
 
 #: Pose2Sim ``pose_model`` names (upper case) -> keypoint formats of toolkit.skeleton.mappings.
 POSE_MODELS = {"BODY_25B": "body_25b", "BODY_25": "body_25", "COCO": "coco_18", "COCO_18": "coco_18",
@@ -171,3 +171,36 @@ def read_pose2sim_trial(path: str | os.PathLike) -> Pose2SimTrial:
     trc = tuple(sorted((trial / "pose-3d").glob("*.trc"))) if (trial / "pose-3d").is_dir() else ()
     return Pose2SimTrial(trial=trial, keypoints=keypoints, calibration=calibration, pose_model=fmt,
                          frame_rate=rate, config_files=tuple(files), reference_trc=trc)
+
+
+#: Statures (metres) accepted from a Pose2Sim ``participant_height``; others are ignored.
+PARTICIPANT_HEIGHT_RANGE_M = (1.0, 2.5)
+
+
+def participant_height(config_files) -> tuple[float | None, str | None]:
+    """``[markerAugmentation] participant_height`` of the Pose2Sim settings.
+
+    Parameters
+    ----------
+    config_files : iterable of path
+        The ``Config.toml`` files in Pose2Sim's precedence (session, participant, trial).
+
+    Returns
+    -------
+    height_m : float or None
+        The last file's that sets a single number within :data:`PARTICIPANT_HEIGHT_RANGE_M`
+        (unreadable files and lists of heights are skipped).
+    source : str or None
+        ``participant_height of FILE``; ``(None, None)`` when no file sets one.
+    """
+    lo, hi = PARTICIPANT_HEIGHT_RANGE_M
+    found = (None, None)
+    for f in config_files:
+        try:
+            doc = tomllib.loads(Path(f).read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+            continue
+        h = doc.get("markerAugmentation", {}).get("participant_height")
+        if isinstance(h, (int, float)) and lo <= h <= hi:
+            found = (float(h), f"participant_height of {f}")
+    return found
