@@ -19,7 +19,8 @@ frames the joints are optimised (source 000 §3.2) from these starts:
 
 * stage-1 joints and offsets (``recipes/pose_from_silhouettes.py``), when stage 1
   produced a 3D estimate for the frame; stage 1's offsets are added to the 2D
-  joints, the scorer needs the opposite shift (``toolkit.multiview.image_offsets``);
+  joints, the scorer needs the opposite shift (``toolkit.multiview.image_offsets``,
+  read by ``toolkit.pipeline.stage_inputs.read_stage1``);
 * ground-truth joints displaced by 5 cm RMS 3D noise (seeded), with the ideal
   offsets (per camera, the mean difference between the ground-truth joints
   projected through the true and the measured calibration): a test of stage 3
@@ -34,7 +35,9 @@ Part labels: the scenes' ground-truth part labels and depth (for the seams),
 so that these starts measure stage 3 alone; and a third start, "stage1+s2",
 from the stage-1 joints with the labels of the pipeline (stage 2 fitted to the
 stage-1 joints on the ground-truth silhouettes, seams from the template's
-depth).  ``--starts`` picks the starts; stage 1 runs only for the two that need it.  The single-evaluation timing is one joint's position score (all its
+depth).  ``--starts`` picks the starts; stage 1 runs only for the two that need it.
+Every start runs the pipeline's stage-3 chain
+(``toolkit.pipeline.stage3.optimize_frame``: seams, position score, search).  The single-evaluation timing is one joint's position score (all its
 bones, every evaluated view) on one core (OpenCV and BLAS limited to one thread).
 Besides the MPJPE, "aligned" is the MPJPE after removing the mean 3D
 translation between the estimate and the ground truth: with miscalibrated
@@ -65,12 +68,13 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from toolkit.anthropometry import AnthropometricConstraints  # noqa: E402
-from toolkit.billboards import PositionScorer, detect_seams  # noqa: E402
+from toolkit.billboards import PositionScorer  # noqa: E402
 from toolkit.io import Dataset  # noqa: E402
-from toolkit.multiview import image_offsets  # noqa: E402
-from toolkit.optimize import OptimizeConfig, optimize_pose  # noqa: E402
-from toolkit.calibration import stage_rig  # noqa: E402
+from toolkit.optimize import OptimizeConfig  # noqa: E402
+from toolkit.pipeline.stage3 import optimize_frame, seams_from_depth  # noqa: E402
+from toolkit.pipeline.stage_inputs import read_stage1  # noqa: E402
 from toolkit.segmentation import segment_frame  # noqa: E402
+from toolkit.skeleton import mpjpe  # noqa: E402
 from toolkit.template import Template  # noqa: E402
 from toolkit.synthetic import generate_scene, parse_spec  # noqa: E402
 
@@ -138,16 +142,6 @@ def change(before: float, after: float) -> str:
     return f"{(after / before - 1) * 100:+.0f} %" if before > 1e-9 else "n/a"
 
 
-def mpjpe(a, b) -> float:
-    return float(np.linalg.norm(a - b, axis=-1).mean())
-
-
-def mpjpe_aligned(a, b) -> float:
-    """MPJPE after removing the mean translation between the two poses (J, 3), metres."""
-    d = np.asarray(a) - np.asarray(b)
-    return float(np.linalg.norm(d - d.mean(axis=0), axis=-1).mean())
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--frames", type=int, default=2, help="frames optimised per scene")
@@ -174,19 +168,16 @@ def main(argv=None) -> int:
         angles[root.name] = camera_angles(ds.rig)
         gt = ds.gt_joints3d()
         s1 = stage1(root, args.out) if {"stage1", "stage1+s2"} & set(args.starts) else None
-        s1_joints = s1_offsets = None
-        if s1 is not None:
-            s1_joints = np.load(s1 / "poses3d.npz")["joints"]
-            s1_offsets = np.load(s1 / "offsets.npz")["offsets"]
+        s1 = read_stage1(ds, s1) if s1 is not None else None  # its cameras, joints, image-space offsets
         picks = np.unique(np.linspace(0, ds.n_frames - 1, min(args.frames, ds.n_frames) + 2)[1:-1].round())
         for t in picks.astype(int):
             images = {c: ds.frame(c, t) for c in ds.camera_names}
             labels = {c: ds.gt_parts(c, t) for c in ds.camera_names}
-            seams = {c: detect_seams(labels[c], ds.gt_depth(c, t)) for c in ds.camera_names}
-            have_s1 = s1_joints is not None and np.all(np.isfinite(s1_joints[t]))
+            depths = {c: ds.gt_depth(c, t) for c in ds.camera_names}
+            have_s1 = s1 is not None and np.all(np.isfinite(s1.joints[t]))
             ideal = np.array([np.mean(ds.gt_rig[c.name].project(gt[t]) - c.project(gt[t]), axis=0)
                               for c in ds.rig])
-            scorer = PositionScorer(images, labels, ds.rig, ideal, seams)
+            scorer = PositionScorer(images, labels, ds.rig, ideal, seams_from_depth(labels, depths))
             for j in range(14):  # one candidate's score at the ground truth, as in the search (views and
                 # billboards fixed per joint): median of 5 after a warm-up
                 vis = {p: scorer.visibility(gt[t], p) for p in scorer.adjacent_parts(j)}
@@ -197,26 +188,25 @@ def main(argv=None) -> int:
                     scorer.joint_score(gt[t], j, vis)
                     reps.append((time.perf_counter() - t0) * 1000)
                 eval_ms.append(float(np.median(reps)))
-            starts = [("gt+5cm", gt[t] + rng.normal(0, GT_NOISE_M / np.sqrt(3), gt[t].shape), scorer, config),
-                      ("gt-pure", gt[t], scorer, PURE_SCORE)]
+            # (name, start, labels, depths for the seams, cameras, image offsets, search config)
+            starts = [("gt+5cm", gt[t] + rng.normal(0, GT_NOISE_M / np.sqrt(3), gt[t].shape), labels, depths,
+                       ds.rig, ideal, config),
+                      ("gt-pure", gt[t], labels, depths, ds.rig, ideal, PURE_SCORE)]
             if have_s1:
-                rig1, off1 = stage_rig(ds, s1), image_offsets(s1_offsets[t])
-                s1_scorer = PositionScorer(images, labels, rig1, off1, seams)
-                starts.insert(0, ("stage1", s1_joints[t], s1_scorer, config))
+                J1, rig1, off1 = s1.joints[t], s1.rig, s1.image_offsets[t]
+                starts.insert(0, ("stage1", J1, labels, depths, rig1, off1, config))
                 if "stage1+s2" in args.starts:  # the pipeline's labels: stage 2 fitted to stage 1, seams from its template
                     l2, z2 = {}, {}
                     for ci, c in enumerate(ds.camera_names):
-                        seg = segment_frame(images[c], ds.gt_mask(c, t), s1_joints[t], rig1[c], template,
-                                            offset=off1[ci])
-                        l2[c] = seg.labels
-                        z2[c] = detect_seams(seg.labels, seg.template_depth)
-                    starts.insert(1, ("stage1+s2", s1_joints[t], PositionScorer(images, l2, rig1, off1, z2),
-                                      config))
-            for name, J0, scorer, cfg in [st for st in starts if st[0] in args.starts]:
-                res = optimize_pose(scorer, J0, cons, cfg)
+                        seg = segment_frame(images[c], ds.gt_mask(c, t), J1, rig1[c], template, offset=off1[ci])
+                        l2[c], z2[c] = seg.labels, seg.template_depth
+                    starts.insert(1, ("stage1+s2", J1, l2, z2, rig1, off1, config))
+            for name, J0, lab, dep, rig, off, cfg in [st for st in starts if st[0] in args.starts]:
+                res = optimize_frame(images, lab, rig, J0, offsets=off, depths=dep, constraints=cons,
+                                     config=cfg).search
                 rows.append((root.name, t, name, mpjpe(J0, gt[t]), mpjpe(res.joints, gt[t]),
                              res.n_evaluations, res.seconds, res.n_sweeps,
-                             mpjpe_aligned(J0, gt[t]), mpjpe_aligned(res.joints, gt[t])))
+                             mpjpe(J0, gt[t], aligned=True), mpjpe(res.joints, gt[t], aligned=True)))
                 r = rows[-1]
                 print(f"{r[0]:<38} frame {t} {name:<7} MPJPE {r[3] * 100:5.1f} -> {r[4] * 100:5.1f} cm  "
                       f"aligned {r[8] * 100:4.1f} -> {r[9] * 100:4.1f} cm  "

@@ -84,7 +84,10 @@ def detect(scene, rng, bias_px: float, jitter_px: float, miss: float = 0.05, swa
 
 
 def mpjpe_mm(a, b) -> float:
-    return float(1000 * np.nanmean(np.linalg.norm(a - b, axis=-1)))
+    """:func:`toolkit.skeleton.mpjpe` in millimetres."""
+    from toolkit.skeleton import mpjpe
+
+    return 1000 * mpjpe(a, b)
 
 
 def run_scene(scene, kp, min_conf: float = 0.3):

@@ -76,3 +76,18 @@ def test_recipe_reports_bad_input(dataset, tmp_path, capsys):
     rc = _recipe().main([str(dataset), "--out", str(tmp_path / "o"), "--poses", str(tmp_path / "missing")])
     assert rc == 2
     assert "poses3d.npz" in capsys.readouterr().err
+
+
+def test_recipe_resumes_and_refuses_other_options(dataset, tmp_path, capsys):
+    """A finished frame has a record and is skipped; another search config is another run (refused)."""
+    out = tmp_path / "out"
+    args = [str(dataset), "--out", str(out), "--noise-cm", str(NOISE_CM), "--sweeps", "1", "--no-recording"]
+    assert _recipe().main(args) == 0
+    first = np.load(out / "joints3d.npz")["joints"]
+    assert (out / "frames" / "000000.json").is_file() and (out / "run.json").is_file()
+    capsys.readouterr()
+    assert _recipe().main(args) == 0  # resumed: nothing left to do, same results
+    assert "0 frame(s)" in capsys.readouterr().out
+    np.testing.assert_array_equal(np.load(out / "joints3d.npz")["joints"], first)
+    assert _recipe().main(args[:-3] + ["--sweeps", "2", "--no-recording"]) == 2
+    assert "optimize.max_sweeps" in capsys.readouterr().err

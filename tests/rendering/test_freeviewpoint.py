@@ -3,8 +3,8 @@ from types import SimpleNamespace
 import numpy as np
 
 from toolkit.observe import RecordingObserver
-from toolkit.rendering.freeviewpoint import (METHODS, STATUS_NO_POSE, STATUS_NO_VIEWS, FrameProcessor,
-                                             render_methods)
+from toolkit.pipeline.frame import FrameProcessor
+from toolkit.rendering.freeviewpoint import METHODS, STATUS_NO_POSE, STATUS_NO_VIEWS, render_methods
 
 
 def _estimate(ok, joints):

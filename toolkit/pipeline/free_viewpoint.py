@@ -2,7 +2,7 @@
 
 :func:`run` is what ``recipes/free_viewpoint.py`` calls (its docstring lists
 the outputs).  Per frame: stage 1 (the silhouette database, or a detector's
-keypoints) -> :class:`~toolkit.rendering.freeviewpoint.FrameProcessor`
+keypoints) -> :class:`~toolkit.pipeline.frame.FrameProcessor`
 (segmentation, seams, the stage-3 search, billboards, baselines) -> the novel
 cameras, a held-out source camera and three camera paths rendered and scored
 -> one record per frame.  At the end: ``poses3d.npz``, the paths' videos and
@@ -269,8 +269,8 @@ def _finish(ds, out: Path, records: list, n: int, novel: list, held, stage1: str
     from toolkit.io import atomic_save_npz, atomic_write_text, write_video
     from toolkit.io.frames import frame_filename, read_png
     from toolkit.pipeline.views import HELDOUT_REGION_DOC
-    from toolkit.rendering.evaluation import pose_errors, summarise
-    from toolkit.skeleton import SKELETON_14
+    from toolkit.rendering.evaluation import summarise
+    from toolkit.skeleton import SKELETON_14, pose_errors
     import json
 
     joints = np.full((n, 14, 3), np.nan)
@@ -340,7 +340,7 @@ def run(config: FreeViewpointRunConfig, *, dataset, out, observer=None, log=prin
     from toolkit.pipeline.views import HeldOutRegions, split_rig
     from toolkit.rendering import CpuCompositor
     from toolkit.rendering.evaluation import BackgroundPlates
-    from toolkit.rendering.freeviewpoint import FrameProcessor
+    from toolkit.pipeline.frame import FrameProcessor
 
     out = Path(out)
     with Dataset.open(dataset) as ds:

@@ -43,21 +43,6 @@ class BackgroundPlates:
         return self._renderer.background_plate(camera)
 
 
-def pose_errors(joints: np.ndarray, truth: np.ndarray) -> dict:
-    """Mean per-joint position error (metres) of estimated joints (T, J, 3) against ground truth.
-
-    Returns ``{"mpjpe_m": mean over finite joints, "frames": frames with an estimate}`` (NaN when none).
-    """
-    a = np.asarray(joints, float)
-    b = np.asarray(truth, float)
-    if a.shape != b.shape:
-        raise InputError("pose_errors: joints", f"shape {b.shape} (the ground truth's)", f"shape {a.shape}")
-    d = np.linalg.norm(a - b, axis=-1)
-    ok = np.isfinite(d)
-    return {"mpjpe_m": float(d[ok].mean()) if ok.any() else float("nan"),
-            "frames": int(np.isfinite(a).all(axis=(-1, -2)).sum())}
-
-
 #: PSNRs are capped at this in the averages, dB (identical images give inf).
 PSNR_CAP_DB = 100.0
 

@@ -1,15 +1,10 @@
-"""One frame of free-viewpoint video, every stage chained (source 000 Fig. 10, steps 22-28).
+"""One frame of free-viewpoint video: its options, its result, and its rendering into any view.
 
-Stage 1 (foreground, 2D pose, multi-view selection and offsets) runs over the
-whole dataset in :func:`toolkit.silhouettes.pipeline.estimate_dataset`; this
-module takes one of its frame estimates and the silhouettes, and runs the rest:
-
-* template fit and body-part segmentation per camera (:func:`toolkit.segmentation.segment_frame`);
-* seams on the fitted template's depth (:func:`toolkit.billboards.detect_seams`);
-* the 3D joint optimisation by the position score under anthropometric
-  constraints (:func:`toolkit.optimize.optimize_pose`);
-* the articulated billboards (:func:`toolkit.rendering.fans.render_billboards`)
-  and, for comparison, the standard billboards and the visual hull.
+:class:`toolkit.pipeline.frame.FrameProcessor` runs stages 2-4 of a frame
+(source 000 Fig. 10, steps 22-28: segmentation, the stage-3 chain,
+billboards and baselines) with a :class:`FreeViewpointConfig` and returns a
+:class:`FrameResult`; :func:`render_views` draws that result into a view with
+every method (articulated billboards, standard billboards, visual hull).
 
 A frame where stage 1 found no 3D pose, or a camera without a silhouette, is
 not an error: the result says which views were used and why a frame is empty.
@@ -17,20 +12,17 @@ not an error: the result says which views were used and why a frame is empty.
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from toolkit.billboards.model import BillboardModel
-from toolkit.cameras import Rig
 from toolkit.errors import InputError
-from toolkit.observe import Observer, as_observer
+from toolkit.observe import Observer
 from toolkit.optimize import OptimizeConfig
-from toolkit.rendering.baselines import VisualHull, standard_billboards, visual_hull
-from toolkit.rendering.fans import RENDER_SUPERSAMPLE, render_billboards
+from toolkit.rendering.baselines import VisualHull
+from toolkit.rendering.fans import RENDER_SUPERSAMPLE
 from toolkit.segmentation.pipeline import TEMPLATE_POSES
-from toolkit.skeleton import SKELETON_14
 
 #: ``FrameResult.status`` values.
 STATUS_OK = "ok"
@@ -60,7 +52,8 @@ class FreeViewpointConfig:
         IoU 0.814 from stage 1 on the broadcast benchmark) or stage 1's chosen
         2D pose of that view (``"per_view"``, the source's per-view fit: 0.796).
     use_plates : bool
-        Segment with the cameras' background plates when :meth:`FrameProcessor.process` gets them.
+        Segment with the cameras' background plates when
+        :meth:`toolkit.pipeline.frame.FrameProcessor.process` gets them.
     """
 
     optimize: bool = True
@@ -118,111 +111,6 @@ class FrameResult:
     @property
     def ok(self) -> bool:
         return self.status == STATUS_OK
-
-
-class FrameProcessor:
-    """Runs stages 2-3 and builds the billboards for one frame at a time.
-
-    Parameters
-    ----------
-    rig : Rig
-        Measured source cameras.
-    config : FreeViewpointConfig
-    observer : Observer, optional
-    """
-
-    def __init__(self, rig: Rig, config: FreeViewpointConfig = FreeViewpointConfig(),
-                 observer: Observer | None = None):
-        from toolkit.anthropometry import AnthropometricConstraints
-        from toolkit.template import Template
-
-        self.rig = rig
-        self.config = config
-        self.observer = as_observer(observer)
-        self.template = Template(config.template_height_m)
-        self.constraints = AnthropometricConstraints()
-
-    def process(self, frame: int, images: dict, masks: list, estimate, plates: dict | None = None) -> FrameResult:
-        """Process one frame.
-
-        Parameters
-        ----------
-        frame : int
-        images : dict of str -> ndarray (H, W, 3) uint8
-            Source images (cameras without a frame may be missing).
-        masks : list of (ndarray (H, W) bool or None)
-            Stage-1 silhouettes, rig order.
-        estimate : toolkit.silhouettes.pipeline.FrameEstimate
-        plates : dict of str -> ndarray (H, W, 3) uint8, optional
-            The background alone per camera (clean plates).  Segmentation then
-            corrects the silhouette's border against it and fills parts of a kit
-            that looks like the background (:mod:`toolkit.segmentation.plate`;
-            zoo part mIoU from stage-1 silhouettes 0.734 -> 0.783 median,
-            docs/stage2_segmentation.md).  Used unless ``config.use_plates`` is False.
-
-        Returns
-        -------
-        FrameResult
-        """
-        from toolkit.billboards import PositionScorer, detect_seams
-        from toolkit.optimize import optimize_pose
-        from toolkit.segmentation import segment_frame
-
-        obs = self.observer
-        names = self.rig.names
-        timings: dict = {}
-        J1 = np.asarray(estimate.joints3d, float)
-        from toolkit.multiview import image_offsets
-        off = image_offsets(estimate.offsets)  # stage 1 corrects the joints; images need the opposite shift
-        empty = {c: np.zeros(self.rig[c].size[::-1], np.uint8) for c in names}
-        if not estimate.ok or not np.isfinite(J1).all():
-            obs.report("text", name="free_viewpoint/status", text=f"frame {frame}: {STATUS_NO_POSE}", frame=frame)
-            return FrameResult(frame, STATUS_NO_POSE, J1, np.full_like(J1, np.nan), off, empty, timings=timings)
-        t0 = time.perf_counter()
-        labels, seams, used = {}, {}, []
-        for ci, cam in enumerate(self.rig):
-            m = masks[ci]
-            if m is None or cam.name not in images or not np.any(m):
-                labels[cam.name] = empty[cam.name]
-                obs.report("text", name=f"free_viewpoint/{cam.name}", frame=frame,
-                           text=f"frame {frame}: {cam.name} has no silhouette; left out")
-                continue
-            pose2d = np.asarray(estimate.poses2d[ci], float)  # image pixels (the offset is for the joints)
-            per_view = self.config.template_pose == "per_view" and np.isfinite(pose2d).all()
-            plate = (plates or {}).get(cam.name) if self.config.use_plates else None
-            seg = segment_frame(images[cam.name], m, J1, cam, self.template, offset=off[ci],
-                                joints2d=pose2d if per_view else None, observer=obs, frame=frame, plate=plate)
-            labels[cam.name] = seg.labels
-            seams[cam.name] = detect_seams(seg.labels, seg.template_depth, camera=cam.name, observer=obs)
-            used.append(cam.name)
-        timings["segmentation"] = time.perf_counter() - t0
-        if not used:
-            return FrameResult(frame, STATUS_NO_VIEWS, J1, np.full_like(J1, np.nan), off, labels, timings=timings)
-        imgs = {c: images.get(c, np.zeros(self.rig[c].size[::-1] + (3,), np.uint8)) for c in names}
-        J = J1
-        outcome: dict = {}
-        if self.config.optimize and len(used) >= 2:
-            t0 = time.perf_counter()
-            scorer = PositionScorer(imgs, labels, self.rig, off, seams)
-            found = optimize_pose(scorer, J1, self.constraints, self.config.optimize_config, observer=obs,
-                                  frame=frame)
-            J, outcome = found.joints, found.outcome_counts()
-            timings["optimize"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        model = render_billboards(imgs, labels, J, self.rig, off, seams, supersample=self.config.supersample,
-                                  frame=frame, observer=obs)
-        timings["billboards"] = time.perf_counter() - t0
-        standard = hull = None
-        if self.config.baselines:
-            t0 = time.perf_counter()
-            sil = {c: labels[c] > 0 for c in names}
-            standard = standard_billboards(imgs, sil, J, self.rig, off, frame)
-            timings["standard_billboards"] = time.perf_counter() - t0
-            t0 = time.perf_counter()
-            hull = visual_hull(imgs, sil, J, self.rig, off)
-            timings["visual_hull"] = time.perf_counter() - t0
-        obs.report("joints3d", joints=J, name="free_viewpoint/joints", skeleton=SKELETON_14, frame=frame)
-        return FrameResult(frame, STATUS_OK, J1, J, off, labels, model, standard, hull, timings, outcome)
 
 
 #: Names of the rendering methods, in report order.
