@@ -8,7 +8,7 @@ unless a per-view flip is decisive; one offset per camera kept only when it
 generalises across joints) and yields, frame by frame, what the silhouette
 stage yields (:func:`toolkit.silhouettes.pipeline.estimate_dataset`): a
 :class:`~toolkit.silhouettes.estimate.FrameEstimate` and the silhouettes, so
-stages 2-4 (:class:`toolkit.rendering.freeviewpoint.FrameProcessor`) run
+stages 2-4 (:class:`toolkit.pipeline.frame.FrameProcessor`) run
 unchanged.
 
 Silhouettes come from, in this order (``silhouettes="auto"``): masks given
