@@ -12,6 +12,7 @@ every person found), which ``recipes/pose_from_keypoints.py`` calls.
 :mod:`toolkit.pipeline.depth_tracking` -- one sequence of depth frames tracked (source 001), which
 ``recipes/depth_tracking.py`` calls.
 :mod:`toolkit.pipeline.calibrate` -- intrinsics and extrinsics from scratch, which ``recipes/calibrate.py`` calls.
+:mod:`toolkit.pipeline.silhouette_db` -- a silhouette database rendered, which ``recipes/build_silhouette_db.py`` calls.
 """
 
 from toolkit.pipeline.keypoints import (SILHOUETTE_SOURCES, KeypointStage1, KeypointStage1Config,
