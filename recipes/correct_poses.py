@@ -23,13 +23,13 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 from toolkit.errors import InputError
 
 
-def main(argv=None) -> int:
+def parser() -> argparse.ArgumentParser:
+    """The recipe's command line."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
     ap.add_argument("run", type=Path, help="output folder of pose_from_silhouettes.py or free_viewpoint.py")
@@ -44,13 +44,16 @@ def main(argv=None) -> int:
                     help="how the silhouettes added to the database are cut (as the run's --foreground)")
     ap.add_argument("--screenshot", type=Path, default=None,
                     help="save a picture of the page (first frame) with headless Chromium to this PNG and exit")
+    return ap
+
+
+def main(argv=None) -> int:
+    ap = parser()
     args = ap.parse_args(argv)
     if not 0 < args.port < 65536:
         ap.error(f"--port: expected 1..65535, found {args.port}")
-
-    import uvicorn
-
-    from toolkit.correction import CorrectionSession, create_app
+    from toolkit.correction import CorrectionSession
+    from toolkit.correction.serve import screenshot_page, serve
 
     try:
         session = CorrectionSession(args.run, args.dataset, args.db, args.foreground)
@@ -59,43 +62,16 @@ def main(argv=None) -> int:
         return 2
     print(f"{len(session.frames)} frames of {args.run} ({session.kind}), cameras {', '.join(session.camera_names)}")
     print(f"corrections: {args.run / 'edits.toml'}; database: {session.database_path}")
-    if args.screenshot is not None:
-        return _screenshot(session, args.host, args.port, args.screenshot)
-    print(f"open http://{args.host}:{args.port}/  (Ctrl-C to stop)", flush=True)
     try:
-        uvicorn.run(create_app(session), host=args.host, port=args.port, log_level="warning")
-    finally:
-        session.close()
-    return 0
-
-
-def _screenshot(session, host: str, port: int, png: Path) -> int:
-    """Serve in a thread, take the page's picture in headless Chromium, stop."""
-    import threading
-
-    import uvicorn
-
-    from toolkit.correction import create_app
-    from toolkit.viz.webshot import screenshot_url
-
-    server = uvicorn.Server(uvicorn.Config(create_app(session), host=host, port=port, log_level="warning"))
-    thread = threading.Thread(target=server.run, daemon=True)
-    thread.start()
-    try:
-        while not server.started:
-            if not thread.is_alive():
-                print(f"error: the page could not be served on {host}:{port}", file=sys.stderr)
-                return 2
-            time.sleep(0.05)
-        screenshot_url(f"http://{host}:{port}/", png, viewport=(1500, 720), wait_selector="circle[data-joint]",
-                       wait_s=1.0)
-        print(f"page: {png}")
+        if args.screenshot is not None:
+            print(f"page: {screenshot_page(session, args.host, args.port, args.screenshot)}")
+            return 0
+        print(f"open http://{args.host}:{args.port}/  (Ctrl-C to stop)", flush=True)
+        serve(session, args.host, args.port)
     except InputError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     finally:
-        server.should_exit = True
-        thread.join(timeout=10)
         session.close()
     return 0
 

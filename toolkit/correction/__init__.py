@@ -4,6 +4,8 @@
               undo, ``RUN/edits.toml`` (the format of :mod:`toolkit.silhouettes.edits`), commits
               to the silhouette database
 ``app``       :func:`create_app`: the FastAPI application (JSON API and the static page in ``static/``)
+``serve``     :func:`~toolkit.correction.serve.serve` the page until Ctrl-C, or
+              :func:`~toolkit.correction.serve.screenshot_page` take its picture in headless Chromium
 
 Start it with ``recipes/correct_poses.py RUN --port PORT``; see ``docs/correction.md``.
 """
