@@ -105,3 +105,13 @@ def test_config_from_dict_tuples_of_tables_and_nested_arrays():
     assert back == c and back.multiview.camera_offset_prior_px == (("a", 1.5), ("b", 1.5))
     with pytest.raises(InputError, match=r"camera_offset_prior_px"):
         config_from_dict(Stage1Config, {"multiview": {"camera_offset_prior_px": [["a", 1.0]], "nope": 1}})
+
+
+@dataclass(frozen=True)
+class _Optional:
+    size: tuple[int, int] | None = None
+
+
+def test_optional_tuple_fields_take_arrays_as_tuples():
+    assert config_from_dict(_Optional, {"size": [640, 480]}).size == (640, 480)
+    assert config_from_dict(_Optional, {}).size is None

@@ -205,6 +205,9 @@ def test_options_from_a_config_file_flags_win_unknown_keys_refused(tmp_path, cap
     assert c.board.kind == "charuco" and c.board.corners == (4, 6) and c.board.max_frames == 20
     b = c.board.board()
     assert (b.rows, b.cols, b.square, b.marker) == (4, 6, 0.04, 0.03)
+    args = recipe.parser().parse_args(["extrinsics", "--intrinsics", "i.toml", "--scene-points", "p.csv", "--out",
+                                       "o.toml", "--config", str(cfg)])
+    assert recipe.config_from_args(args).board.corners == (5, 7)                 # a TOML array: a tuple
     cfg.write_text("[board]\nsquare = 40.0\n")
     rc = recipe.main(["intrinsics", str(tmp_path), "--config", str(cfg), "--out", str(tmp_path / "i.toml")])
     err = capsys.readouterr().err

@@ -109,6 +109,12 @@ def _tuple_item(tp):
     return None
 
 
+def _is_tuple(tp) -> bool:
+    """Whether annotation ``tp`` is a tuple type or allows one (``tuple[int, int] | None``)."""
+    members = typing.get_args(tp) if typing.get_origin(tp) in (typing.Union, types.UnionType) else (tp,)
+    return any(typing.get_origin(t) is tuple or t is tuple for t in members)
+
+
 def _tuples(value):
     """Lists (nested ones included) as tuples: TOML arrays for tuple-valued options."""
     return tuple(_tuples(v) for v in value) if isinstance(value, list) else value
@@ -173,8 +179,7 @@ def config_from_dict(cls, data: dict, *, where: str = "config"):
         elif isinstance(v, list) and dataclasses.is_dataclass(item := _tuple_item(tp)):
             # an array of tables for a tuple of configs (e.g. joint limits)
             kwargs[k] = tuple(config_from_dict(item, x, where=_key(where, f"{k}[{i}]")) for i, x in enumerate(v))
-        elif isinstance(v, list) and (isinstance(flds[k].default, tuple) or _tuple_item(tp) is not None
-                                      or typing.get_origin(tp) is tuple):
+        elif isinstance(v, list) and (isinstance(flds[k].default, tuple) or _is_tuple(tp)):
             kwargs[k] = _tuples(v)
         else:
             kwargs[k] = v
