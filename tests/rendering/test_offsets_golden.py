@@ -1,0 +1,133 @@
+"""Golden test of the offset convention (issue 16, item 3).
+
+Stage 1's calibration offsets reach the image-space consumers (segmentation,
+position score, billboards, rendering, the baselines) as corrected cameras.
+This test pins their outputs on the studio scene (frame 1), seen through
+*measured* cameras whose principal points are off by a few pixels (a different
+error per camera), with stage 1's offsets that undo the errors, to the outputs
+of the code before the change (``tests/data/offsets_golden.npz``): scores to
+1e-9, labels exactly, renders (RGB and alpha) to 1e-9.
+
+The scene is generated deterministically (its images and labels are checked
+against the digest stored with the outputs, so a failure says whether the
+inputs or the code changed).  Regenerate the file (only when an intended
+change of the outputs has been explained) with
+``python tests/rendering/test_offsets_golden.py tests/data/offsets_golden.npz``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+GOLDEN = Path(__file__).resolve().parents[1] / "data" / "offsets_golden.npz"
+#: Measured principal points are off by minus these, pixels (x right, y down), one row per camera:
+#: a world point appears at ``measured.project(X) + IMAGE_OFFSETS[ci]``.
+IMAGE_OFFSETS = np.array([[3.0, -2.0], [-2.5, 1.5], [1.25, 0.75]])
+#: Tolerance of the float outputs (scores, alpha, premultiplied colour, hull points).
+TOL = 1e-9
+#: Stride of the stored renders (rows and columns), to keep the file small.
+STRIDE = 2
+#: Joint moves scored (joint index, displacement in metres).
+MOVES = ((7, (0.03, 0.0, -0.02)), (10, (0.0, 0.04, 0.0)), (4, (-0.02, 0.0, 0.03)))
+
+
+def _frame(dataset):
+    from toolkit.template import camera_with_offset
+
+    t = 1
+    true_rig = dataset.gt_rig
+    images = {c: dataset.frame(c, t) for c in true_rig.names}
+    labels = {c: dataset.gt_parts(c, t) for c in true_rig.names}
+    measured = type(true_rig)(tuple(camera_with_offset(c, -o) for c, o in zip(true_rig, IMAGE_OFFSETS)))
+    h = hashlib.sha1()
+    for c in true_rig.names:
+        h.update(images[c].tobytes())
+        h.update(labels[c].tobytes())
+    return dict(t=t, images=images, labels=labels, joints=dataset.gt_joints3d()[t], measured=measured,
+                stage1_offsets=-IMAGE_OFFSETS, novel=dataset.novel_rig[0], digest=h.hexdigest())
+
+
+def compute_outputs(dataset) -> dict:
+    """Every pinned output, computed through the offset convention of the code under test."""
+    from toolkit.billboards import PositionScorer
+    from toolkit.multiview import image_offsets
+    from toolkit.pipeline.frame import FrameProcessor
+    from toolkit.rendering import CpuCompositor
+    from toolkit.rendering.freeviewpoint import FreeViewpointConfig, render_views
+    from toolkit.segmentation import segment_frame
+    from toolkit.template import Template
+
+    f = _frame(dataset)
+    rig, off = f["measured"], image_offsets(f["stage1_offsets"])
+    J = np.asarray(f["joints"], float)
+    out = {"digest": np.array(f["digest"])}
+    # the position score
+    scorer = PositionScorer(f["images"], f["labels"], rig, off)
+    scores = [scorer.pose_score(J)]
+    for j, d in MOVES:
+        Jm = J.copy()
+        Jm[j] += d
+        scores += [scorer.pose_score(Jm), scorer.joint_score(Jm, j)]
+    out["scores"] = np.array(scores)
+    # segmentation
+    template = Template(1.75)
+    for ci, cam in enumerate(rig):
+        seg = segment_frame(f["images"][cam.name], f["labels"][cam.name] > 0, J, cam, template, offset=off[ci])
+        out[f"labels_{cam.name}"] = seg.labels
+    # stages 2-3 and the billboards of one frame, stage 1's joints a little off the truth
+    J1 = J + np.array([0.0, 0.0, 0.01])
+    estimate = SimpleNamespace(ok=True, joints3d=J1, offsets=f["stage1_offsets"], poses2d=np.full((3, 14, 2), np.nan))
+    config = FreeViewpointConfig(supersample=1, use_plates=False)
+    res = FrameProcessor(rig, config).process(f["t"], f["images"], [f["labels"][c] > 0 for c in rig.names], estimate)
+    out["joints"] = res.joints
+    for c in rig.names:
+        out[f"frame_labels_{c}"] = res.labels[c]
+    out["hull_points"] = res.hull.points
+    out["hull_colors"] = res.hull.colors
+    bg = np.full(f["novel"].size[::-1] + (3,), 40, np.uint8)
+    for m, v in render_views(res, f["novel"], bg).items():
+        out[f"novel_{m}_rgb"] = v.image[::STRIDE, ::STRIDE]
+        out[f"novel_{m}_alpha"] = v.alpha[::STRIDE, ::STRIDE]
+    # a source view rendered from its own billboards
+    src = rig[1]
+    r = CpuCompositor().render(res.model, src, offset=res.model.offset_of(src.name))
+    out["source_rgb"] = r.rgb[::STRIDE, ::STRIDE]
+    out["source_alpha"] = r.alpha[::STRIDE, ::STRIDE]
+    return out
+
+
+def test_outputs_equal_the_golden_ones(studio):
+    golden = np.load(GOLDEN)
+    got = compute_outputs(studio)
+    assert str(got["digest"]) == str(golden["digest"]), "the studio scene's images or labels changed"
+    assert set(got) == set(golden.files)
+    for k in golden.files:
+        a, b = np.asarray(got[k]), golden[k]
+        assert a.shape == b.shape, k
+        if a.dtype.kind in "iub":
+            assert np.array_equal(a, b), k
+        elif a.dtype.kind == "f":
+            np.testing.assert_allclose(a, b, rtol=0, atol=TOL, err_msg=k)
+
+
+if __name__ == "__main__":
+    import tempfile
+
+    from toolkit.io import Dataset
+    from toolkit.synthetic import generate_scene
+    from toolkit.synthetic.spec import parse_spec
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from conftest import STUDIO_SPEC
+
+    with tempfile.TemporaryDirectory() as tmp:
+        generate_scene(parse_spec(STUDIO_SPEC), Path(tmp) / "scene", progress=False)
+        outputs = compute_outputs(Dataset.open(Path(tmp) / "scene"))
+    Path(sys.argv[1]).parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(sys.argv[1], **outputs)
+    print({k: (v.shape, v.dtype) for k, v in outputs.items()})
