@@ -19,15 +19,19 @@ from pathlib import Path
 from toolkit.errors import InputError
 
 
-def main(argv=None) -> int:
+def parser() -> argparse.ArgumentParser:
+    """The recipe's command line (the scene spec TOML is its config)."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
     ap.add_argument("spec", type=Path, help="scene spec TOML (see datasets_synthetic/README.md)")
     ap.add_argument("--out", type=Path, required=True, help="dataset folder to write")
     ap.add_argument("--no-recording", action="store_true", help="do not write scene.rrd")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
-    args = ap.parse_args(argv)
+    return ap
 
+
+def main(argv=None) -> int:
+    args = parser().parse_args(argv)
     from toolkit.synthetic import generate_scene, load_spec
 
     try:
@@ -35,8 +39,9 @@ def main(argv=None) -> int:
         observer = None
         if not args.no_recording:
             from toolkit.viz import RerunObserver
-            names = [f"cam{i:02d}" for i in range(spec.camera_count)]
-            observer = RerunObserver(application_id="make_scene", path=args.out / "scene.rrd", camera_names=names)
+
+            observer = RerunObserver(application_id="make_scene", path=args.out / "scene.rrd",
+                                     camera_names=spec.camera_names)
         t0 = time.perf_counter()
         try:
             ds = generate_scene(spec, args.out, observer=observer, progress=not args.quiet)

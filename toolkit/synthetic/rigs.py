@@ -55,6 +55,11 @@ def _studio_camera(name, azimuth, rng, size, centre, high=False):
     return Camera.look_at(name, eye, target, size=size, focal_px=focal)
 
 
+def camera_names(count: int, prefix: str = "cam") -> list[str]:
+    """The names :func:`make_rig` gives ``count`` cameras: ``f"{prefix}{i:02d}"``."""
+    return [f"{prefix}{i:02d}" for i in range(count)]
+
+
 def make_rig(layout: str, count: int, size: tuple[int, int], subject_height: float,
              rng: np.random.Generator | int | None = None, *, prefix: str = "cam",
              centre=(0.0, 0.0, 0.0), azimuths=None, spacing_deg=None, subject_px=None,
@@ -99,8 +104,7 @@ def make_rig(layout: str, count: int, size: tuple[int, int], subject_height: flo
         azimuths = layout_azimuths(layout, count, rng, spacing_deg)
     high = np.zeros(len(azimuths), bool) if high is None else np.asarray(high, bool)
     cams = []
-    for i, az in enumerate(azimuths):
-        name = f"{prefix}{i:02d}"
+    for i, (name, az) in enumerate(zip(camera_names(len(azimuths), prefix), azimuths)):
         if layout == "broadcast":
             cams.append(_broadcast_camera(name, az, rng, size, subject_height, centre, subject_px,
                                           working_radius_m, bool(high[i])))

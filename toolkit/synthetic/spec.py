@@ -91,6 +91,13 @@ class SceneSpec:
     def motion_is_bvh(self) -> bool:
         return self.motion.lower().endswith(".bvh")
 
+    @property
+    def camera_names(self) -> list[str]:
+        """The source cameras' names in the generated dataset."""
+        from toolkit.synthetic.rigs import camera_names
+
+        return camera_names(self.camera_count)
+
 
 def _get(table: dict, key: str, where: str, types, default=...):
     """``table[key]`` checked against ``types``; ``where`` prefixes the field name in errors."""
