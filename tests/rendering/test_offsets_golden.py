@@ -116,14 +116,17 @@ def test_outputs_equal_the_golden_ones(studio):
 
 
 if __name__ == "__main__":
+    import importlib.util
     import tempfile
 
     from toolkit.io import Dataset
     from toolkit.synthetic import generate_scene
     from toolkit.synthetic.spec import parse_spec
 
-    sys.path.insert(0, str(Path(__file__).parent))
-    from conftest import STUDIO_SPEC
+    spec = importlib.util.spec_from_file_location("rendering_conftest", Path(__file__).parent / "conftest.py")
+    conftest = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(conftest)
+    STUDIO_SPEC = conftest.STUDIO_SPEC
 
     with tempfile.TemporaryDirectory() as tmp:
         generate_scene(parse_spec(STUDIO_SPEC), Path(tmp) / "scene", progress=False)
