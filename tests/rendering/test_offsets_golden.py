@@ -55,6 +55,7 @@ def _frame(dataset):
 def compute_outputs(dataset) -> dict:
     """Every pinned output, computed through the offset convention of the code under test."""
     from toolkit.billboards import PositionScorer
+    from toolkit.billboards.score import ScoreConfig
     from toolkit.multiview import image_offsets
     from toolkit.pipeline.frame import FrameProcessor
     from toolkit.rendering import CpuCompositor
@@ -67,13 +68,14 @@ def compute_outputs(dataset) -> dict:
     J = np.asarray(f["joints"], float)
     out = {"digest": np.array(f["digest"])}
     # the position score
-    scorer = PositionScorer(f["images"], f["labels"], rig, off)
-    scores = [scorer.pose_score(J)]
-    for j, d in MOVES:
-        Jm = J.copy()
-        Jm[j] += d
-        scores += [scorer.pose_score(Jm), scorer.joint_score(Jm, j)]
-    out["scores"] = np.array(scores)
+    for key, virtual in (("scores", False), ("scores_virtual", True)):
+        scorer = PositionScorer(f["images"], f["labels"], rig, off, config=ScoreConfig(virtual_views=virtual))
+        scores = [scorer.pose_score(J)]
+        for j, d in MOVES:
+            Jm = J.copy()
+            Jm[j] += d
+            scores += [scorer.pose_score(Jm), scorer.joint_score(Jm, j)]
+        out[key] = np.array(scores)
     # segmentation
     template = Template(1.75)
     for ci, cam in enumerate(rig):
