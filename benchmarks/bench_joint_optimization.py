@@ -19,8 +19,8 @@ frames the joints are optimised (source 000 §3.2) from these starts:
 
 * stage-1 joints and offsets (``recipes/pose_from_silhouettes.py``), when stage 1
   produced a 3D estimate for the frame; stage 1's offsets are added to the 2D
-  joints, the scorer needs the opposite shift (``toolkit.multiview.image_offsets``,
-  read by ``toolkit.pipeline.stage_inputs.read_stage1``);
+  joints, the scorer takes the cameras corrected by the opposite shift
+  (``toolkit.pipeline.stage_inputs.Stage1Poses.cameras``, ``toolkit.multiview.corrected_rig``);
 * ground-truth joints displaced by 5 cm RMS 3D noise (seeded), with the ideal
   offsets (per camera, the mean difference between the ground-truth joints
   projected through the true and the measured calibration): a test of stage 3
@@ -69,6 +69,7 @@ import numpy as np  # noqa: E402
 
 from toolkit.anthropometry import AnthropometricConstraints  # noqa: E402
 from toolkit.billboards import PositionScorer  # noqa: E402
+from toolkit.cameras import Rig, camera_with_offset  # noqa: E402
 from toolkit.io import Dataset  # noqa: E402
 from toolkit.optimize import OptimizeConfig  # noqa: E402
 from toolkit.pipeline.stage3 import optimize_frame, seams_from_depth  # noqa: E402
@@ -168,7 +169,7 @@ def main(argv=None) -> int:
         angles[root.name] = camera_angles(ds.rig)
         gt = ds.gt_joints3d()
         s1 = stage1(root, args.out) if {"stage1", "stage1+s2"} & set(args.starts) else None
-        s1 = read_stage1(ds, s1) if s1 is not None else None  # its cameras, joints, image-space offsets
+        s1 = read_stage1(ds, s1) if s1 is not None else None  # its cameras, joints, offsets
         picks = np.unique(np.linspace(0, ds.n_frames - 1, min(args.frames, ds.n_frames) + 2)[1:-1].round())
         for t in picks.astype(int):
             images = {c: ds.frame(c, t) for c in ds.camera_names}
@@ -177,7 +178,8 @@ def main(argv=None) -> int:
             have_s1 = s1 is not None and np.all(np.isfinite(s1.joints[t]))
             ideal = np.array([np.mean(ds.gt_rig[c.name].project(gt[t]) - c.project(gt[t]), axis=0)
                               for c in ds.rig])
-            scorer = PositionScorer(images, labels, ds.rig, ideal, seams_from_depth(labels, depths))
+            ideal_rig = Rig(tuple(camera_with_offset(c, o) for c, o in zip(ds.rig, ideal)))
+            scorer = PositionScorer(images, labels, ideal_rig, seams_from_depth(labels, depths))
             for j in range(14):  # one candidate's score at the ground truth, as in the search (views and
                 # billboards fixed per joint): median of 5 after a warm-up
                 vis = {p: scorer.visibility(gt[t], p) for p in scorer.adjacent_parts(j)}
@@ -188,21 +190,21 @@ def main(argv=None) -> int:
                     scorer.joint_score(gt[t], j, vis)
                     reps.append((time.perf_counter() - t0) * 1000)
                 eval_ms.append(float(np.median(reps)))
-            # (name, start, labels, depths for the seams, cameras, image offsets, search config)
+            # (name, start, labels, depths for the seams, corrected cameras, search config)
             starts = [("gt+5cm", gt[t] + rng.normal(0, GT_NOISE_M / np.sqrt(3), gt[t].shape), labels, depths,
-                       ds.rig, ideal, config),
-                      ("gt-pure", gt[t], labels, depths, ds.rig, ideal, PURE_SCORE)]
+                       ideal_rig, config),
+                      ("gt-pure", gt[t], labels, depths, ideal_rig, PURE_SCORE)]
             if have_s1:
-                J1, rig1, off1 = s1.joints[t], s1.rig, s1.image_offsets[t]
-                starts.insert(0, ("stage1", J1, labels, depths, rig1, off1, config))
+                J1, rig1 = s1.joints[t], s1.cameras(t)
+                starts.insert(0, ("stage1", J1, labels, depths, rig1, config))
                 if "stage1+s2" in args.starts:  # the pipeline's labels: stage 2 fitted to stage 1, seams from its template
                     l2, z2 = {}, {}
-                    for ci, c in enumerate(ds.camera_names):
-                        seg = segment_frame(images[c], ds.gt_mask(c, t), J1, rig1[c], template, offset=off1[ci])
+                    for c in ds.camera_names:
+                        seg = segment_frame(images[c], ds.gt_mask(c, t), J1, rig1[c], template)
                         l2[c], z2[c] = seg.labels, seg.template_depth
-                    starts.insert(1, ("stage1+s2", J1, l2, z2, rig1, off1, config))
-            for name, J0, lab, dep, rig, off, cfg in [st for st in starts if st[0] in args.starts]:
-                res = optimize_frame(images, lab, rig, J0, offsets=off, depths=dep, constraints=cons,
+                    starts.insert(1, ("stage1+s2", J1, l2, z2, rig1, config))
+            for name, J0, lab, dep, rig, cfg in [st for st in starts if st[0] in args.starts]:
+                res = optimize_frame(images, lab, rig, J0, depths=dep, constraints=cons,
                                      config=cfg).search
                 rows.append((root.name, t, name, mpjpe(J0, gt[t]), mpjpe(res.joints, gt[t]),
                              res.n_evaluations, res.seconds, res.n_sweeps,

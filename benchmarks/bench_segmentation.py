@@ -54,7 +54,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 from toolkit.io import Dataset  # noqa: E402
 from toolkit.io.layout import load_npz  # noqa: E402
-from toolkit.multiview import image_offsets  # noqa: E402
+from toolkit.multiview import corrected_rig  # noqa: E402
 from toolkit.segmentation import SegmentationConfig, part_iou, segment_frame  # noqa: E402
 from toolkit.skeleton import SKELETON_14  # noqa: E402
 from toolkit.calibration import stage_rig  # noqa: E402
@@ -209,8 +209,8 @@ def views(ds: Dataset, s1: Path, source: str, every: int, noise: float, rng):
                 x = g.project(J[t]) + rng.normal(0, noise * subject_height_px(J[t], g), (14, 2))
                 yield t, c, cam, J[t], x
             else:
-                # stage 1's offsets correct the detected joints; the image needs the opposite shift
-                cam = camera_with_offset(rig1[c], image_offsets(off[t, i]))
+                # stage 1's offsets correct the detected joints; its cameras take the opposite shift
+                cam = corrected_rig(rig1, off[t])[c]
                 # "stage1": the multi-view 3D joints projected (the pipeline's default); "stage1_2d": each
                 # view's own stage-1 2D pose (the source's per-view fit)
                 x = p2[c][t] if source == "stage1_2d" and c in p2 and np.isfinite(p2[c][t]).any() else None

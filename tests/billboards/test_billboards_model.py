@@ -140,22 +140,21 @@ def test_build_rejects_bad_input(planar_scene):
         build_billboards(s.images, s.labels, s.joints[:5], s.rig)
     with pytest.raises(InputError, match="non-finite"):
         build_billboards(s.images, s.labels, np.full((14, 3), np.nan), s.rig)
-    with pytest.raises(InputError, match="offsets"):
-        build_billboards(s.images, s.labels, s.joints, s.rig, offsets=np.zeros((1, 2)))
 
 
-def test_offsets_are_applied(planar_scene):
-    """Shifting an image by d pixels and passing offset d gives the same billboard texture."""
+def test_corrected_cameras_follow_their_images(planar_scene):
+    """Shifting an image by d pixels and its camera's principal point by d gives the same billboard texture."""
+    from toolkit.cameras import Rig, camera_with_offset
+
     s = planar_scene
     d = np.array([3.0, -2.0])
     imgs, labs = dict(s.images), dict(s.labels)
     name = s.rig[0].name
     imgs[name] = np.roll(s.images[name], (int(d[1]), int(d[0])), axis=(0, 1))
     labs[name] = np.roll(s.labels[name], (int(d[1]), int(d[0])), axis=(0, 1))
-    off = np.zeros((len(s.rig), 2))
-    off[0] = d
+    shifted = Rig((camera_with_offset(s.rig[0], d),) + tuple(s.rig)[1:])
     a = build_billboards(s.images, s.labels, s.joints, s.rig).fan(s.part).billboards[0]
-    b = build_billboards(imgs, labs, s.joints, s.rig, offsets=off).fan(s.part).billboards[0]
+    b = build_billboards(imgs, labs, s.joints, shifted).fan(s.part).billboards[0]
     assert a.texture.shape == b.texture.shape
     assert np.abs(a.texture.astype(int) - b.texture.astype(int)).mean() < 1.0
 

@@ -124,14 +124,14 @@ GAUGE_DROP = 0.1
 
 
 def test_stage1_offsets_realign_miscalibrated_cameras(planar_scene):
-    """Stage 1's offsets, converted by ``image_offsets``, realign the fan of stage 1's own joints.
+    """Stage 1's offsets, turned into cameras by ``corrected_rig``, realign the fan of stage 1's own joints.
 
-    Stage 1 (``fit_offsets``) adds its offsets to the detected 2D joints; the scorer adds
-    offsets to the measured projections, the opposite shift.  Passed unconverted, the
-    billboards are misaligned by twice the calibration error and the search drifts.
+    Stage 1 (``fit_offsets``) adds its offsets to the detected 2D joints; the cameras'
+    principal points need the opposite shift.  With the wrong sign the billboards are
+    misaligned by twice the calibration error and the search drifts.
     """
-    from toolkit.cameras import Rig
-    from toolkit.multiview import fit_offsets, image_offsets
+    from toolkit.cameras import Rig, camera_with_offset
+    from toolkit.multiview import corrected_rig, fit_offsets
 
     s = planar_scene
     measured = []
@@ -142,13 +142,14 @@ def test_stage1_offsets_realign_miscalibrated_cameras(planar_scene):
     measured = Rig(tuple(measured))
     fit = fit_offsets(np.stack([c.project(s.joints) for c in s.rig]), measured)
     assert fit.success
-    converted = PositionScorer(s.images, s.labels, measured, image_offsets(fit.offsets))
-    raw = PositionScorer(s.images, s.labels, measured, fit.offsets)
+    converted = PositionScorer(s.images, s.labels, corrected_rig(measured, fit.offsets))
+    raw = PositionScorer(s.images, s.labels, corrected_rig(measured, -fit.offsets))
     aligned = converted.joint_score(fit.joints3d, WRIST)
     assert abs(aligned - 1) < ALIGNED_TOL
     assert raw.joint_score(fit.joints3d, WRIST) < aligned - MISALIGNED_DROP
     # the offsets' gauge: stage 1's offsets align stage 1's joints (shifted a little from the
     # truth), so the score prefers them to the ground truth; the true errors align the truth
     assert converted.joint_score(s.joints, WRIST) < aligned - GAUGE_DROP
-    truth = PositionScorer(s.images, s.labels, measured, CALIBRATION_ERROR_PX)
+    truth = PositionScorer(s.images, s.labels,
+                           Rig(tuple(camera_with_offset(c, e) for c, e in zip(measured, CALIBRATION_ERROR_PX))))
     assert abs(truth.joint_score(s.joints, WRIST) - 1) < ALIGNED_TOL

@@ -74,7 +74,7 @@ def test_camera_behind_everything_gives_an_empty_marked_frame(studio_model):
 def test_empty_model(studio_model):
     from toolkit.billboards.model import BillboardModel
 
-    empty = BillboardModel((), studio_model.rig, studio_model.offsets, 0)
+    empty = BillboardModel((), studio_model.rig, 0)
     r = CpuCompositor().render(empty, studio_model.rig[0])
     assert r.status == STATUS_EMPTY_MODEL and not r.ok
 

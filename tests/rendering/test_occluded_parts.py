@@ -84,7 +84,7 @@ def test_a_hidden_limb_borrows_its_mirror(pair):  # noqa: F811
     model, _, _ = pair
     # hide the left forearm (part 4) from every camera: no fan at all
     fans = tuple(f for f in model.fans if f.part != 4)
-    hidden = BillboardModel(fans, model.rig, model.offsets, model.frame, model.joints)
+    hidden = BillboardModel(fans, model.rig, model.frame, model.joints)
     got = borrow_occluded(hidden)
     f4 = got.fan(4)
     assert f4 is not None and sorted(f4.cameras) == sorted(got.fan(6).cameras)

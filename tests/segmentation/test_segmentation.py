@@ -16,7 +16,7 @@ from toolkit.segmentation import (
     part_iou,
     segment_frame,
 )
-from toolkit.template import Template, camera_with_offset
+from toolkit.template import Template
 
 #: Measured on the fixture frame (seed 4, 480x360, subject about 330 px tall, ground-truth joints):
 #: mean IoU 0.911, lowest part 0.76 (the right thigh, mostly hidden). Bounds a little below.
@@ -99,13 +99,6 @@ def test_colour_models_repair_a_misplaced_template(frame, template):
     assert r.pose.reprojection_px < 0.01
     tmpl = np.nanmean(part_iou(np.where(sil, r.template_labels, 0), frame.parts))
     assert np.nanmean(part_iou(r.labels, frame.parts)) > tmpl + 0.03
-
-
-def test_offset_argument_equals_an_offset_camera(frame, template):
-    sil = frame.parts > 0
-    a = segment_frame(frame.image, sil, frame.joints3d, frame.camera, template, offset=(3.0, -2.0))
-    b = segment_frame(frame.image, sil, frame.joints3d, camera_with_offset(frame.camera, (3.0, -2.0)), template)
-    np.testing.assert_array_equal(a.labels, b.labels)
 
 
 # ---------------------------------------------------------------- bad input

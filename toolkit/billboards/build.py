@@ -31,8 +31,8 @@ def segment_outline(member: np.ndarray) -> np.ndarray:
     return hull.astype(np.float64)
 
 
-def check_inputs(images: Mapping, labels: Mapping, rig: Rig, offsets) -> np.ndarray:
-    """Validate per-camera images and label images against a rig; return offsets (n_cams, 2)."""
+def check_inputs(images: Mapping, labels: Mapping, rig: Rig) -> None:
+    """Validate per-camera images and label images against a rig."""
     for cam in rig:
         w, h = cam.size
         if cam.name not in images:
@@ -46,10 +46,6 @@ def check_inputs(images: Mapping, labels: Mapping, rig: Rig, offsets) -> np.ndar
         lb = np.asarray(labels[cam.name])
         if lb.shape != (h, w):
             raise InputError(f"labels[{cam.name!r}]", f"a ({h}, {w}) part-label image", f"shape {lb.shape}")
-    off = np.zeros((len(rig), 2)) if offsets is None else np.asarray(offsets, float)
-    if off.shape != (len(rig), 2) or not np.all(np.isfinite(off)):
-        raise InputError("offsets", f"finite pixel offsets of shape ({len(rig)}, 2)", f"shape {off.shape}")
-    return off
 
 
 def memberships(labels: Mapping, seams: Mapping[str, SeamMap] | None, names) -> dict:
@@ -63,7 +59,7 @@ def memberships(labels: Mapping, seams: Mapping[str, SeamMap] | None, names) -> 
     return out
 
 
-def build_billboard(image: np.ndarray, member: np.ndarray, camera: Camera, offset, proximal, distal,
+def build_billboard(image: np.ndarray, member: np.ndarray, camera: Camera, proximal, distal,
                     part: int, config: BillboardConfig = BillboardConfig(),
                     outline: np.ndarray | None = None) -> Billboard | str:
     """One billboard of a bone for one source camera.
@@ -74,9 +70,8 @@ def build_billboard(image: np.ndarray, member: np.ndarray, camera: Camera, offse
     member : ndarray of shape (H, W), bool
         Pixels that belong to the part (seam pixels included).
     camera : Camera
-        Measured source camera.
-    offset : array_like of shape (2,)
-        Its calibration offset, pixels.
+        Source camera, corrected by stage 1's offsets (its projection is where the
+        subject appears in ``image``).
     proximal, distal : array_like of shape (3,)
         Bone ends, metres.
     part : int
@@ -101,7 +96,7 @@ def build_billboard(image: np.ndarray, member: np.ndarray, camera: Camera, offse
     if depth <= 0:
         return "behind camera"
     texel = depth / float(camera.K[0, 0])  # metres per source pixel at the bone
-    ext = segment_extent(frame, camera, outline, offset, config.margin_px * texel, config.max_extent_m)
+    ext = segment_extent(frame, camera, outline, config.margin_px * texel, config.max_extent_m)
     if ext is None:
         return "behind camera"
     a0, a1, s0, s1 = ext
@@ -114,7 +109,7 @@ def build_billboard(image: np.ndarray, member: np.ndarray, camera: Camera, offse
         radius = float(max(radius, texel))
     uu, vv = np.meshgrid(a0 + (np.arange(w) + 0.5) * tu, s0 + (np.arange(h) + 0.5) * tv)
     P = lift(frame, uu, vv, config.surface, radius)
-    uv = camera.project(P) + np.asarray(offset, float)
+    uv = camera.project(P)
     mx = np.nan_to_num(uv[..., 0], nan=-1e6).astype(np.float32)
     my = np.nan_to_num(uv[..., 1], nan=-1e6).astype(np.float32)
     tex = cv2.remap(np.ascontiguousarray(image), mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
@@ -128,7 +123,7 @@ def build_billboard(image: np.ndarray, member: np.ndarray, camera: Camera, offse
 
 
 def build_billboards(images: Mapping[str, np.ndarray], labels: Mapping[str, np.ndarray], joints3d: np.ndarray,
-                     rig: Rig, offsets=None, seams: Mapping[str, SeamMap] | None = None,
+                     rig: Rig, seams: Mapping[str, SeamMap] | None = None,
                      config: BillboardConfig = BillboardConfig(), *, frame: int = 0,
                      skeleton: Skeleton = SKELETON_14, observer: Observer | None = None) -> BillboardModel:
     """The articulated billboard model of one frame.
@@ -142,9 +137,8 @@ def build_billboards(images: Mapping[str, np.ndarray], labels: Mapping[str, np.n
     joints3d : ndarray of shape (14, 3)
         Joints, metres.
     rig : Rig
-        Measured source cameras.
-    offsets : ndarray of shape (n_cams, 2), optional
-        Calibration offsets of stage 1, pixels (zeros if None).
+        Source cameras, corrected by stage 1's offsets
+        (:func:`toolkit.multiview.corrected_rig`).
     seams : dict of str to SeamMap, optional
         Seam pixels per camera (:func:`~toolkit.billboards.seams.detect_seams`).
     config : BillboardConfig
@@ -158,7 +152,7 @@ def build_billboards(images: Mapping[str, np.ndarray], labels: Mapping[str, np.n
     BillboardModel
         Parts without any billboard have no fan.
     """
-    off = check_inputs(images, labels, rig, offsets)
+    check_inputs(images, labels, rig)
     J = skeleton.check_joints(joints3d, "joints3d")
     if J.shape != (skeleton.n_joints, 3) or not np.all(np.isfinite(J)):
         raise InputError("joints3d", f"finite joints of shape ({skeleton.n_joints}, 3)",
@@ -172,7 +166,7 @@ def build_billboards(images: Mapping[str, np.ndarray], labels: Mapping[str, np.n
         bbs = []
         for ci, cam in enumerate(rig):
             member = (members[cam.name] & np.uint16(1 << pid)) != 0
-            res = build_billboard(images[cam.name], member, cam, off[ci], ends[p, 0], ends[p, 1], pid, config)
+            res = build_billboard(images[cam.name], member, cam, ends[p, 0], ends[p, 1], pid, config)
             if isinstance(res, str):
                 obs.report("text", name="billboards/missing", frame=frame,
                            text=f"part {skeleton.parts[p].name}, camera {cam.name}: {res}")
@@ -180,7 +174,7 @@ def build_billboards(images: Mapping[str, np.ndarray], labels: Mapping[str, np.n
                 bbs.append(res)
         if bbs:
             fans.append(BillboardFan(part=pid, billboards=tuple(bbs), axis=ends[p]))
-    model = BillboardModel(fans=tuple(fans), rig=rig, offsets=off, frame=frame, joints=J)
+    model = BillboardModel(fans=tuple(fans), rig=rig, frame=frame, joints=J)
     if model.billboards:
         obs.report("quads", name="billboards", frame=frame,
                    corners=np.stack([b.corners for b in model.billboards]),

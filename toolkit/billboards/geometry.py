@@ -101,19 +101,17 @@ def billboard_frame(proximal, distal, center, edge_on_deg: float = 8.0) -> Billb
     return BillboardFrame(origin=x, e_u=e_u, e_v=b, normal=n, length=L)
 
 
-def segment_extent(frame: BillboardFrame, camera: Camera, pixels: np.ndarray, offset=(0.0, 0.0),
-                   margin_m: float = 0.0, max_extent_m: float = 0.5) -> tuple[float, float, float, float] | None:
+def segment_extent(frame: BillboardFrame, camera: Camera, pixels: np.ndarray, margin_m: float = 0.0, max_extent_m: float = 0.5) -> tuple[float, float, float, float] | None:
     """Rectangle ``(a0, a1, s0, s1)`` in plane coordinates covering a segment's pixels.
 
     Parameters
     ----------
     frame : BillboardFrame
     camera : Camera
-        The source camera (measured calibration).
+        The source camera, corrected by stage 1's offsets.
     pixels : ndarray of shape (N, 2)
         Outline points of the part's segment in the image, pixels (e.g. the
-        corners of its convex hull); the calibration ``offset`` is removed
-        before casting rays.
+        corners of its convex hull).
     margin_m : float
         Border added on every side, metres.
     max_extent_m : float
@@ -125,7 +123,7 @@ def segment_extent(frame: BillboardFrame, camera: Camera, pixels: np.ndarray, of
     tuple of float or None
         None when no outline ray hits the plane in front of the camera.
     """
-    px = np.asarray(pixels, float).reshape(-1, 2) - np.asarray(offset, float)
+    px = np.asarray(pixels, float).reshape(-1, 2)
     o, d = camera.rays(px)
     as_, t = frame.intersect(o, d)
     ok = np.isfinite(t) & (t > 0)

@@ -21,10 +21,11 @@ world point ``TL + (u + 0.5) / w * (TR - TL) + (v + 0.5) / h * (BL - TL)``;
 :meth:`Billboard.world_from_texture` is that map as a 3x3 matrix acting on
 ``(u, v, 1)``.
 
-Calibration offsets (stage 1): a measured camera's projection + its offset
-(pixels) is where the person really appears.  :meth:`Billboard.view_from_texture`
-takes the offset of the view so that the same convention holds when the view
-is a measured camera; virtual views take a zero offset.
+Calibration offsets (stage 1) are in the cameras: the model's rig holds the
+source cameras with their principal points corrected
+(:func:`toolkit.multiview.corrected_rig`), so a camera's projection is where
+the person appears in its image, and a source view is drawn through its
+corrected camera like any other view.
 """
 
 from __future__ import annotations
@@ -60,7 +61,7 @@ class Billboard:
     corners : ndarray of shape (4, 3)
         World corners, metres, order TL, TR, BR, BL (see module docstring).
     texture : ndarray of shape (h, w, 3), uint8
-        RGB texture sampled from the source image (calibration offset applied).
+        RGB texture sampled from the source image through its corrected camera.
     alpha : ndarray of shape (h, w), float32
         Coverage in [0, 1]: 1 where the source pixel belongs to this part
         (seam pixels included for both adjacent parts), 0 elsewhere.
@@ -144,17 +145,15 @@ class Billboard:
         du, dv = M[:, 0], M[:, 1]
         return np.stack([d @ du / (du @ du), d @ dv / (dv @ dv)], axis=-1)
 
-    def view_from_texture(self, camera: Camera, offset=(0.0, 0.0)) -> np.ndarray:
-        """Homography (3, 3) from texel (u, v, 1) to pixels of ``camera`` (+ ``offset``).
+    def view_from_texture(self, camera: Camera) -> np.ndarray:
+        """Homography (3, 3) from texel (u, v, 1) to pixels of ``camera``.
 
         Exact for pinhole cameras; lens distortion of ``camera`` is ignored.
         """
         M = self.world_from_texture()
         A = camera.R @ M
         A[:, 2] += camera.t
-        H = camera.K @ A
-        T = np.array([[1.0, 0, offset[0]], [0, 1.0, offset[1]], [0, 0, 1.0]])
-        return T @ H
+        return camera.K @ A
 
     def rgba(self) -> np.ndarray:
         """Texture and alpha as one (h, w, 4) uint8 RGBA image (for quads in the recording)."""
@@ -204,9 +203,8 @@ class BillboardModel:
     fans : tuple of BillboardFan
         One per body part that has at least one billboard, in part order.
     rig : Rig
-        The source cameras (measured calibration).
-    offsets : ndarray of shape (n_cams, 2)
-        Per-camera calibration offsets in pixels, rig order (stage 1).
+        The source cameras, corrected by stage 1's offsets
+        (:func:`toolkit.multiview.corrected_rig`).
     frame : int
         Frame index.
     joints : ndarray of shape (14, 3)
@@ -215,24 +213,17 @@ class BillboardModel:
 
     fans: tuple[BillboardFan, ...]
     rig: Rig
-    offsets: np.ndarray
     frame: int
     joints: np.ndarray = field(default_factory=lambda: np.full((14, 3), np.nan))
 
     def __post_init__(self):
         object.__setattr__(self, "fans", tuple(self.fans))
-        check_shape("BillboardModel.offsets", self.offsets, (len(self.rig), 2))
-        object.__setattr__(self, "offsets", _ro(self.offsets))
         object.__setattr__(self, "joints", _ro(self.joints))
 
     @property
     def billboards(self) -> list[Billboard]:
         """All billboards of all fans."""
         return [b for f in self.fans for b in f.billboards]
-
-    def offset_of(self, camera: str) -> np.ndarray:
-        """Calibration offset (2,) of a source camera by name."""
-        return self.offsets[self.rig.names.index(camera)]
 
     def fan(self, part: int) -> BillboardFan | None:
         """The fan of a 1-based part id, or None."""

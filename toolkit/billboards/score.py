@@ -25,8 +25,10 @@ each patch straight into each view with the plane-induced homography
 ``view_from_source`` of its billboard plane (the composition of texturing the
 billboard from the source and drawing it into the view), restricted to the
 billboard's footprint.  Only the bones adjacent to the moving joint are redone.
-Calibration offsets: a source pixel is ``measured projection + offset``; views
-that are input cameras add their own offset, virtual views none.
+Calibration offsets are in the cameras: the rig holds the source cameras
+corrected by stage 1's offsets (:func:`toolkit.multiview.corrected_rig`), so a
+source pixel is the camera's projection; virtual views lie midway between two
+corrected cameras.
 """
 
 from __future__ import annotations
@@ -49,10 +51,9 @@ from toolkit.skeleton import SKELETON_14, Skeleton
 
 @dataclass(frozen=True, eq=False)
 class View:
-    """An evaluated view: a camera, its calibration offset (pixels) and whether it is virtual."""
+    """An evaluated view: a camera and whether it is virtual."""
 
     camera: Camera
-    offset: np.ndarray
     virtual: bool
 
 
@@ -96,14 +97,13 @@ def midway_camera(a: Camera, b: Camera, name: str | None = None) -> Camera:
     return Camera(name or f"mid_{a.name}_{b.name}", K, np.zeros(5), a.size, T)
 
 
-def evaluated_views(rig: Rig, offsets: np.ndarray | None = None, virtual: bool = True) -> list[View]:
-    """Every input camera (with its offset) and, if ``virtual``, a camera midway between each pair."""
-    off = np.zeros((len(rig), 2)) if offsets is None else np.asarray(offsets, float)
-    views = [View(c, off[i], False) for i, c in enumerate(rig)]
+def evaluated_views(rig: Rig, virtual: bool = True) -> list[View]:
+    """Every input camera and, if ``virtual``, a camera midway between each pair."""
+    views = [View(c, False) for c in rig]
     if virtual:
         for i in range(len(rig)):
             for k in range(i + 1, len(rig)):
-                views.append(View(midway_camera(rig[i], rig[k]), np.zeros(2), True))
+                views.append(View(midway_camera(rig[i], rig[k]), True))
     return views
 
 
@@ -119,7 +119,7 @@ class _Source:
     occluder: np.ndarray   # (h, w) uint8: 1 where another part of the subject covers the pixel
     origin: np.ndarray     # (2,) image pixel of patch[0, 0]
     occ_origin: np.ndarray  # (2,) image pixel of occluder[0, 0]
-    rays: np.ndarray       # (K, 3) unit world directions of the segment outline (offset removed)
+    rays: np.ndarray       # (K, 3) unit world directions of the segment outline
     n_pixels: int
     has_occluder: bool
 
@@ -189,9 +189,9 @@ class PositionScorer:
     labels : dict of str to ndarray of shape (H, W), uint8
         Part ids per camera (1-based, 0 background).
     rig : Rig
-        Measured source cameras.
-    offsets : ndarray of shape (n_cams, 2), optional
-        Stage-1 calibration offsets, pixels.
+        Source cameras, corrected by stage 1's offsets
+        (:func:`toolkit.multiview.corrected_rig`); the virtual views lie midway
+        between them.
     seams : dict of str to SeamMap, optional
         Seam pixels: they count for both adjacent parts.
     config : ScoreConfig
@@ -201,15 +201,15 @@ class PositionScorer:
     """
 
     def __init__(self, images: Mapping[str, np.ndarray], labels: Mapping[str, np.ndarray], rig: Rig,
-                 offsets=None, seams: Mapping[str, SeamMap] | None = None,
+                 seams: Mapping[str, SeamMap] | None = None,
                  config: ScoreConfig = ScoreConfig(), billboard_config: BillboardConfig = BillboardConfig(),
                  skeleton: Skeleton = SKELETON_14):
-        self.offsets = check_inputs(images, labels, rig, offsets)
+        check_inputs(images, labels, rig)
         self.rig = rig
         self.config = config
         self.bconfig = billboard_config
         self.skeleton = skeleton
-        self.views = evaluated_views(rig, self.offsets, config.virtual_views)
+        self.views = evaluated_views(rig, config.virtual_views)
         self._W = skeleton.part_weights  # (P, 2, J)
         self._sin_edge = float(np.sin(np.radians(billboard_config.edge_on_deg)))
         self._sin_graze = float(np.sin(np.radians(config.grazing_deg)))
@@ -231,7 +231,7 @@ class PositionScorer:
                 patch[..., :3] = img[y0:y1, x0:x1]
                 patch[..., 3] = np.where(m[y0:y1, x0:x1], 255, 0)
                 outline = segment_outline(m[y0:y1, x0:x1]) + [x0, y0]
-                _, d = cam.rays(outline - self.offsets[ci])
+                _, d = cam.rays(outline)
                 # occluders may lie outside the part's bounding box: keep a border around it
                 bx0, by0 = max(x0 - self._border, 0), max(y0 - self._border, 0)
                 bx1, by1 = min(x1 + self._border, cam.width), min(y1 + self._border, cam.height)
@@ -368,7 +368,7 @@ class PositionScorer:
                 qc = quad @ vc.R.T + vc.t
                 if np.any(qc[:, 2] <= 1e-6):
                     continue
-                alive[ci] = (fr, qc[:, :2] / qc[:, 2:3] @ vc.K[:2, :2].T + vc.K[:2, 2] + view.offset)
+                alive[ci] = (fr, qc[:, :2] / qc[:, 2:3] @ vc.K[:2, :2].T + vc.K[:2, 2])
             act, occl, rgb = {}, {}, {}
             if alive:
                 allp = np.concatenate([q for _, q in alive.values()])
@@ -379,21 +379,20 @@ class PositionScorer:
                 y1 = int(min(np.ceil(allp[:, 1].max()) + 1, h))
                 if x1 > x0 and y1 > y0:
                     dsize = (x1 - x0, y1 - y0)
-                    bx, by = view.offset[0] - x0, view.offset[1] - y0
+                    bx, by = -x0, -y0
                     for ci, (fr, _) in alive.items():
                         src = self.sources[ci][part]
                         H = self._M[vi][ci] + np.outer(self._kt[vi][ci], rows[ci])
-                        H[0] += bx * H[2]  # then into the ROI of the view (offset added)
+                        H[0] += bx * H[2]  # then into the ROI of the view
                         H[1] += by * H[2]
-                        so = self.offsets[ci]
-                        Hp = H.copy()  # from patch pixels (image pixel - offset = measured pixel)
-                        Hp[:, 2] += H[:, :2] @ (src.origin - so)
+                        Hp = H.copy()  # from patch pixels
+                        Hp[:, 2] += H[:, :2] @ src.origin
                         wp = cv2.warpPerspective(src.patch, Hp, dsize, flags=cv2.INTER_LINEAR,
                                                  borderMode=cv2.BORDER_CONSTANT)
                         act[ci] = wp[..., 3] >= self._thr
                         rgb[ci] = wp[..., :3]
                         if cfg.occlusion and src.has_occluder:
-                            Hp[:, 2] = H[:, 2] + H[:, :2] @ (src.occ_origin - so)
+                            Hp[:, 2] = H[:, 2] + H[:, :2] @ src.occ_origin
                             hid = cv2.warpPerspective(src.occluder, Hp, dsize, flags=cv2.INTER_NEAREST,
                                                       borderMode=cv2.BORDER_CONSTANT)
                             occl[ci] = hid.astype(bool) & ~act[ci]

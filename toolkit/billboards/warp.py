@@ -74,16 +74,16 @@ def footprint_roi(points_px: np.ndarray, size: tuple[int, int], roi=None) -> tup
     return (int(max(x0, lo[0])), int(max(y0, lo[1])), int(min(x1, hi[0])), int(min(y1, hi[1])))
 
 
-def plane_depth(camera: Camera, point, normal, roi, offset=(0.0, 0.0)) -> np.ndarray:
-    """Camera-frame z (h, w) of a world plane at the pixels of ``roi`` (pinhole, offset removed)."""
+def plane_depth(camera: Camera, point, normal, roi) -> np.ndarray:
+    """Camera-frame z (h, w) of a world plane at the pixels of ``roi`` (pinhole)."""
     x0, y0, x1, y1 = roi
     n_c = camera.R @ np.asarray(normal, float)
     d_c = float(n_c @ camera.to_cam(np.asarray(point, float)))
     Kinv = np.linalg.inv(camera.K)
     # n_c . (z K^-1 p) = d_c  ->  z = d_c / (n_c . K^-1 p), and n_c . K^-1 p is affine in (u, v)
     g = n_c @ Kinv
-    u = np.arange(x0, x1, dtype=np.float64) - offset[0]
-    v = np.arange(y0, y1, dtype=np.float64) - offset[1]
+    u = np.arange(x0, x1, dtype=np.float64)
+    v = np.arange(y0, y1, dtype=np.float64)
     den = g[0] * u[None, :] + g[1] * v[:, None] + g[2]
     with np.errstate(divide="ignore"):
         z = d_c / den
@@ -123,21 +123,19 @@ def warp_texture(texture_rgba: np.ndarray, H: np.ndarray, roi, size) -> Warp | N
 
 
 def warp_billboard(billboard: Billboard, camera: Camera, out_size: tuple[int, int] | None = None,
-                   roi: tuple[int, int, int, int] | None = None, offset=(0.0, 0.0),
-                   min_cos: float = 0.0) -> Warp:
+                   roi: tuple[int, int, int, int] | None = None, min_cos: float = 0.0) -> Warp:
     """Draw one billboard into a view.
 
     Parameters
     ----------
     billboard : Billboard
     camera : Camera
-        The view (pinhole; its distortion is ignored).
+        The view (pinhole; its distortion is ignored); a source camera corrected
+        by stage 1's offsets (the model's rig) reproduces its image.
     out_size : tuple of int, optional
         ``(width, height)`` of the view; the camera's size by default.
     roi : tuple of int, optional
         ``(x0, y0, x1, y1)`` to restrict the output to.
-    offset : array_like of shape (2,)
-        Calibration offset of the view, pixels (0 for virtual views).
     min_cos : float
         Skip the billboard (empty result) when the cosine between its normal
         and the direction to the view is at most this (seen from behind or edge-on).
@@ -151,26 +149,23 @@ def warp_billboard(billboard: Billboard, camera: Camera, out_size: tuple[int, in
     if not isinstance(billboard, Billboard):
         raise InputError("billboard", "a Billboard", type(billboard).__name__)
     size = camera.size if out_size is None else (int(out_size[0]), int(out_size[1]))
-    off = np.asarray(offset, float)
-    if off.shape != (2,):
-        raise InputError("offset", "a pixel offset of shape (2,)", f"shape {off.shape}")
     to_view = camera.center - billboard.center
     cos = float(billboard.normal @ to_view / max(np.linalg.norm(to_view), 1e-12))
     if cos <= min_cos:
         return _empty()
     rgba = np.dstack([billboard.texture.astype(np.float32), billboard.alpha])
     if billboard.surface == "plane":
-        H = billboard.view_from_texture(camera, off)
+        H = billboard.view_from_texture(camera)
         w = warp_texture(rgba, H, roi, size)
         if w is None:
             return _empty()
-        depth = plane_depth(camera, billboard.corners[0], billboard.normal, w.roi, off)
+        depth = plane_depth(camera, billboard.corners[0], billboard.normal, w.roi)
         depth = np.where(w.alpha > 0, depth, np.inf).astype(np.float32)
         return Warp(np.ascontiguousarray(w.rgb), np.ascontiguousarray(w.alpha), depth, w.roi)
-    return _warp_surface(billboard, rgba, camera, size, roi, off)
+    return _warp_surface(billboard, rgba, camera, size, roi)
 
 
-def _warp_surface(bb: Billboard, rgba, camera: Camera, size, roi, off) -> Warp:
+def _warp_surface(bb: Billboard, rgba, camera: Camera, size, roi) -> Warp:
     frame = frame_of(bb.corners, bb.normal, bb.axis)
     w_tex, h_tex = bb.size
     M = bb.world_from_texture()
@@ -186,7 +181,7 @@ def _warp_surface(bb: Billboard, rgba, camera: Camera, size, roi, off) -> Warp:
     q = camera.to_cam(P)
     if np.any(q[..., 2] <= 1e-9):
         return _empty()
-    pix = (q[..., :2] / q[..., 2:3]) @ camera.K[:2, :2].T + camera.K[:2, 2] + off  # pinhole, like planes
+    pix = (q[..., :2] / q[..., 2:3]) @ camera.K[:2, :2].T + camera.K[:2, 2]  # pinhole, like planes
     r = footprint_roi(pix, size, roi)
     if r[2] <= r[0] or r[3] <= r[1]:
         return _empty()
@@ -227,19 +222,17 @@ class RenderInfo:
     depth: np.ndarray
 
 
-def render_view(model: BillboardModel, camera: Camera, sigma: float = PAIR_ANGLE_SIGMA,
-                offset=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray, RenderInfo]:
+def render_view(model: BillboardModel, camera: Camera,
+                sigma: float = PAIR_ANGLE_SIGMA) -> tuple[np.ndarray, np.ndarray, RenderInfo]:
     """Composite a billboard model into a view (reference CPU path).
 
     Parameters
     ----------
     model : BillboardModel
     camera : Camera
-        The output view.
+        The output view (a source view: its corrected camera from ``model.rig``).
     sigma : float
         σ of the camera weight ω(β), radians.
-    offset : array_like of shape (2,)
-        Calibration offset of the view (use the model's when rendering a source camera).
 
     Returns
     -------
@@ -263,7 +256,7 @@ def render_view(model: BillboardModel, camera: Camera, sigma: float = PAIR_ANGLE
             ds = mid - c
             ds /= np.linalg.norm(ds)
             beta = float(np.arccos(np.clip(dv @ ds, -1, 1)))
-            wp = warp_billboard(bb, camera, roi=None, offset=offset)
+            wp = warp_billboard(bb, camera, roi=None)
             if not wp.empty:
                 warps.append(wp)
                 weights.append(np.exp(-beta ** 2 / (2 * sigma ** 2)))

@@ -324,6 +324,33 @@ class Rig:
         return np.stack([c.project(points_world) for c in self.cameras])
 
 
+def camera_with_offset(camera: Camera, offset) -> Camera:
+    """The camera whose projection is ``camera``'s plus a 2D pixel offset.
+
+    Shifting the principal point shifts every projected pixel by exactly the
+    offset (also with lens distortion, which acts before ``K``), and every
+    ray by the same correction: the camera *is* the corrected camera, no
+    consumer needs the offset beside it.
+
+    Parameters
+    ----------
+    camera : Camera
+    offset : array_like of shape (2,)
+        Pixels (x right, y down): ``result.project(X) == camera.project(X) + offset``.
+
+    Returns
+    -------
+    Camera
+    """
+    d = np.asarray(offset, float)
+    if d.shape != (2,) or not np.isfinite(d).all():
+        raise InputError("camera_with_offset: offset", "a finite (2,) pixel offset", f"{d!r}")
+    K = camera.K.copy()
+    K[0, 2] += d[0]
+    K[1, 2] += d[1]
+    return camera.replace(K=K)
+
+
 def plane_homography(src: Camera, dst: Camera, plane_normal, plane_point) -> np.ndarray:
     """Homography from ``src`` pixels to ``dst`` pixels induced by a world plane.
 

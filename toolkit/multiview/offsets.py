@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from toolkit.cameras import Rig, closest_point_to_rays
+from toolkit.cameras import Rig, camera_with_offset, closest_point_to_rays
 from toolkit.errors import InputError
 from toolkit.multiview.config import MultiViewConfig
 
@@ -415,6 +415,44 @@ def offsets_modulo_gauge(estimated: np.ndarray, true: np.ndarray, rig: Rig, poin
     out = diff - G @ t
     out[~use] = np.nan
     return out
+
+
+def corrected_rig(rig: Rig, offsets) -> Rig:
+    """The cameras stage 1's offsets correct: every image-space consumer takes these.
+
+    The one offset convention (issue 16): stage 1 adds its offsets to the
+    detected 2D joints (``poses2d = poses2d_raw + offsets``) so that they meet
+    the projections of its 3D joints through the measured cameras; a world
+    point therefore appears in camera ``i``'s image at
+    ``rig[i].project(X) - offsets[i]``.  Shifting each camera's principal
+    point by ``-offsets[i]`` (:func:`toolkit.cameras.camera_with_offset`) makes
+    that exact, lens distortion included, so segmentation, the position
+    score, the billboards and the renderers take cameras only.
+
+    Parameters
+    ----------
+    rig : Rig
+        The cameras stage 1 used (measured, or refined on field lines).
+    offsets : array_like of shape (n_cams, 2)
+        Stage 1's offsets of one frame (``offsets.npz``, ``FrameEstimate.offsets``,
+        ``MultiViewSelection.offsets``), pixels, rig order; NaN (a view that took
+        no part) leaves that camera as it is.
+
+    Returns
+    -------
+    Rig
+        Same names, order and poses; principal points ``c_i - offsets[i]``.
+
+    Raises
+    ------
+    InputError
+        ``offsets`` not of shape (n_cams, 2).
+    """
+    off = np.asarray(offsets, dtype=np.float64)
+    if off.shape != (len(rig), 2):
+        raise InputError("corrected_rig: offsets", f"stage-1 pixel offsets of shape ({len(rig)}, 2)",
+                         f"shape {off.shape}")
+    return Rig(tuple(camera_with_offset(c, o) for c, o in zip(rig, image_offsets(off))))
 
 
 def image_offsets(joint_offsets: np.ndarray) -> np.ndarray:

@@ -37,7 +37,9 @@ class FrameProcessor:
     Parameters
     ----------
     rig : Rig
-        Measured source cameras.
+        The source cameras stage 1 used (measured, or refined on field lines);
+        each frame corrects them by its stage-1 offsets
+        (:func:`toolkit.multiview.corrected_rig`) before anything looks at an image.
     config : FreeViewpointConfig
     observer : Observer, optional
     """
@@ -76,7 +78,7 @@ class FrameProcessor:
         FrameResult
             ``timings["segmentation"]`` includes the seams.
         """
-        from toolkit.multiview import image_offsets
+        from toolkit.multiview import corrected_rig
         from toolkit.pipeline.stage3 import optimize_frame
         from toolkit.rendering.baselines import standard_billboards, visual_hull
         from toolkit.segmentation import segment_frame
@@ -85,31 +87,30 @@ class FrameProcessor:
         names = self.rig.names
         timings: dict = {}
         J1 = np.asarray(estimate.joints3d, float)
-        off = image_offsets(estimate.offsets)  # stage 1 corrects the joints; images need the opposite shift
+        rig = corrected_rig(self.rig, estimate.offsets)  # where the joints appear in each image
         empty = {c: np.zeros(self.rig[c].size[::-1], np.uint8) for c in names}
         if not estimate.ok or not np.isfinite(J1).all():
             obs.report("text", name="free_viewpoint/status", text=f"frame {frame}: {STATUS_NO_POSE}", frame=frame)
-            return FrameResult(frame, STATUS_NO_POSE, J1, np.full_like(J1, np.nan), off, empty, timings=timings)
+            return FrameResult(frame, STATUS_NO_POSE, J1, np.full_like(J1, np.nan), rig, empty, timings=timings)
         t0 = time.perf_counter()
         labels, depths = {}, {}
-        for ci, cam in enumerate(self.rig):
+        for ci, cam in enumerate(rig):
             m = masks[ci]
             if m is None or cam.name not in images or not np.any(m):
                 labels[cam.name] = empty[cam.name]
                 obs.report("text", name=f"free_viewpoint/{cam.name}", frame=frame,
                            text=f"frame {frame}: {cam.name} has no silhouette; left out")
                 continue
-            pose2d = np.asarray(estimate.poses2d[ci], float)  # image pixels (the offset is for the joints)
+            pose2d = np.asarray(estimate.poses2d[ci], float)  # image pixels (stage 1's offsets are in ``cam``)
             per_view = self.config.template_pose == "per_view" and np.isfinite(pose2d).all()
             plate = (plates or {}).get(cam.name) if self.config.use_plates else None
-            seg = segment_frame(images[cam.name], m, J1, cam, self.template, offset=off[ci],
-                                joints2d=pose2d if per_view else None, observer=obs, frame=frame, plate=plate)
+            seg = segment_frame(images[cam.name], m, J1, cam, self.template, joints2d=pose2d if per_view else None, observer=obs, frame=frame, plate=plate)
             labels[cam.name], depths[cam.name] = seg.labels, seg.template_depth
         timings["segmentation"] = time.perf_counter() - t0
         if not depths:
-            return FrameResult(frame, STATUS_NO_VIEWS, J1, np.full_like(J1, np.nan), off, labels, timings=timings)
+            return FrameResult(frame, STATUS_NO_VIEWS, J1, np.full_like(J1, np.nan), rig, labels, timings=timings)
         imgs = {c: images.get(c, np.zeros(self.rig[c].size[::-1] + (3,), np.uint8)) for c in names}
-        s3 = optimize_frame(imgs, labels, self.rig, J1, offsets=off, depths=depths, constraints=self.constraints,
+        s3 = optimize_frame(imgs, labels, rig, J1, depths=depths, constraints=self.constraints,
                             config=self.config.optimize_config, optimize=self.config.optimize and len(depths) >= 2,
                             billboards=self.config.supersample, observer=obs, frame=frame)
         timings["segmentation"] += s3.timings["seams"]
@@ -119,10 +120,10 @@ class FrameProcessor:
         if self.config.baselines:
             t0 = time.perf_counter()
             sil = {c: labels[c] > 0 for c in names}
-            standard = standard_billboards(imgs, sil, J, self.rig, off, frame)
+            standard = standard_billboards(imgs, sil, J, rig, frame)
             timings["standard_billboards"] = time.perf_counter() - t0
             t0 = time.perf_counter()
-            hull = visual_hull(imgs, sil, J, self.rig, off)
+            hull = visual_hull(imgs, sil, J, rig)
             timings["visual_hull"] = time.perf_counter() - t0
         obs.report("joints3d", joints=J, name="free_viewpoint/joints", skeleton=SKELETON_14, frame=frame)
-        return FrameResult(frame, STATUS_OK, J1, J, off, labels, s3.model, standard, hull, timings, s3.outcome)
+        return FrameResult(frame, STATUS_OK, J1, J, rig, labels, s3.model, standard, hull, timings, s3.outcome)

@@ -234,6 +234,7 @@ class _Frames:
     def __call__(self, est, masks) -> None:
         from toolkit.io import atomic_write_png
         from toolkit.io.frames import frame_filename
+        from toolkit.multiview import image_offsets
         from toolkit.pipeline.views import render_evaluation
         from toolkit.rendering.freeviewpoint import render_methods
 
@@ -252,7 +253,7 @@ class _Frames:
             img = render_methods(res, cams[t], bg, self.compositor, methods=("articulated",))["articulated"]
             atomic_write_png(self.out / "paths" / p / frame_filename(t), img)
         record = {"frame": t, "status": res.status, "joints": res.joints.tolist(),
-                  "joints_stage1": res.joints_stage1.tolist(), "offsets": res.offsets.tolist(),
+                  "joints_stage1": res.joints_stage1.tolist(), "offsets": image_offsets(est.offsets).tolist(),
                   "scores": scores, "timings": {**res.timings, **{k: v for k, v in est.timings.items()
                                                                   if k in ("foreground", "keypoints")},
                                                 "total": time.perf_counter() - t0},

@@ -285,8 +285,8 @@ def choose_silhouettes(source: str, masks_dir, has_plates: bool) -> str:
 class SeededSilhouettes:
     """Per frame, every camera's subject mask seeded by the stage-1 pose (:mod:`toolkit.foreground.seeded`).
 
-    Each camera is segmented by GrabCut seeded with the 3D joints projected into it (shifted by
-    the view's offset, so they sit where the keypoints are); then each mask is carved by the
+    Each camera is segmented by GrabCut seeded with the 3D joints projected into it through its
+    camera corrected by the view's stage-1 offset (so they sit where the keypoints are); then each mask is carved by the
     visual hull of the other views' masks around the 3D pose
     (:meth:`toolkit.foreground.seeded.SeededSegmenter.segment_views`), which drops bystanders
     and floor patches.
@@ -315,18 +315,19 @@ class SeededSilhouettes:
         images : dict of str -> ndarray (H, W, 3) uint8 or None
         estimate : toolkit.silhouettes.estimate.FrameEstimate
         """
-        from toolkit.multiview import image_offsets
+        from toolkit.multiview import corrected_rig
 
         J = np.asarray(estimate.joints3d, float)
-        off = image_offsets(estimate.offsets)
+        corrected = corrected_rig(self.rig, estimate.offsets)
         use3d = np.isfinite(J).all(-1).sum() >= 6
         imgs, joints2d, weights = {}, {}, {}
         for v, cam in enumerate(self.rig):
             if images.get(cam.name) is None:
                 continue
-            # the 3D joints projected and shifted by the view's offset sit where its keypoints are;
-            # without a 3D pose, the view's own keypoints
-            j2 = cam.project(J) + off[v] if use3d else np.asarray(estimate.poses2d[v], float)
+            # the 3D joints projected through the corrected camera sit where its keypoints are;
+            # without a 3D pose, the view's own keypoints.  (The carving below still uses the
+            # uncorrected cameras, as before the offset convention changed.)
+            j2 = corrected[v].project(J) if use3d else np.asarray(estimate.poses2d[v], float)
             imgs[cam.name], joints2d[cam.name] = images[cam.name], j2
             weights[cam.name] = np.isfinite(j2).all(-1).astype(float)
         masks, self.previous = self.segmenter.segment_views(

@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -78,11 +79,12 @@ class OptimizeJointsConfig:
 
 @dataclass(frozen=True, eq=False)
 class _Start:
-    """Where the run starts: joints (T, 14, 3), cameras, image offsets (T, n_cams, 2), what it is."""
+    """Where the run starts: joints (T, 14, 3), the cameras, each frame's cameras (t -> Rig, corrected
+    by stage 1's offsets), what it is."""
 
     joints: np.ndarray
     rig: object
-    offsets: np.ndarray
+    cameras: Callable
     source: str
 
 
@@ -91,15 +93,14 @@ def _start(ds, config: OptimizeJointsConfig, n: int) -> _Start:
 
     if config.poses is not None:
         s1 = read_stage1(ds, config.poses)  # the cameras stage 1 used (refined on field lines or measured)
-        start = _Start(s1.joints, s1.rig, np.nan_to_num(s1.image_offsets), f"stage 1 ({config.poses})")
+        start = _Start(s1.joints, s1.rig, s1.cameras, f"stage 1 ({config.poses})")
     elif not ds.has_groundtruth:
         raise InputError("--poses", "a stage-1 output folder (the dataset has no ground truth)", "none")
     else:
         gt = ds.gt_joints3d()
         rng = np.random.default_rng(config.seed)
         init = gt + rng.normal(0.0, config.noise_cm / 100.0 / np.sqrt(3.0), gt.shape)
-        start = _Start(init, ds.rig, np.zeros((gt.shape[0], len(ds.rig), 2)),
-                       f"ground truth + {config.noise_cm:g} cm noise")
+        start = _Start(init, ds.rig, lambda t: ds.rig, f"ground truth + {config.noise_cm:g} cm noise")
     if start.joints.shape[1:] != (14, 3) or start.joints.shape[0] < n:
         raise InputError("initial joints", f"(>= {n}, 14, 3)", f"shape {start.joints.shape}")
     if config.parts is None and not ds.has_groundtruth:
@@ -146,8 +147,8 @@ class _Frame:
         labels, depth = _labels_and_depth(self.ds, self.config, t)
         if self.obs is not None:
             self.obs.report("joints3d", name="optimize/initial", joints=J0, skeleton=SKELETON_14, frame=t)
-        res = optimize_frame(images, labels, self.start.rig, J0, offsets=self.start.offsets[t],
-                             depths=depth if self.config.seams else None, constraints=self.constraints,
+        res = optimize_frame(images, labels, self.start.cameras(t), J0, depths=depth if self.config.seams else None,
+                             constraints=self.constraints,
                              config=self.config.optimize, billboards=1 if self.obs is not None else None,
                              borrow=False, observer=self.obs, frame=t)
         s, counts = res.search, res.outcome

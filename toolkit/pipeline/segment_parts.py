@@ -85,7 +85,8 @@ def _poses(ds, config: SegmentPartsConfig, log):
         return PoseSource(ds.gt_rig, ds.gt_joints3d(), ds.gt_joints2d(), name="groundtruth")
     if config.poses is not None:
         s1 = read_stage1(ds, config.poses, poses2d=config.template_pose == "per_view")
-        return PoseSource(s1.rig, s1.joints, s1.poses2d or None, s1.image_offsets, name=str(config.poses))
+        rigs = tuple(s1.cameras(t) for t in range(len(s1.offsets)))
+        return PoseSource(s1.rig, s1.joints, s1.poses2d or None, rigs, name=str(config.poses))
     log("no --poses or --gt-joints: the template is a standing pose fitted to each silhouette's box")
     return PoseSource(ds.rig, name="none")
 

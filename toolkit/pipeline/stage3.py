@@ -78,7 +78,7 @@ def seams_from_depth(labels: dict, depths: dict | None, *, observer: Observer | 
     return {c: detect_seams(labels[c], d, camera=c, observer=observer) for c, d in depths.items()}
 
 
-def optimize_frame(images: dict, labels: dict, rig, joints, *, offsets=None, depths: dict | None = None,
+def optimize_frame(images: dict, labels: dict, rig, joints, *, depths: dict | None = None,
                    constraints=None, config: OptimizeConfig = OptimizeConfig(), optimize: bool = True,
                    billboards: int | None = None, borrow: bool = True, observer: Observer | None = None,
                    frame: int | None = None) -> Stage3Result:
@@ -91,12 +91,10 @@ def optimize_frame(images: dict, labels: dict, rig, joints, *, offsets=None, dep
     labels : dict of str -> ndarray (H, W) uint8
         Part ids per camera (1-based, 0 background).
     rig : Rig
-        The cameras the joints are seen through.
+        The cameras the joints are seen through, corrected by stage 1's offsets
+        (:func:`toolkit.multiview.corrected_rig`).
     joints : ndarray of shape (14, 3)
         The start, metres (finite when ``optimize``).
-    offsets : ndarray of shape (n_cams, 2), optional
-        Image-space shift of each camera's projections, pixels
-        (:func:`toolkit.multiview.image_offsets` of stage 1's offsets).
     depths : dict of str -> ndarray (H, W) float, optional
         Depth per camera (metres, NaN unknown: the fitted template's or the
         ground truth's) for the seams; cameras without one get none.  None or
@@ -135,7 +133,7 @@ def optimize_frame(images: dict, labels: dict, rig, joints, *, offsets=None, dep
     search = model = None
     if optimize:
         t0 = time.perf_counter()
-        scorer = PositionScorer(images, labels, rig, offsets, seams)
+        scorer = PositionScorer(images, labels, rig, seams)
         search = optimize_pose(scorer, J, constraints, config, observer=observer, frame=frame)
         J = search.joints
         timings["optimize"] = time.perf_counter() - t0
@@ -143,7 +141,7 @@ def optimize_frame(images: dict, labels: dict, rig, joints, *, offsets=None, dep
         from toolkit.rendering.fans import render_billboards
 
         t0 = time.perf_counter()
-        model = render_billboards(images, labels, J, rig, offsets, seams, supersample=billboards, borrow=borrow,
+        model = render_billboards(images, labels, J, rig, seams, supersample=billboards, borrow=borrow,
                                   frame=0 if frame is None else frame, observer=observer)
         timings["billboards"] = time.perf_counter() - t0
     return Stage3Result(J, seams, search, model, timings)

@@ -2,9 +2,9 @@
 
 One reader for the stage-2 and stage-3 runs (:mod:`toolkit.pipeline.segment_parts`,
 :mod:`toolkit.pipeline.optimize_joints`): the cameras stage 1 used, its 3D
-joints, its offsets turned into the image-space shift the consumers add to
-projections (:func:`toolkit.multiview.image_offsets`), and optionally its
-per-view 2D poses.  Missing files and arrays are :class:`InputError` naming
+joints, its offsets (turned into each frame's corrected cameras by
+:meth:`Stage1Poses.cameras`, :func:`toolkit.multiview.corrected_rig`), and
+optionally its per-view 2D poses.  Missing files and arrays are :class:`InputError` naming
 the file and what it should hold.
 """
 
@@ -31,10 +31,10 @@ class Stage1Poses:
         or measured), else the dataset's measured ones.
     joints : ndarray of shape (T, 14, 3)
         World, metres, NaN = no estimate.
-    image_offsets : ndarray of shape (T, n_cams, 2)
-        Where a joint projected through ``rig`` appears in the image, minus
-        the projection, pixels (0 for unused views; 0 everywhere without an
-        ``offsets.npz``).
+    offsets : ndarray of shape (T, n_cams, 2)
+        Stage 1's offsets as it wrote them (added to the detected 2D joints),
+        pixels; NaN for unused views, 0 everywhere without an ``offsets.npz``.
+        Consumers take :meth:`cameras`, not these.
     poses2d : dict of str -> ndarray of shape (T, 14, 2)
         Each view's chosen 2D pose, image pixels (empty unless asked for).
     """
@@ -42,8 +42,14 @@ class Stage1Poses:
     folder: Path
     rig: Rig
     joints: np.ndarray
-    image_offsets: np.ndarray
+    offsets: np.ndarray
     poses2d: dict = field(default_factory=dict)
+
+    def cameras(self, t: int) -> Rig:
+        """``rig`` corrected by frame ``t``'s offsets (:func:`toolkit.multiview.corrected_rig`)."""
+        from toolkit.multiview import corrected_rig
+
+        return corrected_rig(self.rig, self.offsets[t])
 
 
 def _array(path: Path, key: str, what: str) -> np.ndarray:
@@ -78,7 +84,6 @@ def read_stage1(dataset, folder, *, poses2d: bool = False) -> Stage1Poses:
         without ``offsets``; the folder's cameras are not the dataset's.
     """
     from toolkit.calibration import stage_rig
-    from toolkit.multiview import image_offsets
 
     folder = Path(folder)
     joints = np.asarray(_array(folder / "poses3d.npz", "joints", "the 3D joints (T, 14, 3)"), float)
@@ -86,7 +91,7 @@ def read_stage1(dataset, folder, *, poses2d: bool = False) -> Stage1Poses:
         raise InputError(str(folder / "poses3d.npz"), "joints of shape (T, 14, 3)", f"shape {joints.shape}")
     rig = stage_rig(dataset, folder)
     off_file = folder / "offsets.npz"
-    off = image_offsets(_array(off_file, "offsets", "pixels (T, n_cams, 2)")) if off_file.exists() else \
+    off = np.asarray(_array(off_file, "offsets", "pixels (T, n_cams, 2)"), float) if off_file.exists() else \
         np.zeros((joints.shape[0], len(rig), 2))
     views = {}
     if poses2d:

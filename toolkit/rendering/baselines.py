@@ -30,8 +30,7 @@ STANDARD_MARGIN_M = 0.05
 
 
 def sample_billboard(part: int, camera: Camera, image: np.ndarray, mask: np.ndarray, origin: np.ndarray,
-                     e_u: np.ndarray, e_v: np.ndarray, u_range, v_range, offset=(0.0, 0.0),
-                     texel_per_pixel: float = TEXEL_PER_PIXEL) -> Billboard:
+                     e_u: np.ndarray, e_v: np.ndarray, u_range, v_range, texel_per_pixel: float = TEXEL_PER_PIXEL) -> Billboard:
     """A planar billboard textured from one source image.
 
     Parameters
@@ -39,7 +38,7 @@ def sample_billboard(part: int, camera: Camera, image: np.ndarray, mask: np.ndar
     part : int
         Part id stored in the billboard.
     camera : Camera
-        Source camera (measured calibration).
+        Source camera, corrected by stage 1's offsets (:func:`toolkit.multiview.corrected_rig`).
     image : ndarray of shape (H, W, 3), uint8
     mask : ndarray of shape (H, W)
         Coverage of what the billboard shows (bool or float in [0, 1]).
@@ -49,8 +48,6 @@ def sample_billboard(part: int, camera: Camera, image: np.ndarray, mask: np.ndar
         Orthonormal in-plane directions of texture columns and rows.
     u_range, v_range : tuple of float
         Extent along ``e_u`` and ``e_v`` from ``origin``, metres.
-    offset : tuple of float
-        Calibration offset of ``camera``, pixels.
     texel_per_pixel : float
         Texel size as a fraction of a source pixel at the billboard.
 
@@ -76,14 +73,14 @@ def sample_billboard(part: int, camera: Camera, image: np.ndarray, mask: np.ndar
         normal = -normal
     probe = Billboard(part, camera.name, corners, np.zeros((h, w, 3), np.uint8), np.zeros((h, w), np.float32),
                       normal)
-    Hs = probe.view_from_texture(camera, offset)
+    Hs = probe.view_from_texture(camera)
     flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
     tex = cv2.warpPerspective(np.ascontiguousarray(image), Hs, (w, h), flags=flags, borderMode=cv2.BORDER_CONSTANT)
     al = cv2.warpPerspective(np.asarray(mask, np.float32), Hs, (w, h), flags=flags, borderMode=cv2.BORDER_CONSTANT)
     return Billboard(part, camera.name, corners, tex, al, normal)
 
 
-def standard_billboards(images: dict, masks: dict, joints: np.ndarray, rig: Rig, offsets: np.ndarray | None = None,
+def standard_billboards(images: dict, masks: dict, joints: np.ndarray, rig: Rig,
                         frame: int = 0) -> BillboardModel:
     """One billboard per source camera for the whole subject (the classic billboard method).
 
@@ -95,8 +92,7 @@ def standard_billboards(images: dict, masks: dict, joints: np.ndarray, rig: Rig,
     joints : ndarray of shape (14, 3)
         3D joints (metres) giving the subject's position and height.
     rig : Rig
-    offsets : ndarray of shape (n_cams, 2), optional
-        Calibration offsets, pixels.
+        Source cameras, corrected by stage 1's offsets (:func:`toolkit.multiview.corrected_rig`).
 
     Returns
     -------
@@ -106,7 +102,6 @@ def standard_billboards(images: dict, masks: dict, joints: np.ndarray, rig: Rig,
     j = np.asarray(joints, float)
     if j.ndim != 2 or j.shape[1] != 3 or not np.isfinite(j).any():
         raise InputError("standard_billboards: joints", "a (J, 3) array with finite joints", f"shape {j.shape}")
-    offsets = np.zeros((len(rig), 2)) if offsets is None else np.asarray(offsets, float)
     ok = np.isfinite(j).all(1)
     centre = j[ok].mean(0)
     top, bottom = j[ok, 2].max() + 0.15, 0.0
@@ -128,7 +123,7 @@ def standard_billboards(images: dict, masks: dict, joints: np.ndarray, rig: Rig,
         # footprint of the silhouette on the plane: rays through its bounding box
         ys, xs = np.nonzero(m)
         box = np.array([[xs.min(), ys.min()], [xs.max(), ys.min()], [xs.max(), ys.max()], [xs.min(), ys.max()]],
-                       float) - offsets[ci]
+                       float)
         o, d = cam.rays(box)
         t = ((centre - o) @ n) / np.where(np.abs(d @ n) < 1e-9, 1e-9, d @ n)
         pts = o + t[:, None] * d - centre
@@ -136,9 +131,9 @@ def standard_billboards(images: dict, masks: dict, joints: np.ndarray, rig: Rig,
         u_range = (us.min() - STANDARD_MARGIN_M, us.max() + STANDARD_MARGIN_M)
         v_range = (max(vs.min(), -top + centre[2]) - STANDARD_MARGIN_M, vs.max() + STANDARD_MARGIN_M)
         boards.append(sample_billboard(WHOLE_BODY_PART, cam, images[cam.name], m, centre, e_u, e_v,
-                                       u_range, v_range, offsets[ci]))
+                                       u_range, v_range))
     fans = (BillboardFan(WHOLE_BODY_PART, tuple(boards), axis),) if boards else ()
-    return BillboardModel(fans, rig, offsets, frame, j if j.shape == (14, 3) else np.full((14, 3), np.nan))
+    return BillboardModel(fans, rig, frame, j if j.shape == (14, 3) else np.full((14, 3), np.nan))
 
 
 @dataclass(frozen=True, eq=False)
@@ -166,8 +161,7 @@ HULL_VOXEL_M = 0.015
 HULL_MARGIN_M = 0.3
 
 
-def visual_hull(images: dict, masks: dict, joints: np.ndarray, rig: Rig, offsets: np.ndarray | None = None,
-                voxel_m: float = HULL_VOXEL_M) -> VisualHull:
+def visual_hull(images: dict, masks: dict, joints: np.ndarray, rig: Rig, voxel_m: float = HULL_VOXEL_M) -> VisualHull:
     """Carve a voxel visual hull from silhouettes and colour its surface.
 
     A voxel is kept when it projects inside the silhouette of every camera that
@@ -181,7 +175,7 @@ def visual_hull(images: dict, masks: dict, joints: np.ndarray, rig: Rig, offsets
     joints : ndarray of shape (J, 3)
         Bounds the carved box (plus :data:`HULL_MARGIN_M`).
     rig : Rig
-    offsets : ndarray of shape (n_cams, 2), optional
+        Source cameras, corrected by stage 1's offsets (:func:`toolkit.multiview.corrected_rig`).
     voxel_m : float
 
     Returns
@@ -193,7 +187,6 @@ def visual_hull(images: dict, masks: dict, joints: np.ndarray, rig: Rig, offsets
     j = j[np.isfinite(j).all(1)]
     if len(j) == 0:
         raise InputError("visual_hull: joints", "at least one finite joint", "none")
-    offsets = np.zeros((len(rig), 2)) if offsets is None else np.asarray(offsets, float)
     lo = j.min(0) - HULL_MARGIN_M
     hi = j.max(0) + HULL_MARGIN_M
     lo[2] = max(lo[2], 0.0)
@@ -204,7 +197,7 @@ def visual_hull(images: dict, masks: dict, joints: np.ndarray, rig: Rig, offsets
     uvs = []
     for ci, cam in enumerate(rig):
         m = np.asarray(masks[cam.name]).astype(bool)
-        uv = cam.project(grid) + offsets[ci]
+        uv = cam.project(grid)
         uvs.append(uv)
         W, H = cam.size
         x = np.rint(uv[:, 0])

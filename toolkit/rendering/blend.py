@@ -39,11 +39,11 @@ from toolkit.rendering.config import LATERAL_JOINTS, BlendConfig
 from toolkit.rendering.weights import (CameraWeights, attenuation, back_view_angles, camera_weights, foreshortening,
                                       grazing_fade, omega)
 
-#: A warp of one billboard into a view: ``(billboard, camera, offset, pose) -> (rgb, alpha, roi)`` with
+#: A warp of one billboard into a view: ``(billboard, camera, pose) -> (rgb, alpha, roi)`` with
 #: rgb (h, w, 3) float32 0..255, alpha (h, w) float32 and roi (x0, y0, x1, y1) in the view, or None if
 #: the billboard does not reach the image; ``pose`` is None or a rigid (4, 4) world transform to apply to
 #: the billboard first (:func:`facing_pose`).
-Warper = Callable[[Billboard, Camera, tuple, "np.ndarray | None"], "tuple[np.ndarray, np.ndarray, tuple] | None"]
+Warper = Callable[[Billboard, Camera, "np.ndarray | None"], "tuple[np.ndarray, np.ndarray, tuple] | None"]
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -547,19 +547,17 @@ def _jump(rgb: np.ndarray) -> np.ndarray:
 
 
 def composite(model: BillboardModel, camera: Camera, warper: Warper, config: BlendConfig = BlendConfig(),
-              offset=(0.0, 0.0), observer: Observer | None = None, frame: int | None = None) -> RenderResult:
+              observer: Observer | None = None, frame: int | None = None) -> RenderResult:
     """Render the billboard model into ``camera`` with view-dependent blending.
 
     Parameters
     ----------
     model : BillboardModel
     camera : Camera
-        The view (virtual or source).
+        The view (virtual, or a source camera as ``model.rig`` holds it: corrected by stage 1's offsets).
     warper : Warper
         How one billboard is brought into the view.
     config : BlendConfig
-    offset : tuple of float
-        Pixel offset of the view (non-zero only when the view is a measured source camera).
     observer : Observer, optional
         Receives ``mask`` (discontinuities), ``labels`` (top fan per pixel) and a
         ``scalar`` per camera weight of the view.
@@ -607,11 +605,10 @@ def composite(model: BillboardModel, camera: Camera, warper: Warper, config: Ble
             if pose is not None and widths:  # the part's width from this view, not the source's
                 k = 1.0 + (widths.get(b.camera, 1.0) - 1.0) * (1.0 - float(omega(cw.beta[i, j], config.angle_sigma)))
                 pose = stretch_across(pose, b, k)
-            got = warper(b, camera, tuple(offset), pose)
+            got = warper(b, camera, pose)
             back_m = depth_m * _steeper(b, model.rig.centers[j], eye) if pose is not None else 0.0
             if back_m * px_per_m[i] >= MIN_BACK_PX:  # the part's far side, seen by a view steeper than the source
-                got = _front_over_back(got, warper(b, camera, tuple(offset),
-                                                   behind_pose(pose, b, eye, back_m)))
+                got = _front_over_back(got, warper(b, camera, behind_pose(pose, b, eye, back_m)))
             if got is None:
                 continue
             if getattr(b, "borrowed", False):  # a stand-in its source did not see: faded out near that source,
@@ -620,7 +617,7 @@ def composite(model: BillboardModel, camera: Camera, warper: Warper, config: Ble
                 if b.original is not None:  # under what that source did see of the limb
                     o = b.original
                     po = facing_pose(o, eye, free_deg.get(o.part, config.turn_free_deg)) if config.face_view else None
-                    got = _front_over_back(warper(o, camera, tuple(offset), po), got)
+                    got = _front_over_back(warper(o, camera, po), got)
                 if got is None:
                     continue
             layers.append((j, got))

@@ -19,19 +19,18 @@ from toolkit.observe import Observer
 from toolkit.rendering.blend import RenderResult, composite
 from toolkit.rendering.config import BlendConfig
 
-def posed_homography(billboard: Billboard, camera: Camera, offset=(0.0, 0.0), pose: np.ndarray | None = None):
+def posed_homography(billboard: Billboard, camera: Camera, pose: np.ndarray | None = None):
     """Homography (3, 3) from texels of ``billboard``, moved by the rigid ``pose`` (4, 4), to pixels of ``camera``."""
     if pose is None:
-        return billboard.view_from_texture(camera, offset)
+        return billboard.view_from_texture(camera)
     M = pose[:3, :3] @ billboard.world_from_texture()
     M[:, 2] += pose[:3, 3]
     A = camera.R @ M
     A[:, 2] += camera.t
-    T = np.array([[1.0, 0, offset[0]], [0, 1.0, offset[1]], [0, 0, 1.0]])
-    return T @ camera.K @ A
+    return camera.K @ A
 
 
-def warp_to_view(billboard: Billboard, camera: Camera, offset=(0.0, 0.0), pose: np.ndarray | None = None):
+def warp_to_view(billboard: Billboard, camera: Camera, pose: np.ndarray | None = None):
     """The :data:`~toolkit.rendering.blend.Warper` of the CPU compositor, without caching.
 
     Calls :func:`toolkit.billboards.warp_billboard` (one homography per planar
@@ -48,9 +47,9 @@ def warp_to_view(billboard: Billboard, camera: Camera, offset=(0.0, 0.0), pose: 
     """
     if pose is not None and billboard.surface == "plane":
         rgba = np.dstack([billboard.texture.astype(np.float32), billboard.alpha])
-        w = warp_texture(rgba, posed_homography(billboard, camera, offset, pose), None, camera.size)
+        w = warp_texture(rgba, posed_homography(billboard, camera, pose), None, camera.size)
         return None if w is None else (w.rgb, w.alpha, tuple(int(v) for v in w.roi))
-    w = warp_billboard(billboard, camera, offset=offset, min_cos=-2.0)  # the blend fades back faces itself
+    w = warp_billboard(billboard, camera, min_cos=-2.0)  # the blend fades back faces itself
     if w.empty:
         return None
     return w.rgb, w.alpha, tuple(int(v) for v in w.roi)
@@ -75,22 +74,23 @@ class CpuCompositor:
         self._model = None
         self._rgba: dict[int, np.ndarray] = {}
 
-    def _warp(self, billboard: Billboard, camera: Camera, offset, pose=None):
+    def _warp(self, billboard: Billboard, camera: Camera, pose=None):
         if billboard.surface != "plane":
-            return warp_to_view(billboard, camera, offset, pose)
+            return warp_to_view(billboard, camera, pose)
         rgba = self._rgba.get(id(billboard))
         if rgba is None:
             rgba = billboard.rgba()  # uint8: 8-bit alpha is plenty for the binary blend
             self._rgba[id(billboard)] = rgba
-        w = warp_texture(rgba, posed_homography(billboard, camera, offset, pose), None, camera.size)
+        w = warp_texture(rgba, posed_homography(billboard, camera, pose), None, camera.size)
         if w is None:
             return None
         return w.rgb.astype(np.float32), w.alpha.astype(np.float32) * np.float32(1 / 255), \
             tuple(int(v) for v in w.roi)
 
-    def render(self, model: BillboardModel, camera: Camera, offset=(0.0, 0.0),
-               observer: Observer | None = None, frame: int | None = None) -> RenderResult:
-        """Render ``model`` into ``camera``; see :func:`toolkit.rendering.blend.composite`."""
+    def render(self, model: BillboardModel, camera: Camera, observer: Observer | None = None,
+               frame: int | None = None) -> RenderResult:
+        """Render ``model`` into ``camera`` (a source view: its corrected camera from ``model.rig``);
+        see :func:`toolkit.rendering.blend.composite`."""
         if self._model is not model:
             self._model, self._rgba = model, {}
-        return composite(model, camera, self._warp, self.config, offset, observer, frame)
+        return composite(model, camera, self._warp, self.config, observer, frame)

@@ -34,7 +34,7 @@ CROP_MARGIN_PX = 8
 BORROW_MIN_SHARE = 0.4
 
 
-def render_billboards(images: dict, labels: dict, joints3d: np.ndarray, rig: Rig, offsets=None,
+def render_billboards(images: dict, labels: dict, joints3d: np.ndarray, rig: Rig,
                       seams: dict | None = None, config: BillboardConfig = BillboardConfig(), *,
                       supersample: int = RENDER_SUPERSAMPLE, borrow: bool = True,
                       frame: int = 0, observer: Observer | None = None) -> BillboardModel:
@@ -47,8 +47,8 @@ def render_billboards(images: dict, labels: dict, joints3d: np.ndarray, rig: Rig
         Part ids (seams already resolved into the labels).
     joints3d : ndarray of shape (14, 3)
     rig : Rig
-    offsets : ndarray of shape (n_cams, 2), optional
-        Calibration offsets at the source resolution, pixels.
+        Source cameras at the source resolution, corrected by stage 1's offsets
+        (:func:`toolkit.multiview.corrected_rig`).
     seams : dict of str -> SeamMap, optional
         Seam pixels of stage 3 (enlarged with the labels).
     supersample : int
@@ -59,14 +59,13 @@ def render_billboards(images: dict, labels: dict, joints3d: np.ndarray, rig: Rig
     Returns
     -------
     BillboardModel
-        With the original ``rig`` and ``offsets`` (the geometry does not depend on the scale).
+        With the original ``rig`` (the geometry does not depend on the scale).
     """
     if int(supersample) < 1:
         raise InputError("render_billboards: supersample", "an integer >= 1", repr(supersample))
     s = int(supersample)
-    off = np.zeros((len(rig), 2)) if offsets is None else np.asarray(offsets, float)
     if s == 1:
-        m = build_billboards(images, labels, joints3d, rig, off, seams, config=config, frame=frame,
+        m = build_billboards(images, labels, joints3d, rig, seams, config=config, frame=frame,
                              observer=observer)
         return borrow_occluded(m) if borrow else m
     # enlarge only the subject's bounding box (plus a margin) of each view
@@ -95,12 +94,12 @@ def render_billboards(images: dict, labels: dict, joints3d: np.ndarray, rig: Rig
                 np.kron(np.asarray(sm.membership[y0:y1, x0:x1]), np.ones((s, s), np.uint16)))
     big_rig = Rig(tuple(crops))
     cfg = replace(config, margin_px=config.margin_px * s, min_pixels=config.min_pixels * s * s)
-    m = build_billboards(big_img, big_lab, joints3d, big_rig, off * s, big_seams or None, config=cfg, frame=frame)
+    m = build_billboards(big_img, big_lab, joints3d, big_rig, big_seams or None, config=cfg, frame=frame)
     if observer is not None and m.billboards:  # recorded at about the source resolution
         observer.report("quads", name="billboards", frame=frame, corners=np.stack([b.corners for b in m.billboards]),
                         textures=[cv2.resize(b.rgba(), (max(b.size[0] // s, 1), max(b.size[1] // s, 1)),
                                              interpolation=cv2.INTER_AREA) for b in m.billboards])
-    m = BillboardModel(m.fans, rig, off, m.frame, m.joints)
+    m = BillboardModel(m.fans, rig, m.frame, m.joints)
     return borrow_occluded(m) if borrow else m
 
 
@@ -227,4 +226,4 @@ def borrow_occluded(model: BillboardModel, min_share: float = BORROW_MIN_SHARE) 
     if not changed:
         return model
     new_fans = tuple(out[k] for k in sorted(out))
-    return BillboardModel(new_fans, model.rig, model.offsets, model.frame, model.joints)
+    return BillboardModel(new_fans, model.rig, model.frame, model.joints)

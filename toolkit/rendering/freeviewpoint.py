@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from toolkit.billboards.model import BillboardModel
+from toolkit.cameras import Rig
 from toolkit.errors import InputError
 from toolkit.observe import Observer
 from toolkit.optimize import OptimizeConfig
@@ -82,8 +83,10 @@ class FrameResult:
     joints_stage1 : ndarray of shape (14, 3)
     joints : ndarray of shape (14, 3)
         Final joints (optimised when asked), metres; NaN when none.
-    offsets : ndarray of shape (n_cams, 2)
-        Stage-1 calibration offsets (0 for unused views), pixels.
+    cameras : Rig
+        The source cameras corrected by the frame's stage-1 offsets
+        (:func:`toolkit.multiview.corrected_rig`; unused views uncorrected): the
+        cameras the labels, the billboards and the baselines were made with.
     labels : dict of str -> ndarray (H, W) uint8
         Part labels per camera (zeros without a silhouette).
     model : BillboardModel or None
@@ -100,7 +103,7 @@ class FrameResult:
     status: str
     joints_stage1: np.ndarray
     joints: np.ndarray
-    offsets: np.ndarray
+    cameras: Rig
     labels: dict
     model: BillboardModel | None = None
     standard: BillboardModel | None = None

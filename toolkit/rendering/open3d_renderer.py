@@ -129,18 +129,15 @@ class Open3DRenderer:
             self._names[id(b)] = names
         self._model_id = id(model)
 
-    def _warp(self, billboard: Billboard, camera: Camera, offset, pose=None):
+    def _warp(self, billboard: Billboard, camera: Camera, pose=None):
         corners = billboard.corners if pose is None else billboard.corners @ pose[:3, :3].T + pose[:3, 3]
         if np.any(camera.depth_of(corners) <= 1e-6):
             return None
-        px = camera.project(corners) + np.asarray(offset, float)
+        px = camera.project(corners)
         roi = footprint_roi(px, camera.size)
         if roi[2] <= roi[0] or roi[3] <= roi[1]:
             return None
-        K = camera.K.copy()
-        K[0, 2] += offset[0]
-        K[1, 2] += offset[1]
-        view = camera.replace(K=K, dist=np.zeros(5))
+        view = camera.replace(dist=np.zeros(5))
         c_name, a_name = self._names[id(billboard)]
         x0, y0, x1, y1 = roi
         out = []
@@ -153,10 +150,10 @@ class Open3DRenderer:
         return out[0], out[1][..., 0] / 255.0, roi
 
     # ----------------------------------------------------------------- API
-    def render(self, model: BillboardModel, camera: Camera, offset=(0.0, 0.0), observer: Observer | None = None,
+    def render(self, model: BillboardModel, camera: Camera, observer: Observer | None = None,
                frame: int | None = None) -> RenderResult:
         """Render ``model`` into ``camera`` (same blend as :class:`~toolkit.rendering.CpuCompositor`)."""
         if tuple(camera.size) != self.size:
             raise InputError(f"Open3DRenderer.render: camera {camera.name!r} size", f"{self.size}", f"{camera.size}")
         self._load(model)
-        return composite(model, camera, self._warp, self.config, offset, observer, frame)
+        return composite(model, camera, self._warp, self.config, observer, frame)

@@ -13,7 +13,7 @@ from toolkit.segmentation.segment import SegmentationConfig, SegmentationResult,
 from toolkit.template import PoseDatabase, Template
 
 #: What the template is fitted to in each view: the multi-view 3D joints projected through the view's
-#: (offset) camera, or that view's own stage-1 2D pose (the source's per-view fit).
+#: (corrected) camera, or that view's own stage-1 2D pose (the source's per-view fit).
 TEMPLATE_POSES = ("multiview", "per_view")
 
 
@@ -24,14 +24,16 @@ class PoseSource:
     Attributes
     ----------
     rig : Rig
-        Cameras to project through (measured ones for stage-1 poses, true ones for ground truth).
+        Cameras to project through (the ones stage 1 used for stage-1 poses, true ones for
+        ground truth); the names and order of every frame's cameras.
     joints3d : ndarray of shape (T, 14, 3) or None
         World, metres, NaN = missing.
     joints2d : mapping of str -> ndarray of shape (T, 14, 2), optional
-        Per camera, 2D poses in image pixels (offsets included), NaN = missing;
+        Per camera, 2D poses in image pixels (stage 1's offsets included), NaN = missing;
         default: ``joints3d`` projected.
-    offsets : ndarray of shape (T, n_cams, 2) or None
-        Stage-1 pixel offsets added to the projections of ``rig`` (camera order of ``rig``).
+    rigs : sequence of Rig, optional
+        Per frame, ``rig`` corrected by that frame's stage-1 offsets
+        (:func:`toolkit.multiview.corrected_rig`); default: ``rig`` in every frame.
     name : str
         ``"stage1"``, ``"groundtruth"`` or ``"none"`` (for messages).
     """
@@ -39,7 +41,7 @@ class PoseSource:
     rig: Rig
     joints3d: np.ndarray | None = None
     joints2d: Mapping[str, np.ndarray] | None = None
-    offsets: np.ndarray | None = None
+    rigs: tuple[Rig, ...] | None = None
     name: str = "stage1"
 
     def __post_init__(self):
@@ -48,19 +50,18 @@ class PoseSource:
             J = np.asarray(self.joints3d)
             if J.ndim != 3 or J.shape[1:] != (14, 3):
                 raise InputError(f"{self.name}: joints3d", "an array of shape (T, 14, 3)", f"shape {J.shape}")
-        if self.offsets is not None:
-            O = np.asarray(self.offsets)
-            if O.ndim != 3 or O.shape[1:] != (n, 2):
-                raise InputError(f"{self.name}: offsets", f"an array of shape (T, {n}, 2)", f"shape {O.shape}")
+        for t, r in enumerate(self.rigs or ()):
+            if not isinstance(r, Rig) or r.names != self.rig.names:
+                raise InputError(f"{self.name}: rigs[{t}]", f"a Rig of the cameras {self.rig.names} ({n})",
+                                 repr(getattr(r, "names", r)))
         for cam, a in (self.joints2d or {}).items():
             if np.asarray(a).ndim != 3 or np.asarray(a).shape[1:] != (14, 2):
                 raise InputError(f"{self.name}: joints2d[{cam!r}]", "an array of shape (T, 14, 2)",
                                  f"shape {np.asarray(a).shape}")
 
     def view(self, camera: str, t: int):
-        """``(camera, joints3d (14, 3) or None, joints2d (14, 2) or None, offset (2,) or None)`` for frame ``t``."""
-        cam = self.rig[camera]
-        i = self.rig.names.index(camera)
+        """``(camera, joints3d (14, 3) or None, joints2d (14, 2) or None)`` for frame ``t``."""
+        cam = (self.rigs[t] if self.rigs is not None and t < len(self.rigs) else self.rig)[camera]
         J = None
         if self.joints3d is not None and t < len(self.joints3d):
             J = np.asarray(self.joints3d[t], float)
@@ -69,11 +70,7 @@ class PoseSource:
             x = np.asarray(self.joints2d[camera][t], float)
             if not np.isfinite(x).any():
                 x = None
-        off = None
-        if self.offsets is not None and t < len(self.offsets):
-            o = np.asarray(self.offsets[t, i], float)
-            off = o if np.isfinite(o).all() else None
-        return cam, J, x, off
+        return cam, J, x
 
 
 def segment_views(frames: Callable[[str, int], np.ndarray], silhouettes: Callable[[str, int], np.ndarray],
@@ -103,6 +100,6 @@ def segment_views(frames: Callable[[str, int], np.ndarray], silhouettes: Callabl
     names = list(poses.rig.names if cameras is None else cameras)
     for t in (range(int(n_frames)) if frame_indices is None else frame_indices):
         for c in names:
-            cam, J, x, off = poses.view(c, t)
+            cam, J, x = poses.view(c, t)
             yield t, c, segment_frame(frames(c, t), silhouettes(c, t), J, cam, template, config, observer,
-                                      offset=off, joints2d=x, database=database, frame=t)
+                                      joints2d=x, database=database, frame=t)

@@ -52,7 +52,6 @@ from toolkit.template import (
     Template,
     TemplatePose,
     TemplateProjection,
-    camera_with_offset,
     disc,
     fit_template_pose,
 )
@@ -301,7 +300,7 @@ def _label_posterior(feats, sil, confident, uncertain, labels, template_labels, 
 
 def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarray | None, camera: Camera,
                   template: Template, config: SegmentationConfig = SegmentationConfig(), observer=None, *,
-                  offset=None, joints2d: np.ndarray | None = None, database: PoseDatabase | None = None,
+                  joints2d: np.ndarray | None = None, database: PoseDatabase | None = None,
                   frame: int | None = None, plate: np.ndarray | None = None) -> SegmentationResult:
     """Segment the subject's silhouette into body parts.
 
@@ -313,17 +312,16 @@ def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarra
     joints3d : ndarray of shape (14, 3) or None
         World, metres, NaN = missing; the approximate pose of the exact fit.
     camera : Camera
-        Measured camera; with ``offset`` None it must already include the stage-1 offset.
+        The view's camera corrected by stage 1's offsets (:func:`toolkit.multiview.corrected_rig`):
+        its projection is where the subject appears in ``image``.
     template : Template
     config : SegmentationConfig
     observer : Observer, optional
         Receives ``labels`` (thinned and thickened template, final), ``mask`` (confident,
         uncertain), ``text`` (per-part model summaries, parts without a model).
-    offset : array_like of shape (2,), optional
-        Stage-1 pixel offset added to ``camera``'s projections.
     joints2d : ndarray of shape (14, 2), optional
-        2D pose in this view (pixels, image coordinates, i.e. offsets
-        included); default: ``joints3d`` projected.  The template is fitted
+        2D pose in this view (pixels, image coordinates, i.e. stage 1's
+        offsets included); default: ``joints3d`` projected.  The template is fitted
         exactly onto it.
     database : PoseDatabase, optional
         For joints missing in ``joints3d`` (default: the motion-library database).
@@ -360,7 +358,7 @@ def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarra
                              f"shape {plate.shape} {plate.dtype}")
     if (camera.height, camera.width) != img.shape[:2]:
         raise InputError("segment_frame: camera", f"image size {img.shape[1::-1]}", f"size {camera.size}")
-    cam = camera if offset is None else camera_with_offset(camera, offset)
+    cam = camera
     X = None
     if joints3d is not None:
         X = np.asarray(joints3d, float)

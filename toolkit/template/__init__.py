@@ -8,9 +8,9 @@ from toolkit.template.database import (
     approximate_pose,
     canonical_poses,
 )
+from toolkit.cameras import camera_with_offset  # where it lived before (stage 2's offset camera)
 from toolkit.template.fit import (
     TemplatePose,
-    camera_with_offset,
     default_database,
     exact_fit,
     fit_template_pose,

@@ -27,31 +27,6 @@ def default_database(height: float = 1.75) -> PoseDatabase:
     return PoseDatabase.from_motion_library(height)
 
 
-def camera_with_offset(camera: Camera, offset) -> Camera:
-    """The camera whose projection is ``camera``'s plus a 2D pixel offset.
-
-    Shifting the principal point shifts every projected pixel by exactly the
-    offset (also with lens distortion, which acts before ``K``).
-
-    Parameters
-    ----------
-    camera : Camera
-    offset : array_like of shape (2,)
-        Pixels (x right, y down); stage 1's calibration offsets.
-
-    Returns
-    -------
-    Camera
-    """
-    d = np.asarray(offset, float)
-    if d.shape != (2,) or not np.isfinite(d).all():
-        raise InputError("camera_with_offset: offset", "a finite (2,) pixel offset", f"{d!r}")
-    K = camera.K.copy()
-    K[0, 2] += d[0]
-    K[1, 2] += d[1]
-    return camera.replace(K=K)
-
-
 def exact_fit(approx_joints3d: np.ndarray, joints2d: np.ndarray, camera: Camera) -> np.ndarray:
     """Move each joint onto its 2D position, keeping its camera-frame depth.
 
@@ -132,7 +107,7 @@ def fit_template_pose(camera: Camera, joints2d: np.ndarray | None = None, joints
     Parameters
     ----------
     camera : Camera
-        With the stage-1 offset applied (:func:`camera_with_offset`).
+        With the stage-1 offset applied (:func:`toolkit.cameras.camera_with_offset`).
     joints2d : ndarray of shape (14, 2), optional
         Pixels; default ``camera.project(joints3d)``.
     joints3d : ndarray of shape (14, 3), optional
