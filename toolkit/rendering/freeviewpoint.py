@@ -48,7 +48,7 @@ class FreeViewpointConfig:
         Also build the standard billboards and the visual hull.
     template_pose : {"multiview", "per_view"}
         The 2D pose the template is fitted to exactly in each view: the
-        multi-view 3D joints projected through the offset camera
+        multi-view 3D joints projected through the corrected camera
         (``"multiview"``, default: they pool every view's evidence; mean part
         IoU 0.814 from stage 1 on the broadcast benchmark) or stage 1's chosen
         2D pose of that view (``"per_view"``, the source's per-view fit: 0.796).

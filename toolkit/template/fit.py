@@ -107,7 +107,7 @@ def fit_template_pose(camera: Camera, joints2d: np.ndarray | None = None, joints
     Parameters
     ----------
     camera : Camera
-        With the stage-1 offset applied (:func:`toolkit.cameras.camera_with_offset`).
+        Corrected by stage 1's offsets (:func:`toolkit.multiview.corrected_rig`).
     joints2d : ndarray of shape (14, 2), optional
         Pixels; default ``camera.project(joints3d)``.
     joints3d : ndarray of shape (14, 3), optional

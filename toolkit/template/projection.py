@@ -161,7 +161,7 @@ class Template:
         joints3d : ndarray of shape (14, 3)
             World, metres (the exact fit for this camera).
         camera : Camera
-            With the stage-1 offset applied.
+            Corrected by stage 1's offsets (:func:`toolkit.multiview.corrected_rig`).
         fraction : float
             Thinning / thickening radius as a fraction of the subject's image height.
         radius_px : int, optional
