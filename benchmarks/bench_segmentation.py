@@ -53,11 +53,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 
 from toolkit.io import Dataset  # noqa: E402
-from toolkit.io.layout import load_npz  # noqa: E402
-from toolkit.multiview import corrected_rig  # noqa: E402
+from toolkit.pipeline.stage_inputs import read_stage1  # noqa: E402
 from toolkit.segmentation import SegmentationConfig, part_iou, segment_frame  # noqa: E402
 from toolkit.skeleton import SKELETON_14  # noqa: E402
-from toolkit.calibration import stage_rig  # noqa: E402
 from toolkit.synthetic import generate_scene, parse_spec  # noqa: E402
 from toolkit.template import Template, camera_with_offset, subject_height_px  # noqa: E402
 
@@ -195,10 +193,9 @@ def views(ds: Dataset, s1: Path, source: str, every: int, noise: float, rng):
     """Yield (t, camera name, Camera, joints3d, joints2d) per evaluated view."""
     J = ds.gt_joints3d()
     if source in ("stage1", "stage1_2d"):
-        p3 = load_npz(s1 / "poses3d.npz")["joints"]
-        p2 = load_npz(s1 / "poses2d.npz")
-        off = load_npz(s1 / "offsets.npz")["offsets"]
-        rig1 = stage_rig(ds, s1)  # the cameras stage 1 used (refined on the field lines where it could)
+        # the cameras stage 1 used (refined on the field lines where it could), its joints, offsets, 2D poses
+        stage1 = read_stage1(ds, s1, poses2d=True)
+        p3, p2 = stage1.joints, stage1.poses2d
     for t in range(0, ds.n_frames, every):
         for i, c in enumerate(ds.camera_names):
             if source == "gt":
@@ -210,7 +207,7 @@ def views(ds: Dataset, s1: Path, source: str, every: int, noise: float, rng):
                 yield t, c, cam, J[t], x
             else:
                 # stage 1's offsets correct the detected joints; its cameras take the opposite shift
-                cam = corrected_rig(rig1, off[t])[c]
+                cam = stage1.cameras(t)[c]
                 # "stage1": the multi-view 3D joints projected (the pipeline's default); "stage1_2d": each
                 # view's own stage-1 2D pose (the source's per-view fit)
                 x = p2[c][t] if source == "stage1_2d" and c in p2 and np.isfinite(p2[c][t]).any() else None

@@ -174,30 +174,22 @@ class CorrectionSession:
                          "(free_viewpoint.py)", "neither")
 
     def _load_stage1(self, p2: Path, n_cams: int) -> dict[int, FrameState]:
+        from toolkit.io.stage_outputs import read_stage1_output
         from toolkit.silhouettes.estimate import FRAME_NOT_PROCESSED
 
-        def load(path: Path, keys) -> dict:
-            try:
-                with np.load(path, allow_pickle=False) as z:
-                    missing = [k for k in keys if k not in z]
-                    if missing:
-                        raise InputError(str(path), f"fields {list(keys)}", f"no {missing}")
-                    return {k: z[k] for k in keys}
-            except (OSError, ValueError) as e:
-                raise InputError(str(path), "a readable .npz file", f"{type(e).__name__}: {e}") from None
-
-        poses = load(p2, self.camera_names)
-        p3 = load(self.run / "poses3d.npz", ("joints", "state", "cost"))
-        off = load(self.run / "offsets.npz", ("offsets",))
-        joints, state, cost, offsets = p3["joints"], p3["state"], p3["cost"], off["offsets"]
-        n = len(joints)
-        stack = np.stack([poses[c] for c in self.camera_names], axis=1)  # (T, C, 14, 2)
-        if stack.shape != (n, n_cams, _J, 2) or offsets.shape != (n, n_cams, 2):
-            raise InputError(str(self.run), f"poses of {n} frames, {n_cams} cameras, {_J} joints",
-                             f"2D {stack.shape}, offsets {offsets.shape}")
-        return {t: FrameState(stack[t].astype(float), offsets[t].astype(float), joints[t].astype(float),
-                              float(cost[t]), np.zeros((n_cams, _J), bool))
-                for t in range(n) if state[t] != FRAME_NOT_PROCESSED}
+        s1 = read_stage1_output(self.run, cameras=self.camera_names)
+        missing = [c for c in self.camera_names if c not in s1.poses2d]
+        if missing:
+            raise InputError(str(p2), f"a (T, {_J}, 2) array per camera {list(self.camera_names)}", f"no {missing}")
+        for name, file in (("state", "poses3d.npz"), ("cost", "poses3d.npz")):
+            if getattr(s1, name) is None:
+                raise InputError(str(self.run / file), f"an array '{name}' (T,)", "none")
+        if not (self.run / "offsets.npz").is_file():
+            raise InputError(str(self.run / "offsets.npz"), "an existing .npz file", "no such file")
+        stack = np.stack([s1.poses2d[c] for c in self.camera_names], axis=1)  # (T, C, 14, 2)
+        return {t: FrameState(stack[t].astype(float), s1.offsets[t].astype(float), s1.joints[t].astype(float),
+                              float(s1.cost[t]), np.zeros((n_cams, _J), bool))
+                for t in range(s1.n_frames) if s1.state[t] != FRAME_NOT_PROCESSED}
 
     def _load_fvv(self, files: list[Path], n_cams: int) -> dict[int, FrameState]:
         out = {}

@@ -267,8 +267,9 @@ class _Frames:
 
 def _finish(ds, out: Path, records: list, n: int, novel: list, held, stage1: str) -> dict:
     """``poses3d.npz``, the paths' videos (when every frame is done) and the metrics (``metrics.json``)."""
-    from toolkit.io import atomic_save_npz, atomic_write_text, write_video
+    from toolkit.io import atomic_write_text, write_video
     from toolkit.io.frames import frame_filename, read_png
+    from toolkit.io.stage_outputs import FreeViewpointPoses, write_free_viewpoint_poses
     from toolkit.pipeline.views import HELDOUT_REGION_DOC
     from toolkit.rendering.evaluation import summarise
     from toolkit.skeleton import SKELETON_14, pose_errors
@@ -279,8 +280,7 @@ def _finish(ds, out: Path, records: list, n: int, novel: list, held, stage1: str
     status = np.array(["not processed"] * n)
     for r in records:
         joints[r["frame"]], stage1_joints[r["frame"]], status[r["frame"]] = r["joints"], r["joints_stage1"], r["status"]
-    atomic_save_npz(out / "poses3d.npz", joints=joints, names=np.array(SKELETON_14.joint_names),
-                    joints_stage1=stage1_joints, status=status)
+    write_free_viewpoint_poses(out, FreeViewpointPoses(joints, stage1_joints, status, SKELETON_14.joint_names))
     if len(records) == n:
         for p in PATHS:
             write_video(out / "paths" / f"{p}.mp4", (read_png(out / "paths" / p / frame_filename(t))

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from toolkit.errors import InputError
+from toolkit.io.stage_outputs import STAGE1_FILES, STAGE1_VIEW_KEYS
 from toolkit.pipeline.run import STOPPED_INTERRUPTED, RunResult, open_run
 from toolkit.silhouettes.estimate import Stage1Config
 
@@ -30,8 +31,8 @@ from toolkit.silhouettes.estimate import Stage1Config
 CHECKPOINT_FRAMES = 50
 #: Background models of the foreground stage, and chroma keying.
 FOREGROUNDS = ("median", "mog2", "knn", "chroma")
-#: The arrays written, ``OUT/<name>.npz`` (:func:`toolkit.silhouettes.stack_estimates`).
-OUTPUTS = ("poses2d", "poses3d", "offsets")
+#: The files written, ``OUT/<name>.npz`` (:func:`toolkit.io.stage_outputs.write_stage1`).
+OUTPUTS = tuple(f.removesuffix(".npz") for f in STAGE1_FILES)
 
 
 @dataclass(frozen=True)
@@ -122,15 +123,18 @@ def _identity(config: PoseFromSilhouettesConfig, db_path: Path) -> tuple[tuple, 
     return PoseFromSilhouettesConfig.RUNTIME + ("db", "edits", "plates"), extra
 
 
-def _write(out: Path, estimates: list, n: int, names: list, k: int) -> dict:
-    """The stacked arrays of the estimates so far, written to ``OUT/<name>.npz`` (:data:`OUTPUTS`)."""
-    from toolkit.io import atomic_save_npz
+def _write(out: Path, estimates: list, n: int, names: list, k: int):
+    """The estimates so far as a :class:`toolkit.io.stage_outputs.Stage1Output`, written to ``OUT``."""
+    from toolkit.io.stage_outputs import Stage1Output, write_stage1
     from toolkit.silhouettes import stack_estimates
 
     arrays = stack_estimates(estimates, n, names, k)
-    for name in OUTPUTS:
-        atomic_save_npz(out / f"{name}.npz", **arrays[name])
-    return arrays
+    p2, p3 = arrays["poses2d"], arrays["poses3d"]
+    output = Stage1Output(p3["joints"], tuple(names), arrays["offsets"]["offsets"], {c: p2[c] for c in names},
+                          state=p3["state"], cost=p3["cost"], joint_names=tuple(p3["names"]),
+                          **{key: p2[key] for key in STAGE1_VIEW_KEYS})
+    write_stage1(out, output)
+    return output
 
 
 def _observer(out: Path, names: list, recording_id: str | None):
@@ -213,16 +217,16 @@ def run(config: PoseFromSilhouettesConfig, *, dataset, out, observer=None, log=p
         except KeyboardInterrupt:
             stopped = STOPPED_INTERRUPTED
         finally:
-            arrays = _write(out, estimates, n, names, k)
+            output = _write(out, estimates, n, names, k)
             atomic_write_text(out / "edits_template.toml",
-                              edits_template({c: arrays["poses2d"][c] for c in names}, range(len(estimates)),
+                              edits_template(output.poses2d, range(len(estimates)),
                                              header=f"Edits for {dataset} (pose_from_silhouettes.py)"))
             if len(db) > n_db:
                 db.save(db_path)
                 log(f"added {len(db) - n_db} corrected pose(s) to {db_path} ({len(db)} entries)")
             if own and obs is not None:
                 obs.close()
-    states = arrays["poses3d"]["state"][:len(estimates)]
+    states = output.state[:len(estimates)]
     metrics = {"ok": int((states == FRAME_OK).sum()),
                "states": {str(c): int(v) for c, v in sorted(Counter(states.tolist()).items())}}
     return RunResult(out, n, len(estimates), len(estimates), 0, stopped, time.perf_counter() - t0, metrics,

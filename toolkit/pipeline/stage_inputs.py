@@ -1,27 +1,28 @@
 """What a later stage reads from a stage-1 output folder (``recipes/pose_from_silhouettes.py --out``).
 
 One reader for the stage-2 and stage-3 runs (:mod:`toolkit.pipeline.segment_parts`,
-:mod:`toolkit.pipeline.optimize_joints`): the cameras stage 1 used, its 3D
-joints, its offsets (turned into each frame's corrected cameras by
-:meth:`Stage1Poses.cameras`, :func:`toolkit.multiview.corrected_rig`), and
-optionally its per-view 2D poses.  Missing files and arrays are :class:`InputError` naming
-the file and what it should hold.
+:mod:`toolkit.pipeline.optimize_joints`): the cameras stage 1 used, and its
+output read by :func:`toolkit.io.stage_outputs.read_stage1_output` (3D
+joints, offsets, optionally the per-view 2D poses), the offsets turned into
+each frame's corrected cameras by :meth:`Stage1Poses.cameras`
+(:func:`toolkit.multiview.corrected_rig`).  Missing files and arrays are
+:class:`InputError` naming the file and what it should hold.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from toolkit.cameras import Rig
-from toolkit.errors import InputError
+from toolkit.io.stage_outputs import Stage1Output
 
 
 @dataclass(frozen=True, eq=False)
 class Stage1Poses:
-    """A stage-1 output folder, read.
+    """A stage-1 output folder, read: its :class:`Stage1Output` and the cameras it used.
 
     Attributes
     ----------
@@ -29,36 +30,37 @@ class Stage1Poses:
     rig : Rig
         The cameras stage 1 used (``calibration.toml``: refined on field lines
         or measured), else the dataset's measured ones.
-    joints : ndarray of shape (T, 14, 3)
-        World, metres, NaN = no estimate.
-    offsets : ndarray of shape (T, n_cams, 2)
-        Stage 1's offsets as it wrote them (added to the detected 2D joints),
-        pixels; NaN for unused views, 0 everywhere without an ``offsets.npz``.
-        Consumers take :meth:`cameras`, not these.
-    poses2d : dict of str -> ndarray of shape (T, 14, 2)
-        Each view's chosen 2D pose, image pixels (empty unless asked for).
+    output : Stage1Output
+        Joints, offsets, states and (when asked for) 2D poses; its cameras are ``rig``'s.
     """
 
     folder: Path
     rig: Rig
-    joints: np.ndarray
-    offsets: np.ndarray
-    poses2d: dict = field(default_factory=dict)
+    output: Stage1Output
+
+    @property
+    def joints(self) -> np.ndarray:
+        """(T, 14, 3) world, metres, NaN = no estimate."""
+        return self.output.joints
+
+    @property
+    def offsets(self) -> np.ndarray:
+        """(T, n_cams, 2) stage 1's offsets as it wrote them, pixels; 0 without ``offsets.npz``.
+
+        Consumers take :meth:`cameras`, not these.
+        """
+        return self.output.offsets
+
+    @property
+    def poses2d(self) -> dict:
+        """camera -> (T, 14, 2) chosen 2D pose, image pixels (empty unless asked for)."""
+        return self.output.poses2d
 
     def cameras(self, t: int) -> Rig:
         """``rig`` corrected by frame ``t``'s offsets (:func:`toolkit.multiview.corrected_rig`)."""
         from toolkit.multiview import corrected_rig
 
         return corrected_rig(self.rig, self.offsets[t])
-
-
-def _array(path: Path, key: str, what: str) -> np.ndarray:
-    from toolkit.io.layout import load_npz
-
-    data = load_npz(path)
-    if key not in data:
-        raise InputError(str(path), f"an array '{key}' ({what})", f"arrays {sorted(data)}")
-    return data[key]
 
 
 def read_stage1(dataset, folder, *, poses2d: bool = False) -> Stage1Poses:
@@ -69,7 +71,8 @@ def read_stage1(dataset, folder, *, poses2d: bool = False) -> Stage1Poses:
     dataset : toolkit.io.Dataset
     folder : path
         ``poses3d.npz`` (required), ``offsets.npz``, ``poses2d.npz`` (with
-        ``poses2d``), ``calibration.toml``.
+        ``poses2d``), ``calibration.toml``
+        (:func:`toolkit.io.stage_outputs.read_stage1_output`, :func:`toolkit.calibration.stage_rig`).
     poses2d : bool
         Also read every camera's 2D poses.
 
@@ -81,22 +84,12 @@ def read_stage1(dataset, folder, *, poses2d: bool = False) -> Stage1Poses:
     ------
     InputError
         ``poses3d.npz`` missing or without ``joints`` (T, 14, 3); ``offsets.npz``
-        without ``offsets``; the folder's cameras are not the dataset's.
+        without ``offsets`` (T, n_cams, 2); an array of another shape; the
+        folder's cameras are not the dataset's.
     """
     from toolkit.calibration import stage_rig
+    from toolkit.io.stage_outputs import read_stage1_output
 
     folder = Path(folder)
-    joints = np.asarray(_array(folder / "poses3d.npz", "joints", "the 3D joints (T, 14, 3)"), float)
-    if joints.ndim != 3 or joints.shape[1:] != (14, 3):
-        raise InputError(str(folder / "poses3d.npz"), "joints of shape (T, 14, 3)", f"shape {joints.shape}")
-    rig = stage_rig(dataset, folder)
-    off_file = folder / "offsets.npz"
-    off = np.asarray(_array(off_file, "offsets", "pixels (T, n_cams, 2)"), float) if off_file.exists() else \
-        np.zeros((joints.shape[0], len(rig), 2))
-    views = {}
-    if poses2d:
-        from toolkit.io.layout import load_npz
-
-        p2 = load_npz(folder / "poses2d.npz")
-        views = {c: p2[c] for c in rig.names if c in p2}
-    return Stage1Poses(folder, rig, joints, off, views)
+    output = read_stage1_output(folder, cameras=dataset.rig.names, poses2d=poses2d)
+    return Stage1Poses(folder, stage_rig(dataset, folder), output)
