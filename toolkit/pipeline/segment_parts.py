@@ -14,6 +14,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from toolkit.errors import InputError
 from toolkit.pipeline.run import STOPPED_INTERRUPTED, RunResult, open_run
 from toolkit.segmentation.segment import SegmentationConfig
@@ -91,15 +93,70 @@ def _poses(ds, config: SegmentPartsConfig, log):
     return PoseSource(ds.rig, name="none")
 
 
+class _FirstFrames:
+    """The first ``n`` frames of a camera's video on a decoder of its own: what the background learns from."""
+
+    def __init__(self, path, n: int):
+        from toolkit.io import VideoReader
+
+        self.reader = VideoReader(path)
+        self.n = n
+
+    def __len__(self) -> int:
+        return self.n
+
+    def read(self, i: int) -> np.ndarray:
+        return self.reader.read(i)
+
+
+class _StreamedSilhouettes:
+    """``(camera, t) -> (H, W) bool``: the foreground of each camera's frames in order, a frame at a time.
+
+    The background is learned from frames 0..n-1 (a pass on its own decoder);
+    the frames are then read through the dataset's reader, which keeps the
+    last one, so the segmentation's read of frame ``t`` decodes nothing again.
+    Each camera holds its extractor, the previous frame and mask (the motion
+    prior) and the last mask: memory is a few frames, not the sequence.
+    Frames must be asked for in increasing order per camera (a resumed run
+    extracts the finished frames before its first one again, for the prior).
+    """
+
+    def __init__(self, ds, n: int):
+        self.ds, self.n = ds, n
+        self.extractors: dict = {}
+        self.state: dict = {}  # camera -> (next frame, (frame, mask) of the previous one or None, (t, mask))
+
+    def __call__(self, camera: str, t: int) -> np.ndarray:
+        from toolkit.foreground import ForegroundExtractor
+
+        if camera not in self.extractors:
+            frames = _FirstFrames(self.ds.video_path(camera), self.n)
+            try:
+                self.extractors[camera] = ForegroundExtractor(None).fit(frames)
+            finally:
+                frames.reader.close()
+            self.state[camera] = (0, None, None)
+        nxt, prev, last = self.state[camera]
+        if last is not None and last[0] == t:
+            return last[1]
+        if t < nxt:
+            raise InputError(f"silhouettes of {camera}", f"frames in increasing order (next {nxt})", f"frame {t}")
+        ex = self.extractors[camera]
+        while nxt <= t:
+            img = self.ds.frame(camera, nxt)
+            sil = ex.extract(img, prev)
+            prev = (img, sil.mask) if sil.usable else None
+            last = (nxt, sil.mask)
+            nxt += 1
+        self.state[camera] = (nxt, prev, last)
+        return last[1]
+
+
 def _silhouettes(ds, config: SegmentPartsConfig, n: int, todo: list):
     """``(camera, t) -> (H, W) bool``: ground-truth masks, or foreground of a background learned on frames 0..n-1."""
-    from toolkit.foreground import extract_silhouettes
-
     if config.gt_masks:
         return ds.gt_mask
-    fg = {c: extract_silhouettes([ds.frame(c, t) for t in range(n)], camera=c) for c in ds.camera_names} \
-        if todo else {}
-    return lambda c, t: fg[c][t].mask
+    return _StreamedSilhouettes(ds, n)
 
 
 def _observer(folder, rig, names: list):
