@@ -156,16 +156,14 @@ def test_edits_replace_joints_join_the_database_and_retriangulate(walk_scene, wa
 
 def test_stack_estimates(walk_scene, walk_db):
     _, estimates = run(walk_scene, walk_db, frames=[0, 1])
-    arrays = stack_estimates(estimates, 4, walk_scene.rig.names, 3)
-    p2 = arrays["poses2d"]
-    assert p2["cam0"].shape == (4, 14, 2) and p2["candidates"].shape == (4, 2, 3, 14, 2)
-    np.testing.assert_array_equal(p2["cam1"][1], estimates[1].poses2d[1])
-    assert np.isnan(p2["cam0"][2:]).all()
-    p3 = arrays["poses3d"]
-    assert p3["joints"].shape == (4, 14, 3) and list(p3["names"]) == list(SKELETON_14.joint_names)
-    assert p3["state"].tolist() == [FRAME_OK, FRAME_OK, FRAME_NOT_PROCESSED, FRAME_NOT_PROCESSED]
-    assert arrays["offsets"]["offsets"].shape == (4, 2, 2)
-    with pytest.raises(InputError, match="camera names"):
+    out = stack_estimates(estimates, 4, walk_scene.rig.names, 3)
+    assert out.poses2d["cam0"].shape == (4, 14, 2) and out.candidates.shape == (4, 2, 3, 14, 2)
+    np.testing.assert_array_equal(out.poses2d["cam1"][1], estimates[1].poses2d[1])
+    assert np.isnan(out.poses2d["cam0"][2:]).all()
+    assert out.joints.shape == (4, 14, 3) and list(out.joint_names) == list(SKELETON_14.joint_names)
+    assert out.state.tolist() == [FRAME_OK, FRAME_OK, FRAME_NOT_PROCESSED, FRAME_NOT_PROCESSED]
+    assert out.offsets.shape == (4, 2, 2) and out.cameras == tuple(walk_scene.rig.names)
+    with pytest.raises(InputError, match="Stage1Output.cameras"):
         stack_estimates(estimates, 4, ["bbox", "cam1"], 3)
 
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from toolkit.errors import InputError
-from toolkit.io.stage_outputs import STAGE1_FILES, STAGE1_VIEW_KEYS
+from toolkit.io.stage_outputs import STAGE1_FILES, Stage1Output
 from toolkit.pipeline.run import STOPPED_INTERRUPTED, RunResult, open_run
 from toolkit.silhouettes.estimate import Stage1Config
 
@@ -123,16 +123,12 @@ def _identity(config: PoseFromSilhouettesConfig, db_path: Path) -> tuple[tuple, 
     return PoseFromSilhouettesConfig.RUNTIME + ("db", "edits", "plates"), extra
 
 
-def _write(out: Path, estimates: list, n: int, names: list, k: int):
+def _write(out: Path, estimates: list, n: int, names: list, k: int) -> Stage1Output:
     """The estimates so far as a :class:`toolkit.io.stage_outputs.Stage1Output`, written to ``OUT``."""
-    from toolkit.io.stage_outputs import Stage1Output, write_stage1
+    from toolkit.io.stage_outputs import write_stage1
     from toolkit.silhouettes import stack_estimates
 
-    arrays = stack_estimates(estimates, n, names, k)
-    p2, p3 = arrays["poses2d"], arrays["poses3d"]
-    output = Stage1Output(p3["joints"], tuple(names), arrays["offsets"]["offsets"], {c: p2[c] for c in names},
-                          state=p3["state"], cost=p3["cost"], joint_names=tuple(p3["names"]),
-                          **{key: p2[key] for key in STAGE1_VIEW_KEYS})
+    output = stack_estimates(estimates, n, names, k)
     write_stage1(out, output)
     return output
 

@@ -15,7 +15,8 @@ Bad input never raises: a view whose silhouette is empty, tiny, fills the
 frame, touches the border (a person leaving the image) or is missing (a
 shorter video) is left out and its state recorded; a frame with fewer than
 two usable views gets NaN and a frame state.  :func:`stack_estimates` turns
-the per-frame results into the arrays of the recipe's ``.npz`` files.
+the per-frame results into a :class:`toolkit.io.stage_outputs.Stage1Output`
+(the recipe's ``.npz`` files).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ import numpy as np
 
 from toolkit.cameras import Rig
 from toolkit.errors import InputError
+from toolkit.io.stage_outputs import Stage1Output
 from toolkit.multiview import MultiViewSelection, MultiViewTracker, select_multiview
 from toolkit.observe import as_observer
 from toolkit.silhouettes.database import USER_MOTION, DatabaseEntry, SilhouetteDatabase
@@ -338,8 +340,8 @@ class SilhouettePoseEstimator:
 
 
 def stack_estimates(estimates: Sequence[FrameEstimate | None], n_frames: int, camera_names: Sequence[str],
-                    k: int) -> dict[str, dict[str, np.ndarray]]:
-    """Per-frame estimates as the arrays of ``poses2d.npz``, ``poses3d.npz`` and ``offsets.npz``.
+                    k: int) -> Stage1Output:
+    """Per-frame estimates as the run's stage-1 output (written by :func:`toolkit.io.stage_outputs.write_stage1`).
 
     Parameters
     ----------
@@ -352,15 +354,19 @@ def stack_estimates(estimates: Sequence[FrameEstimate | None], n_frames: int, ca
 
     Returns
     -------
-    dict
-        ``"poses2d"``: one (T, 14, 2) array per camera name (image pixels,
-        chosen pose), ``view_state`` (T, n_views) uint8, ``bbox`` (T, n_views,
-        4), ``candidates`` (T, n_views, k, 14, 2), ``candidate_errors`` (T,
-        n_views, k), ``candidate_index`` (T, n_views, k), ``edited`` (T,
-        n_views), ``cameras`` (n_views,);
-        ``"poses3d"``: ``joints`` (T, 14, 3), ``names`` (14,), ``state`` (T,)
-        uint8, ``cost`` (T,) metres;
-        ``"offsets"``: ``offsets`` (T, n_views, 2) pixels, ``cameras``, ``state``.
+    Stage1Output
+        ``joints`` (T, 14, 3), ``offsets`` (T, n_views, 2) pixels, ``poses2d``
+        (one (T, 14, 2) array per camera, image pixels, chosen pose),
+        ``state`` (T,) uint8, ``cost`` (T,) metres, ``view_state`` (T,
+        n_views) uint8, ``bbox`` (T, n_views, 4), ``candidates`` (T, n_views,
+        k, 14, 2), ``candidate_errors`` (T, n_views, k), ``candidate_index``
+        (T, n_views, k), ``edited`` (T, n_views); NaN (-1 for indices) where a
+        frame or view has none.
+
+    Raises
+    ------
+    InputError
+        Camera names that clash with the per-view arrays' keys (``Stage1Output.cameras``).
     """
     T, C = int(n_frames), len(camera_names)
     poses = np.full((C, T, _J, 2), np.nan)
@@ -391,19 +397,9 @@ def stack_estimates(estimates: Sequence[FrameEstimate | None], n_frames: int, ca
         state[t] = e.state
         cost[t] = e.cost
         offsets[t] = e.offsets
-    cams = np.array(list(camera_names))
-    p2 = {name: poses[v] for v, name in enumerate(camera_names)}
-    reserved = {"view_state", "bbox", "candidates", "candidate_errors", "candidate_index", "edited", "cameras"}
-    clash = reserved & set(camera_names)
-    if clash:
-        raise InputError("camera names", f"names other than {sorted(reserved)}", f"{sorted(clash)}")
-    p2.update(view_state=vstate, bbox=bbox, candidates=cand, candidate_errors=cerr, candidate_index=cidx,
-              edited=edited, cameras=cams)
-    return {
-        "poses2d": p2,
-        "poses3d": dict(joints=joints, names=np.array(SKELETON_14.joint_names), state=state, cost=cost),
-        "offsets": dict(offsets=offsets, cameras=cams, state=state),
-    }
+    return Stage1Output(joints, tuple(camera_names), offsets, {name: poses[v] for v, name in enumerate(camera_names)},
+                        state=state, cost=cost, joint_names=SKELETON_14.joint_names, view_state=vstate, bbox=bbox,
+                        candidates=cand, candidate_errors=cerr, candidate_index=cidx, edited=edited)
 
 
 def estimate_dataset(dataset, database: SilhouetteDatabase, config: Stage1Config | None = None, *,
