@@ -123,16 +123,16 @@ class Stage1Output:
         if len(self.joint_names) != _N_JOINTS:
             raise InputError("Stage1Output.joint_names", f"{_N_JOINTS} names", f"{len(self.joint_names)}")
         sizes = {"C": len(cams)}
-        _shaped("Stage1Output.joints", self.joints, ("T", _N_JOINTS, 3), sizes)
-        _shaped("Stage1Output.offsets", self.offsets, ("T", "C", 2), sizes)
+        for name, shape in (("joints", ("T", _N_JOINTS, 3)), ("offsets", ("T", "C", 2))):
+            object.__setattr__(self, name, _shaped(f"Stage1Output.{name}", getattr(self, name), shape, sizes))
         unknown = set(self.poses2d) - set(cams)
         if unknown:
             raise InputError("Stage1Output.poses2d", f"poses of the cameras {list(cams)}", f"{sorted(unknown)}")
-        for c, p in self.poses2d.items():
-            _shaped(f"Stage1Output.poses2d[{c!r}]", p, ("T", _N_JOINTS, 2), sizes)
+        object.__setattr__(self, "poses2d", {c: _shaped(f"Stage1Output.poses2d[{c!r}]", p, ("T", _N_JOINTS, 2), sizes)
+                                             for c, p in self.poses2d.items()})
         for name, shape in self.SHAPES.items():
             if getattr(self, name) is not None:
-                _shaped(f"Stage1Output.{name}", getattr(self, name), shape, sizes)
+                object.__setattr__(self, name, _shaped(f"Stage1Output.{name}", getattr(self, name), shape, sizes))
 
     @property
     def n_frames(self) -> int:
@@ -289,8 +289,8 @@ class FreeViewpointPoses:
             raise InputError("FreeViewpointPoses.joint_names", f"{_N_JOINTS} names", f"{len(self.joint_names)}")
         sizes = {}
         for f in fields(self)[:3]:
-            _shaped(f"FreeViewpointPoses.{f.name}", getattr(self, f.name),
-                    ("T",) if f.name == "status" else ("T", _N_JOINTS, 3), sizes)
+            object.__setattr__(self, f.name, _shaped(f"FreeViewpointPoses.{f.name}", getattr(self, f.name),
+                                                     ("T",) if f.name == "status" else ("T", _N_JOINTS, 3), sizes))
 
 
 def write_free_viewpoint_poses(folder, poses: FreeViewpointPoses) -> Path:
