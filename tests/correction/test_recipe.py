@@ -10,18 +10,18 @@ from pathlib import Path
 import cv2
 import pytest
 
-from conftest import load_recipe
+from recipes import correct_poses
 from toolkit.correction import EDITS_FILE
 
 
 def test_a_folder_that_is_not_a_run_is_refused(tmp_path, capsys):
-    rc = load_recipe("correct_poses").main([str(tmp_path / "nothing"), "--port", "8123"])
+    rc = correct_poses.main([str(tmp_path / "nothing"), "--port", "8123"])
     assert rc == 2 and "nothing" in capsys.readouterr().err
 
 
 def test_bad_port_is_an_argument_error(tmp_path):
     with pytest.raises(SystemExit):
-        load_recipe("correct_poses").main([str(tmp_path), "--port", "70000"])
+        correct_poses.main([str(tmp_path), "--port", "70000"])
 
 
 def test_screenshot_of_the_page(tiny_run, tmp_path):
@@ -35,7 +35,7 @@ def test_screenshot_of_the_page(tiny_run, tmp_path):
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    rc = load_recipe("correct_poses").main([str(run), "--db", str(tiny_run.db), "--foreground", "chroma",
+    rc = correct_poses.main([str(run), "--db", str(tiny_run.db), "--foreground", "chroma",
                                             "--port", str(port), "--screenshot", str(png)])
     assert rc == 0
     img = cv2.imread(str(png))
