@@ -11,6 +11,7 @@ cameras, a held-out source camera and three camera paths rendered and scored
 
 from __future__ import annotations
 
+import json
 import time
 from collections import Counter
 from dataclasses import dataclass, field, replace
@@ -273,7 +274,6 @@ def _finish(ds, out: Path, records: list, n: int, novel: list, held, stage1: str
     from toolkit.pipeline.views import HELDOUT_REGION_DOC
     from toolkit.rendering.evaluation import summarise
     from toolkit.skeleton import SKELETON_14, pose_errors
-    import json
 
     joints = np.full((n, 14, 3), np.nan)
     stage1_joints = np.full((n, 14, 3), np.nan)

@@ -84,10 +84,6 @@ def config_identity(config, *, exclude: tuple = ()) -> dict:
     return {k: v for k, v in _jsonable(config).items() if k not in exclude}
 
 
-def _field_types(cls) -> dict:
-    return typing.get_type_hints(cls)
-
-
 def _dataclass_in(tp):
     """The dataclass type a field annotation allows (``X``, ``X | None``), or None."""
     if dataclasses.is_dataclass(tp):
@@ -165,7 +161,7 @@ def config_from_dict(cls, data: dict, *, where: str = "config"):
     if unknown:
         raise InputError(_key(where, unknown[0]) if len(unknown) == 1 else where,
                          f"options of {cls.__name__}: {sorted(flds)}", f"unknown key(s) {unknown}")
-    hints = _field_types(cls)
+    hints = typing.get_type_hints(cls)
     kwargs = {}
     for k, v in data.items():
         tp = hints.get(k)
@@ -174,7 +170,7 @@ def config_from_dict(cls, data: dict, *, where: str = "config"):
             kwargs[k] = config_from_dict(sub, v, where=_key(where, k))
         elif sub is not None and v is not None:
             raise InputError(_key(where, k), f"a table of {sub.__name__} options", repr(v))
-        elif isinstance(v, str) and (_allows(tp, Path) or tp is Path):
+        elif isinstance(v, str) and _allows(tp, Path):
             kwargs[k] = Path(v)
         elif isinstance(v, list) and dataclasses.is_dataclass(item := _tuple_item(tp)):
             # an array of tables for a tuple of configs (e.g. joint limits)
