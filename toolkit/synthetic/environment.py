@@ -65,7 +65,8 @@ GRASS_RGB = (0.20, 0.50, 0.18)
 STUDIO_WALL_RGB = (0.62, 0.64, 0.68)
 STUDIO_FLOOR_RGB = (0.55, 0.42, 0.30)
 #: What a subject is seen against per layout (``[subject] outfit = "like_background"`` dresses it in these).
-SURROUNDING_COLOURS = {"broadcast": (GRASS_RGB,), "studio": (STUDIO_WALL_RGB, STUDIO_FLOOR_RGB)}
+SURROUNDING_COLOURS = {"broadcast": (GRASS_RGB,), "studio": (STUDIO_WALL_RGB, STUDIO_FLOOR_RGB),
+                       "trinocular": (STUDIO_WALL_RGB, STUDIO_FLOOR_RGB)}
 
 #: Half-size of the broadcast grass, metres (the field lines lie PITCH_MARGIN_M inside it).
 PITCH_HALF_X, PITCH_HALF_Y = 60.0, 40.0
@@ -165,7 +166,7 @@ def make_environment(layout: str, rng: np.random.Generator | int | None = None) 
             _pitch(rng),
             _ring_wall("stands", rng, 62.0, 0.0, 22.0, 96, _crowd, (60, 1200)),
         ]
-    if layout == "studio":
+    if layout in ("studio", "trinocular"):  # stereo heads stand in the studio
         walls = _ring_wall("walls", rng, 7.5, 0.0, 5.0, 48, _studio_wall, (120, 900))
         return [_floor(rng), walls]
     raise InputError("layout", "'broadcast' or 'studio'", repr(layout))
@@ -179,10 +180,11 @@ def field_model(layout: str):
     """
     if layout == "broadcast":
         return soccer_pitch(2 * (PITCH_HALF_X - PITCH_MARGIN_M), 2 * (PITCH_HALF_Y - PITCH_MARGIN_M))
-    if layout == "studio":
+    if layout in ("studio", "trinocular"):
         return None
     raise InputError("layout", "'broadcast' or 'studio'", repr(layout))
 
 
 #: Background (sky / ceiling) colour per layout, RGB in [0, 1].
-BACKGROUND_COLOUR = {"broadcast": (0.55, 0.70, 0.90), "studio": (0.30, 0.30, 0.32)}
+BACKGROUND_COLOUR = {"broadcast": (0.55, 0.70, 0.90), "studio": (0.30, 0.30, 0.32),
+                     "trinocular": (0.30, 0.30, 0.32)}

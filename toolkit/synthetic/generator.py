@@ -100,7 +100,7 @@ def build_scene(spec: SceneSpec) -> Scene:
         kw = dict(subject_px=spec.subject_px,
                   working_radius_m=float(np.nanmax(np.linalg.norm(joints[..., :2] - centre[:2], axis=-1))) + 0.5)
     rig = make_rig(spec.layout, spec.camera_count, spec.resolution, spec.height_m, rngs["cameras"], centre=centre,
-                   spacing_deg=spec.spacing_deg, **kw)
+                   spacing_deg=spec.spacing_deg, baseline_m=spec.baseline_m, **kw)
     measured, errs = perturb_rig(rig, spec.calibration_error_px, joints.reshape(-1, 3), rngs["calibration"])
     novel = novel_rig(spec.layout, rig, spec.novel_count, spec.height_m, rngs["novel"], centre=centre,
                       placement=spec.novel_placement, **kw)

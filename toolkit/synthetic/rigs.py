@@ -3,7 +3,10 @@
 ``"broadcast"``: few cameras far away (25-45 m), elevated (6-15 m), on a wide
 baseline (adjacent cameras 35-110 degrees apart), with focal lengths that make
 the subject 100-250 px tall.  ``"studio"``: a ring of cameras at 3-5 m and
-1.2-2.5 m high framing the whole working volume.
+1.2-2.5 m high framing the whole working volume.  ``"trinocular"``: heads of three
+parallel cameras (an L: a reference, one ``baseline_m`` to its right, one
+``baseline_m`` above it; cameras ``3k, 3k+1, 3k+2`` form head ``k``) 2-4 m from
+the subject, 1.0-1.6 m high, framing a 2.6 m tall volume (stereo, issue 18).
 
 Novel (evaluation-only) cameras sit between the source cameras in azimuth, at
 the same kind of distance and height, so that they see views no source camera
@@ -55,6 +58,26 @@ def _studio_camera(name, azimuth, rng, size, centre, high=False):
     return Camera.look_at(name, eye, target, size=size, focal_px=focal)
 
 
+#: Distance (metres) of a trinocular head from the subject's vertical axis.
+TRINOCULAR_DISTANCE_M = (2.0, 4.0)
+#: Default distance (metres) between a trinocular head's reference camera and the two others.
+TRINOCULAR_BASELINE_M = (0.2, 0.4)
+
+
+def _trinocular_head(names, azimuth, rng, size, centre, baseline_m):
+    """Three parallel cameras: the reference, one to its right, one above it (``baseline_m`` = (lo, hi))."""
+    dist = rng.uniform(*TRINOCULAR_DISTANCE_M)
+    eye = centre + np.array([dist * np.cos(azimuth), dist * np.sin(azimuth), rng.uniform(1.0, 1.6)])
+    target = centre + np.array([0.0, 0.0, 0.95])
+    d = np.linalg.norm(eye - target)
+    focal = min(0.5 * size[1] * d / 1.3, 0.5 * size[0] * d / 1.3)
+    ref = Camera.look_at(names[0], eye, target, size=size, focal_px=focal)
+    b = rng.uniform(baseline_m[0], baseline_m[1], 2)
+    offsets = (ref.R[0] * b[0], -ref.R[1] * b[1])  # the reference's x (right) and -y (up) axes
+    return [ref] + [Camera.look_at(n, eye + o, target + o, size=size, focal_px=focal)
+                    for n, o in zip(names[1:], offsets)]
+
+
 def camera_names(count: int, prefix: str = "cam") -> list[str]:
     """The names :func:`make_rig` gives ``count`` cameras: ``f"{prefix}{i:02d}"``."""
     return [f"{prefix}{i:02d}" for i in range(count)]
@@ -63,14 +86,15 @@ def camera_names(count: int, prefix: str = "cam") -> list[str]:
 def make_rig(layout: str, count: int, size: tuple[int, int], subject_height: float,
              rng: np.random.Generator | int | None = None, *, prefix: str = "cam",
              centre=(0.0, 0.0, 0.0), azimuths=None, spacing_deg=None, subject_px=None,
-             working_radius_m: float = WORKING_RADIUS_M, high=None) -> Rig:
+             working_radius_m: float = WORKING_RADIUS_M, high=None, baseline_m=None) -> Rig:
     """Cameras of a layout.
 
     Parameters
     ----------
-    layout : {"broadcast", "studio"}
+    layout : {"broadcast", "studio", "trinocular"}
     count : int
-        Number of cameras.
+        Number of cameras (trinocular: 3 per head, ``count // 3`` heads, the
+        heads' azimuths from ``azimuths``/``spacing_deg`` as a studio ring).
     size : tuple of int
         Image (width, height).
     subject_height : float
@@ -91,6 +115,9 @@ def make_rig(layout: str, count: int, size: tuple[int, int], subject_height: flo
         Radius of the volume the subject moves in, metres (broadcast focal lengths keep it in view).
     high : array_like of bool of shape (count,), optional
         Cameras placed high above the subject (40-60 degrees broadcast, 35-55 studio).
+    baseline_m : tuple of float, optional
+        Trinocular: ``(lo, hi)`` distance in metres from a head's reference camera to the two others
+        (default :data:`TRINOCULAR_BASELINE_M`).
 
     Returns
     -------
@@ -100,6 +127,14 @@ def make_rig(layout: str, count: int, size: tuple[int, int], subject_height: flo
     if count < 1:
         raise InputError("cameras.count", "at least 1", str(count))
     centre = np.asarray(centre, float)
+    if layout == "trinocular":
+        if count % 3:
+            raise InputError("cameras.count", "3 cameras per trinocular head", str(count))
+        az = layout_azimuths("studio", count // 3, rng, spacing_deg) if azimuths is None else azimuths
+        names = camera_names(count, prefix)
+        return Rig(tuple(c for k, a in enumerate(az)
+                         for c in _trinocular_head(names[3 * k:3 * k + 3], a, rng, size, centre,
+                                                  baseline_m or TRINOCULAR_BASELINE_M)))
     if azimuths is None:
         azimuths = layout_azimuths(layout, count, rng, spacing_deg)
     high = np.zeros(len(azimuths), bool) if high is None else np.asarray(high, bool)
@@ -111,7 +146,7 @@ def make_rig(layout: str, count: int, size: tuple[int, int], subject_height: flo
         elif layout == "studio":
             cams.append(_studio_camera(name, az, rng, size, centre, bool(high[i])))
         else:
-            raise InputError("cameras.layout", "'broadcast' or 'studio'", repr(layout))
+            raise InputError("cameras.layout", "'broadcast', 'studio' or 'trinocular'", repr(layout))
     return Rig(tuple(cams))
 
 
@@ -156,6 +191,7 @@ def novel_rig(layout: str, source: Rig, count: int, subject_height: float,
     rng = np.random.default_rng(rng)
     if count <= 0:
         return Rig(())
+    layout = "studio" if layout == "trinocular" else layout  # single evaluation cameras at studio distances
     c = np.asarray(centre, float)
     size = source[0].size
     kw = dict(prefix="novel", centre=c, subject_px=subject_px, working_radius_m=working_radius_m)

@@ -12,7 +12,7 @@ Example (``datasets_synthetic/default.toml``)::
 
     [cameras]
     count = 3
-    layout = "broadcast"     # or "studio"
+    layout = "broadcast"     # or "studio", "trinocular"
     resolution = [1280, 720]
     calibration_error_px = 8.0
 
@@ -22,7 +22,9 @@ Example (``datasets_synthetic/default.toml``)::
 Optional fields that widen the scene space (the scene zoo, ``benchmarks/bench_zoo.py``):
 ``[subject] outfit`` (``"random"`` or ``"like_background"``: a kit close to the
 pitch or the backdrop), ``shirt_rgb`` / ``trousers_rgb`` (RGB in [0, 1]) and
-``pattern``; ``[cameras] spacing_deg`` (azimuth between neighbouring cameras,
+``pattern``; ``[cameras] heads`` and ``baseline_m`` (``layout = "trinocular"``: heads of three
+cameras 0.2-0.4 m apart, 2-4 m from the subject, see :func:`toolkit.synthetic.rigs.make_rig`;
+``count`` is 3 per head); ``[cameras] spacing_deg`` (azimuth between neighbouring cameras,
 a number or ``[lo, hi]``) and ``subject_px`` (broadcast: subject height in
 pixels, a number or ``[lo, hi]``); ``[novel] placement`` (``"between"`` the
 sources, or ``"around"`` the subject: reverse angles and high views).
@@ -46,7 +48,9 @@ from toolkit.motion import MOTIONS
 MAX_FRAMES = 100_000
 MAX_CAMERAS = 32
 HEIGHT_RANGE_M = (1.40, 2.10)
-LAYOUTS = ("broadcast", "studio")
+LAYOUTS = ("broadcast", "studio", "trinocular")
+#: ``[cameras] baseline_m`` limits of a trinocular head (distance between its cameras), metres.
+BASELINE_RANGE_M = (0.2, 0.4)
 #: ``[subject] outfit`` values: drawn from the palettes, or close to the surroundings' colours.
 OUTFITS = ("random", "like_background")
 #: Shirt print patterns (``[subject] pattern``).
@@ -84,6 +88,8 @@ class SceneSpec:
     engine: str = "raycast"
     supersample: int = 2
     depth_camera: dict | None = None
+    heads: int = 0
+    baseline_m: tuple | None = None
     source: str = "<spec>"
     text: str = field(default="", repr=False)
 
@@ -146,6 +152,24 @@ def _range(table: dict, key: str, where: str, source: str, limits: tuple):
     return (float(v[0]), float(v[1]))
 
 
+def _trinocular(cams: dict, layout: str, count: int, source: str) -> tuple[int, tuple | None]:
+    """``[cameras] heads`` and ``baseline_m`` of a trinocular layout (``(0, None)`` for the others)."""
+    if layout != "trinocular":
+        for key in ("heads", "baseline_m"):
+            if key in cams:
+                raise InputError(f"{source}: cameras.{key}", "no value unless layout = 'trinocular'",
+                                 repr(cams[key]))
+        return 0, None
+    heads = _get(cams, "heads", f"{source}: cameras.", int, max(count // 3, 1))
+    if not 1 <= heads <= MAX_CAMERAS // 3:
+        raise InputError(f"{source}: cameras.heads", f"an integer from 1 to {MAX_CAMERAS // 3}", str(heads))
+    if count != 3 * heads:
+        raise InputError(f"{source}: cameras.count", f"3 cameras per trinocular head ({3 * heads} for {heads})",
+                         str(count))
+    baseline = _range(cams, "baseline_m", "cameras", source, BASELINE_RANGE_M) or BASELINE_RANGE_M
+    return heads, baseline
+
+
 def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) -> SceneSpec:
     """Parse and validate a scene spec from TOML text.
 
@@ -204,8 +228,8 @@ def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) 
     if pattern is not None and pattern not in PATTERNS:
         raise InputError(S("subject.pattern"), f"one of {list(PATTERNS)}", repr(pattern))
     cams = _get(d, "cameras", f"{source}: ", dict)
-    _check_keys(cams, {"count", "layout", "resolution", "calibration_error_px", "spacing_deg", "subject_px"},
-                "cameras", source)
+    _check_keys(cams, {"count", "layout", "resolution", "calibration_error_px", "spacing_deg", "subject_px",
+                       "heads", "baseline_m"}, "cameras", source)
     count = _get(cams, "count", f"{source}: cameras.", int)
     if not 1 <= count <= MAX_CAMERAS:
         raise InputError(S("cameras.count"), f"an integer from 1 to {MAX_CAMERAS}", str(count))
@@ -227,6 +251,7 @@ def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) 
     if subject_px is not None and layout != "broadcast":
         raise InputError(S("cameras.subject_px"), "no value for a studio (its cameras frame the whole volume)",
                          repr(cams["subject_px"]))
+    heads, baseline = _trinocular(cams, layout, count, source)
     novel = _get(d, "novel", f"{source}: ", dict, {})
     _check_keys(novel, {"count", "placement"}, "novel", source)
     placement = _get(novel, "placement", f"{source}: novel.", str, "between")
@@ -251,7 +276,8 @@ def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) 
                      layout=layout, resolution=(res[0], res[1]), calibration_error_px=err, novel_count=ncount,
                      outfit=outfit, shirt_rgb=shirt_rgb, trousers_rgb=trousers_rgb, pattern=pattern,
                      spacing_deg=spacing, subject_px=subject_px, novel_placement=placement,
-                     sample_count=sc, engine=engine, supersample=ss, depth_camera=depth, source=source, text=text)
+                     sample_count=sc, engine=engine, supersample=ss, depth_camera=depth, heads=heads,
+                     baseline_m=baseline, source=source, text=text)
 
 
 def load_spec(path: str | Path) -> SceneSpec:
