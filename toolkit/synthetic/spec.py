@@ -32,7 +32,8 @@ sources, or ``"around"`` the subject: reverse angles and high views).
 Optional tables: ``[render]`` (``engine``: ``"raycast"`` (default) or
 ``"open3d"``; ``sample_count``: anti-aliasing samples per pixel for Open3D,
 ``supersample``: rays per pixel side for the ray caster, default 2) and
-``[depth_camera]`` (see :mod:`toolkit.synthetic.depth_sensor`).
+``[depth_camera]`` (see :mod:`toolkit.synthetic.depth_sensor`) and ``[markers]`` (a marker
+capture without videos, see :mod:`toolkit.synthetic.marker_spec`).
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from pathlib import Path
 
 from toolkit.errors import InputError
 from toolkit.motion import MOTIONS
+from toolkit.synthetic.marker_spec import MarkerSpec
 
 #: Limits of the spec values (an impossible value is rejected with its field named).
 MAX_FRAMES = 100_000
@@ -88,6 +90,7 @@ class SceneSpec:
     engine: str = "raycast"
     supersample: int = 2
     depth_camera: dict | None = None
+    markers: dict | None = None  # a marker capture (toolkit.synthetic.marker_spec)
     heads: int = 0
     baseline_m: tuple | None = None
     source: str = "<spec>"
@@ -192,7 +195,7 @@ def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) 
     except tomllib.TOMLDecodeError as e:
         raise InputError(source, "valid TOML", f"a syntax error: {e}") from None
     _check_keys(d, {"seed", "frames", "fps", "subject", "cameras", "novel", "render", "depth_camera", "name",
-                    "description"}, "", source)
+                    "description", "markers"}, "", source)
     S = lambda k: f"{source}: {k}"  # noqa: E731
     seed = _get(d, "seed", f"{source}: ", int)
     if seed < 0:
@@ -227,6 +230,14 @@ def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) 
     pattern = _get(sub, "pattern", f"{source}: subject.", str, None)
     if pattern is not None and pattern not in PATTERNS:
         raise InputError(S("subject.pattern"), f"one of {list(PATTERNS)}", repr(pattern))
+    markers = _get(d, "markers", f"{source}: ", dict, None)
+    if markers is not None:  # a marker capture: its cameras are [markers].cameras, no videos are rendered
+        if "cameras" in d:
+            raise InputError(S("cameras"), "no [cameras] table in a marker capture (its cameras are "
+                             "[markers].cameras)", "a [cameras] table")
+        m = MarkerSpec.from_table(markers, source)
+        d["cameras"] = {"count": m.camera_count, "layout": "studio", "resolution": list(m.resolution),
+                        "calibration_error_px": m.calibration_error_px}
     cams = _get(d, "cameras", f"{source}: ", dict)
     _check_keys(cams, {"count", "layout", "resolution", "calibration_error_px", "spacing_deg", "subject_px",
                        "heads", "baseline_m"}, "cameras", source)
@@ -277,7 +288,7 @@ def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) 
                      outfit=outfit, shirt_rgb=shirt_rgb, trousers_rgb=trousers_rgb, pattern=pattern,
                      spacing_deg=spacing, subject_px=subject_px, novel_placement=placement,
                      sample_count=sc, engine=engine, supersample=ss, depth_camera=depth, heads=heads,
-                     baseline_m=baseline, source=source, text=text)
+                     baseline_m=baseline, markers=markers, source=source, text=text)
 
 
 def load_spec(path: str | Path) -> SceneSpec:
