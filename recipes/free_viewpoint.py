@@ -36,8 +36,10 @@ source camera (--hold-out) and of three camera paths.  Writes into OUT:
   run.json               the dataset fingerprint and options of this run: results of another dataset or
                          other options are never resumed (refused, or moved aside with --replace-stale)
 
-Stop it at any time (Ctrl-C) and run the same command again: finished frames
-are kept.  Options may also come from a TOML file (--config; the keys of
+Stop it at any time (Ctrl-C, or even a kill) and run the same command again:
+finished frames are kept.  --workers N runs the frames on N processes of this
+machine, --scheduler tcp://HOST:PORT on a Dask cluster (docs/parallel.md);
+stage 1 keeps its frame order in this process, the outputs are the same.  Options may also come from a TOML file (--config; the keys of
 toolkit.pipeline.free_viewpoint.FreeViewpointRunConfig, the per-frame chain in
 a [frame] table; flags given on the command line win).  See docs/stage4_rendering.md.
 """
@@ -96,6 +98,12 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--hold-out", default=None, metavar="CAM",
                     help="leave camera CAM out: run without its images and keypoints, render its view into "
                          "OUT/heldout/CAM/ and compare with what it filmed (metrics.json 'heldout')")
+    ap.add_argument("--workers", type=int, default=None,
+                    help="frames in parallel on a local Dask cluster of N worker processes (default 1: in this "
+                         "process); outputs identical to one worker (docs/parallel.md)")
+    ap.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                    help="frames on a running Dask cluster (dask scheduler / dask worker; the dataset and OUT on a "
+                         "file system every worker sees: docs/parallel.md)")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
     return ap
 
@@ -105,7 +113,8 @@ def config_from_args(args: argparse.Namespace) -> FreeViewpointRunConfig:
     config = load_config(FreeViewpointRunConfig, args.config, db=args.db, foreground=args.foreground,
                          max_frames=args.max_frames, renderer=args.renderer, jpeg_quality=args.jpeg_quality,
                          keypoints=args.keypoints, keypoint_format=args.keypoint_format, masks=args.masks,
-                         silhouettes=args.silhouettes, hold_out=args.hold_out)
+                         silhouettes=args.silhouettes, hold_out=args.hold_out, workers=args.workers,
+                         scheduler=args.scheduler)
     frame = replace(config.frame, optimize=config.frame.optimize and not args.no_optimize,
                     baselines=config.frame.baselines and not args.no_baselines)
     return replace(config, frame=frame, refine_calibration=config.refine_calibration and not args.keep_calibration,

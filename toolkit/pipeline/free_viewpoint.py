@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from toolkit.errors import InputError
-from toolkit.pipeline.run import STOPPED_INTERRUPTED, RunResult, open_run
+from toolkit.pipeline.parallel import ParallelConfig, drop_cached, worker_cache
+from toolkit.pipeline.run import FrameRecords, RunResult, open_run, run_frames
 from toolkit.rendering.freeviewpoint import FreeViewpointConfig
 
 #: Camera paths rendered for every run (``OUT/paths/<name>/``).
@@ -77,6 +78,12 @@ class FreeViewpointRunConfig:
         A source camera left out and judged (``OUT/heldout/``).
     progress : bool
         Show a progress bar.
+    workers : int
+        Frames in parallel on a local Dask cluster of this many worker
+        processes (1: in this process; ``docs/parallel.md``).
+    scheduler : str, optional
+        Frames on a running Dask cluster, ``tcp://HOST:PORT`` (the dataset and
+        the output folder on a file system every worker sees).
     """
 
     frame: FreeViewpointConfig = field(default_factory=FreeViewpointConfig)
@@ -95,9 +102,11 @@ class FreeViewpointRunConfig:
     silhouettes: str = "auto"
     hold_out: str | None = None
     progress: bool = True
+    workers: int = 1
+    scheduler: str | None = None
 
     #: Fields that do not change the results (left out of the run identity).
-    RUNTIME = ("max_frames", "recording", "jpeg_quality", "replace_stale", "progress")
+    RUNTIME = ("max_frames", "recording", "jpeg_quality", "replace_stale", "progress", "workers", "scheduler")
 
     def __post_init__(self):
         for name, allowed in (("foreground", FOREGROUNDS), ("renderer", RENDERERS), ("silhouettes", SILHOUETTES)):
@@ -110,6 +119,7 @@ class FreeViewpointRunConfig:
             raise InputError("FreeViewpointRunConfig.jpeg_quality", "an integer in 1..100", repr(self.jpeg_quality))
         if self.max_frames is not None and int(self.max_frames) < 1:
             raise InputError("FreeViewpointRunConfig.max_frames", "a positive number of frames", repr(self.max_frames))
+        ParallelConfig(self.workers, self.scheduler)  # checked
 
 
 def _inputs(ds, config: FreeViewpointRunConfig) -> tuple:
@@ -204,7 +214,7 @@ def _recording_observer(folder, ds, novel: list, config: FreeViewpointRunConfig)
     rconf = RerunConfig() if config.jpeg_quality is None else RerunConfig(jpeg_quality=int(config.jpeg_quality))
     observer = RerunObserver(application_id="free_viewpoint", path=folder.recording,
                              recording_id=folder.recording_id,
-                             camera_names=ds.camera_names + [c.name for c in novel], config=rconf)
+                             camera_names=ds.camera_names + [c.name for c in novel], config=rconf, parts=True)
     if novel:
         observer.report("rig", rig=ds.novel_rig)
     observer.report("skeleton", skeleton=SKELETON_14)
@@ -212,14 +222,42 @@ def _recording_observer(folder, ds, novel: list, config: FreeViewpointRunConfig)
 
 
 class _Frames:
-    """The per-frame work of a run after stage 1: process, render, score, write the record."""
+    """The per-frame work of a run after stage 1: process, render, score, write the record.
 
-    def __init__(self, ds, rig, novel, held, region_of, paths, processor, compositor, plates, source_plates,
-                 out: Path, records, observer):
-        self.ds, self.rig, self.novel, self.held, self.region_of = ds, rig, novel, held, region_of
-        self.paths, self.processor, self.compositor = paths, processor, compositor
-        self.plates, self.source_plates, self.out, self.records = plates, source_plates, out, records
-        self.observer = observer
+    Built once per process from a :class:`_FrameTask` (on a Dask worker, or in
+    the main process with one worker); holds nothing that changes from frame
+    to frame, so a frame's outputs do not depend on which process did the
+    frames before it.
+    """
+
+    def __init__(self, job: "_FrameTask"):
+        from toolkit.io import Dataset
+        from toolkit.pipeline.frame import FrameProcessor
+        from toolkit.pipeline.keypoints import declared_format
+        from toolkit.pipeline.views import HeldOutRegions
+        from toolkit.rendering import CpuCompositor
+        from toolkit.rendering.evaluation import BackgroundPlates
+
+        config = job.config
+        self.ds = ds = Dataset.open(job.dataset)
+        self.rig, self.novel, self.held, self.out = job.rig, list(job.novel), job.held, Path(job.out)
+        self.region_of = None if job.held is None else HeldOutRegions(
+            ds, job.held, masks_dir=job.masks_dir, keypoints=job.kp_dir, out=self.out,
+            fmt=config.keypoint_format or declared_format(ds.root))
+        self.paths = _camera_paths(job.rig, job.n)
+        self.processor = FrameProcessor(job.rig, config.frame)
+        if config.renderer == "open3d":
+            from toolkit.rendering import Open3DRenderer
+            self.compositor = Open3DRenderer(job.rig[0].size)
+        else:
+            self.compositor = CpuCompositor()
+        self.plates = BackgroundPlates(ds.scene_toml) if ds.scene_toml is not None else None
+        self.source_plates = {c: p for c in job.rig.names if (p := ds.background(c)) is not None}
+        self.records = FrameRecords(self.out, job.n)
+        self.observer = None
+
+    def close(self) -> None:
+        self.ds.close()
 
     def _views(self, t: int, res) -> list:
         from toolkit.pipeline.views import EvaluationView
@@ -232,16 +270,18 @@ class _Frames:
             views.append(self.region_of.view(t, res.joints if res.ok else None))
         return views
 
-    def __call__(self, est, masks) -> None:
+    def __call__(self, est, masks, images: dict, observer=None) -> None:
         from toolkit.io import atomic_write_png
         from toolkit.io.frames import frame_filename
         from toolkit.multiview import image_offsets
+        from toolkit.observe import as_observer
         from toolkit.pipeline.views import render_evaluation
         from toolkit.rendering.freeviewpoint import render_methods
 
         t0 = time.perf_counter()
         t = est.frame
-        images = {c: self.ds.frame(c, t) for c in self.rig.names}
+        self.observer = observer
+        self.processor.observer = as_observer(observer)
         res = self.processor.process(t, images, masks, est, plates=self.source_plates)
         for c in self.rig.names:
             atomic_write_png(self.out / "parts" / c / frame_filename(t), res.labels[c])
@@ -264,6 +304,29 @@ class _Frames:
             record["heldout_region"] = self.region_of.how.get(t, "")
             record["heldout_offset"] = self.region_of.offsets.get(t, np.zeros(2)).tolist()
         self.records.write(t, record)
+
+
+@dataclass(frozen=True)
+class _FrameTask:
+    """One frame of a run as a task (picklable: what a Dask worker needs to build :class:`_Frames`).
+
+    ``task(estimate, masks, images, observer=None)`` processes frame
+    ``estimate.frame`` and writes its outputs and record into ``out``.
+    """
+
+    token: str
+    dataset: Path
+    out: Path
+    config: FreeViewpointRunConfig
+    rig: object
+    novel: tuple
+    held: object
+    n: int
+    kp_dir: Path | None
+    masks_dir: Path | None
+
+    def __call__(self, est, masks, images: dict, observer=None) -> None:
+        worker_cache(self.token, lambda: _Frames(self))(est, masks, images, observer)
 
 
 def _finish(ds, out: Path, records: list, n: int, novel: list, held, stage1: str) -> dict:
@@ -333,15 +396,11 @@ def run(config: FreeViewpointRunConfig, *, dataset, out, observer=None, log=prin
     InputError
         Bad dataset, options, or an output folder of another run.
     """
-    from tqdm import tqdm
+    import uuid
 
     from toolkit.calibration import cameras_for_run
     from toolkit.io import Dataset
-    from toolkit.pipeline.keypoints import declared_format
-    from toolkit.pipeline.views import HeldOutRegions, split_rig
-    from toolkit.rendering import CpuCompositor
-    from toolkit.rendering.evaluation import BackgroundPlates
-    from toolkit.pipeline.frame import FrameProcessor
+    from toolkit.pipeline.views import split_rig
 
     out = Path(out)
     with Dataset.open(dataset) as ds:
@@ -365,34 +424,24 @@ def run(config: FreeViewpointRunConfig, *, dataset, out, observer=None, log=prin
         rig, held = (full_rig, None) if config.hold_out is None else split_rig(full_rig, config.hold_out)
         if obs is not None:
             obs.report("rig", rig=rig)
-        plates = BackgroundPlates(ds.scene_toml) if ds.scene_toml is not None else None
-        if config.renderer == "open3d":
-            from toolkit.rendering import Open3DRenderer
-            compositor = Open3DRenderer(rig[0].size)
-        else:
-            compositor = CpuCompositor()
-        region_of = None if held is None else HeldOutRegions(
-            ds, held, masks_dir=masks_dir, keypoints=kp_dir, out=out,
-            fmt=config.keypoint_format or declared_format(ds.root))
         stage1 = _Stage1(ds, rig, config, kp_dir, masks_dir, out, obs)
-        step = _Frames(ds, rig, novel, held, region_of, _camera_paths(rig, n), FrameProcessor(rig, config.frame, obs),
-                       compositor, plates, {c: p for c in rig.names if (p := ds.background(c)) is not None}
-                       if todo else {}, out, folder.records, obs)
-        stopped, processed = "", 0
-        t_start = time.perf_counter()
+        task = _FrameTask(uuid.uuid4().hex, ds.root, out, config, rig, tuple(novel), held, n, kp_dir, masks_dir)
+
+        def frames():  # stage 1 in frame order (its temporal term, tracking), here, ahead of the workers
+            for est, masks in stage1.estimates(todo):
+                yield est, masks, {c: ds.frame(c, est.frame) for c in rig.names}  # decoded by stage 1 already
+
         try:
-            for est, masks in tqdm(stage1.estimates(todo), total=len(todo), desc="free viewpoint", unit="frame",
-                                   disable=not config.progress):
-                step(est, masks)
-                processed += 1
-        except KeyboardInterrupt:
-            stopped = STOPPED_INTERRUPTED
+            processed, stopped, seconds = run_frames(
+                task, frames(), total=len(todo), parallel=ParallelConfig(config.workers, config.scheduler),
+                observer=obs, progress=config.progress, desc="free viewpoint")
         finally:
+            drop_cached(task.token)
             if own and obs is not None:
                 obs.close()
         records = folder.records.read_all()
         metrics = _finish(ds, out, records, n, novel, held, stage1.name)
-        return RunResult(out, n, len(records), processed, len(earlier), stopped, time.perf_counter() - t_start,
+        return RunResult(out, n, len(records), processed, len(earlier), stopped, seconds,
                          metrics, folder.recording if own else None,
                          {"stage1": stage1.name, "held_out": None if held is None else held.name,
                           "has_groundtruth": bool(ds.has_groundtruth)})

@@ -15,6 +15,9 @@ here, once:
   finished and skipped when the run resumes, records are written atomically;
 * :func:`open_run` -- :func:`toolkit.io.runs.start_run` plus the records and
   the recording path of this part of the run;
+* :func:`run_frames` -- the frame loop of a run: every frame a task (in this
+  process, or on Dask workers: :mod:`toolkit.pipeline.parallel`), its reports
+  passed to the run's observer in frame order, Ctrl-C stopping it cleanly;
 * :class:`RunResult` -- what a run returns: counts, whether it stopped early,
   its metrics and recording.
 """
@@ -24,6 +27,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import time
 import tomllib
 import types
 import typing
@@ -34,6 +38,7 @@ from toolkit.errors import InputError
 from toolkit.io.atomic import atomic_write_text
 from toolkit.io.frames import frame_filename
 from toolkit.io.runs import dataset_fingerprint, run_recording, start_run
+from toolkit.pipeline.parallel import ParallelConfig, ReportBuffer, map_tasks, replay
 
 #: Sub-folder of a run's output holding one JSON record per finished frame.
 FRAMES_DIR = "frames"
@@ -334,6 +339,11 @@ def open_run(out: str | os.PathLike, recipe: str, dataset_root, config, n_frames
     resumed = start_run(out, identity, replace_stale=replace_stale, log=log)
     records = FrameRecords(Path(out), n_frames)
     rec = rec_id = None
+    if resumed:  # a killed run's recording parts: one file again before this part is named
+        from toolkit.viz.rerun_observer import finish_parts
+
+        for parts in sorted(Path(out).glob("recording*.parts")):
+            finish_parts(parts)
     if recording and records.todo():
         rec, rec_id = run_recording(out, resumed)
     return RunFolder(Path(out), resumed, records, rec, rec_id)
@@ -383,3 +393,140 @@ class RunResult:
     def complete(self) -> bool:
         """Every frame is finished."""
         return self.finished == self.frames
+
+
+@dataclass(frozen=True)
+class _FrameCall:
+    """One frame's task as the workers run it: ``task(*args, observer=...)``, its reports kept."""
+
+    task: typing.Any
+    observe: bool
+
+    def __call__(self, *args) -> list:
+        buffer = ReportBuffer() if self.observe else None
+        self.task(*args, observer=buffer)
+        return buffer.reports if buffer is not None else []
+
+
+def run_frames(task, frames, *, total: int, parallel: ParallelConfig = ParallelConfig(), observer=None,
+               progress: bool = True, desc: str = "frames") -> tuple[int, str, float]:
+    """The frame loop of a run: each frame a task, here or on Dask workers, reports in frame order.
+
+    The task writes the frame's results itself (atomically, its record last:
+    :class:`FrameRecords`), so a frame is either finished or done again when
+    the run resumes, wherever it ran.  What it reports is kept
+    (:class:`~toolkit.pipeline.parallel.ReportBuffer`) and passed to
+    ``observer`` in frame order by this process, which alone writes the
+    recording; after each frame the observer's ``checkpoint()`` (where it has
+    one) closes a part of the recording, so a run killed outright leaves a
+    recording that opens.  With one worker the same task runs in this process
+    (:func:`~toolkit.pipeline.parallel.map_tasks`).
+
+    Parameters
+    ----------
+    task : callable
+        Picklable; ``task(*args, observer=obs)`` processes one frame.
+    frames : iterable of tuple
+        Each frame's ``args`` in frame order (a generator: e.g. what needs the
+        previous frame, such as stage 1, runs here, ahead of the workers).
+    total : int
+        Number of frames (progress).
+    parallel : ParallelConfig
+    observer : Observer, optional
+    progress : bool
+    desc : str
+
+    Returns
+    -------
+    processed : int
+        Frames finished by this run.
+    stopped : str
+        ``""``, or :data:`STOPPED_INTERRUPTED` after Ctrl-C.
+    seconds : float
+        Wall time.
+    """
+    processed, stopped = 0, ""
+    checkpoint = getattr(observer, "checkpoint", None)
+
+    def finished(_i: int, reports: list) -> None:
+        nonlocal processed
+        replay(reports, observer)
+        if callable(checkpoint):
+            checkpoint()
+        processed += 1
+
+    t0 = time.perf_counter()
+    try:
+        map_tasks(_FrameCall(task, observer is not None), frames, parallel=parallel, on_result=finished,
+                  total=total, progress=progress, desc=desc, unit="frame")
+    except KeyboardInterrupt:
+        stopped = STOPPED_INTERRUPTED
+    return processed, stopped, time.perf_counter() - t0
+
+
+#: Files of a run folder that differ from run to run by nature: its identity's recording id, the recording.
+_UNCOMPARED = ("run.json", "recording*.rrd", "recording*.parts/*", "*.stale-*")
+#: Keys holding wall times, left out when two runs' records and metrics are compared.
+_TIMING_KEYS = frozenset({"timings", "seconds_per_frame", "seconds"})
+
+
+def _untimed(value):
+    if isinstance(value, dict):
+        return {k: _untimed(v) for k, v in value.items() if k not in _TIMING_KEYS}
+    if isinstance(value, list):
+        return [_untimed(v) for v in value]
+    return value
+
+
+def compare_runs(a: str | os.PathLike, b: str | os.PathLike, *, atol_m: float = 1e-9) -> list:
+    """Where two run folders of the same system and inputs differ (e.g. one worker against several).
+
+    Images and every other file byte for byte; JSON records and metrics less
+    their wall times; ``.npz`` arrays to ``atol_m`` (poses, metres) where
+    float, exactly otherwise.  ``run.json`` (its recording id) and the
+    recordings are not compared.
+
+    Parameters
+    ----------
+    a, b : path
+        Output folders.
+    atol_m : float
+
+    Returns
+    -------
+    list of str
+        One line per difference (empty: the same outputs).
+    """
+    import fnmatch
+
+    import numpy as np
+
+    a, b = Path(a), Path(b)
+
+    def files(root: Path) -> set:
+        return {p.relative_to(root).as_posix() for p in root.rglob("*") if p.is_file()
+                and not any(fnmatch.fnmatch(p.relative_to(root).as_posix(), g) for g in _UNCOMPARED)}
+
+    fa, fb = files(a), files(b)
+    diffs = [f"only in {a}: {f}" for f in sorted(fa - fb)] + [f"only in {b}: {f}" for f in sorted(fb - fa)]
+    for f in sorted(fa & fb):
+        pa, pb = a / f, b / f
+        if f.endswith(".json"):
+            ja, jb = (json.dumps(_untimed(json.loads(p.read_text(encoding="utf-8"))), sort_keys=True)
+                      for p in (pa, pb))  # as text: NaN equals NaN
+            if ja != jb:
+                diffs.append(f"{f}: records differ")
+        elif f.endswith(".npz"):
+            za, zb = np.load(pa), np.load(pb)
+            for k in sorted(set(za.files) | set(zb.files)):
+                if k not in za.files or k not in zb.files:
+                    diffs.append(f"{f}: {k} in one only")
+                elif za[k].dtype.kind == "f":
+                    if za[k].shape != zb[k].shape or not np.allclose(za[k], zb[k], rtol=0, atol=atol_m,
+                                                                    equal_nan=True):
+                        diffs.append(f"{f}: {k} differs by more than {atol_m}")
+                elif not np.array_equal(za[k], zb[k]):
+                    diffs.append(f"{f}: {k} differs")
+        elif pa.read_bytes() != pb.read_bytes():
+            diffs.append(f"{f}: bytes differ")
+    return diffs

@@ -22,6 +22,7 @@ Conventions at this edge:
 from __future__ import annotations
 
 import dataclasses
+import os
 import uuid
 from collections.abc import Mapping
 from pathlib import Path
@@ -103,6 +104,14 @@ class RerunObserver:
         Recording id of a newly created stream (default: a random one).  Files
         written with the same application and recording id open as one
         recording in the viewer (e.g. the parts of a resumed run).
+    parts : bool
+        Write ``path`` in parts that are each a complete file: while the
+        recording is open it is the folder ``<path without .rrd>.parts/``,
+        ``NNNNNN.rrd`` one part per :meth:`checkpoint` (the part being written
+        is ``.NNNNNN.rrd.partial``); :meth:`close` merges them into ``path``.
+        A process killed outright (SIGKILL) leaves every part but the last
+        one complete (``rerun rrd verify`` accepts them; :func:`finish_parts`
+        merges them).
 
     Raises
     ------
@@ -118,15 +127,20 @@ class RerunObserver:
 
     def __init__(self, recording: rr.RecordingStream | None = None, *, application_id: str = "toolkit",
                  path: str | Path | None = None, camera_names=None, config: RerunConfig | None = None,
-                 recording_id: str | uuid.UUID | None = None):
+                 recording_id: str | uuid.UUID | None = None, parts: bool = False):
         self.config = config if config is not None else RerunConfig()
         self.path = _check_writable(path) if path is not None else None
         self._owns_stream = recording is None
         self.recording = recording if recording is not None else rr.RecordingStream(
             application_id, recording_id=recording_id if recording_id is not None else uuid.uuid4())
+        self._parts = parts_folder(self.path) if parts and self.path is not None else None
+        self._part = 0
+        if self._parts is not None:
+            self._parts.mkdir(parents=True, exist_ok=True)
+            self._part = len(list(self._parts.glob("*.rrd")))
         if self.path is not None:
             try:
-                self.recording.save(self.path)
+                self.recording.save(self.path if self._parts is None else self._part_file(self._part, True))
             except RuntimeError as e:
                 raise InputError(f"RerunObserver: path {str(self.path)!r}", "a writable .rrd file",
                                  str(e)) from None
@@ -229,6 +243,27 @@ class RerunObserver:
         """Write everything logged so far to the sinks."""
         self.recording.flush()
 
+    def _part_file(self, k: int, partial: bool = False) -> Path:
+        return self._parts / (f".{k:06d}.rrd.partial" if partial else f"{k:06d}.rrd")
+
+    def checkpoint(self) -> None:
+        """End the recording's current part (a complete file from now on) and go on in a new one.
+
+        Without ``parts`` only flushes.  Called by a run after each frame
+        (:func:`toolkit.pipeline.run.run_frames`).
+        """
+        self._check_open()
+        if self._parts is None:
+            self.recording.flush()
+            return
+        if self._bp_dirty:
+            self._refresh_blueprint(now=True)
+        self.recording.flush()
+        done = self._part_file(self._part, True)
+        self._part += 1
+        self.recording.save(self._part_file(self._part, True))  # the file before is finished (footer)
+        os.replace(done, self._part_file(self._part - 1))
+
     def close(self) -> None:
         """Flush and finalise the recording (the ``.rrd`` file is complete afterwards).
 
@@ -244,6 +279,12 @@ class RerunObserver:
         if self._owns_stream or self.path is not None:
             self.recording.disconnect()
         self.closed = True
+        if self._parts is not None:
+            last = self._part_file(self._part, True)
+            if last.is_file():
+                os.replace(last, self._part_file(self._part))
+            if not finish_parts(self._parts, self.path):
+                return  # the parts stay (each one complete); a warning said why
         if self.path is not None and self.config.compact_on_close:
             self._compact()
 
@@ -847,3 +888,63 @@ class RerunObserver:
                 parts.append(f"{key}={text}")
         self._log(entity_path(LOGS, REPORTS, *sub), rr.TextLog(f"{kind}: " + ", ".join(parts), level="DEBUG"),
                   static=static)
+
+
+def parts_folder(path: str | Path) -> Path:
+    """The folder of a recording's parts while it is written in parts (``recording.rrd`` -> ``recording.parts``)."""
+    return Path(path).with_suffix(".parts")
+
+
+def finish_parts(parts: str | Path, path: str | Path | None = None) -> bool:
+    """Merge a recording's complete parts into one file and remove the folder (``rerun rrd merge``).
+
+    Parameters
+    ----------
+    parts : path
+        The parts folder (:func:`parts_folder`); a part left unfinished by a
+        killed process (``.NNNNNN.rrd.partial``) is dropped.
+    path : path, optional
+        The merged file, replaced if it exists (default: the folder's name with
+        ``.rrd``, or where that file exists the next free ``<stem>.resume-<k>.rrd``).
+
+    Returns
+    -------
+    bool
+        Whether the parts were merged (False: they stay, and a warning says why).
+    """
+    import shutil
+    import subprocess
+    import sys
+    import warnings
+
+    parts = Path(parts)
+    given = path is not None
+    path = Path(path) if given else parts.with_suffix(".rrd")
+    if path.exists() and not given:
+        k = 1
+        while (alt := path.with_name(f"{path.stem.split('.resume-')[0]}.resume-{k}.rrd")).exists():
+            k += 1
+        path = alt
+    files = sorted(parts.glob("[0-9]*.rrd"))
+    if not files:
+        shutil.rmtree(parts, ignore_errors=True)
+        return True
+    cli = Path(sys.executable).with_name("rerun")
+    cli = str(cli) if cli.is_file() else shutil.which("rerun")
+    tmp = path.with_name(f".{path.name}.merge-{os.getpid()}.rrd")
+    try:
+        if cli is None:
+            raise OSError(f"no rerun CLI next to {sys.executable}")
+        done = subprocess.run([cli, "rrd", "merge", *map(str, files), "-o", str(tmp)], capture_output=True,
+                              text=True, timeout=COMPACT_TIMEOUT_S)
+        if done.returncode != 0 or not tmp.is_file():
+            raise OSError(f"rerun rrd merge: {done.stderr.strip()[-300:]}")
+        os.replace(tmp, path)
+    except (OSError, subprocess.TimeoutExpired) as e:
+        warnings.warn(f"{parts}: recording parts not merged ({e}); each part opens: rerun {parts}/*.rrd",
+                      stacklevel=2)
+        return False
+    finally:
+        tmp.unlink(missing_ok=True)
+    shutil.rmtree(parts, ignore_errors=True)
+    return True

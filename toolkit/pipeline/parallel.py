@@ -1,0 +1,326 @@
+"""Tasks in parallel on Dask: frames of a run, sequences, benchmark scenes; one code path with one worker.
+
+:func:`map_tasks` runs a picklable function over a stream of tasks and hands
+each result back in the order the tasks were given:
+
+* ``workers=1`` and no scheduler: in this process, one task after the other,
+  through the same wrapper the workers use (no Dask at all);
+* ``workers=N``: on a :class:`dask.distributed.LocalCluster` of N worker
+  processes, one thread each;
+* ``scheduler="tcp://HOST:PORT"``: on an existing Dask cluster (``dask
+  scheduler`` and ``dask worker`` started by hand, ``docs/parallel.md``).
+
+Why Dask (and not :mod:`multiprocessing`): the same code runs on one machine
+and on a cluster, a worker process that dies has its task rescheduled on
+another one (the nanny restarts it), and ``as_completed`` gives one progress
+bar over all workers.
+
+Each task runs single-threaded (:func:`single_threaded`: BLAS / OpenMP through
+threadpoolctl, OpenCV): N workers on N cores, and results that do not depend
+on how many threads a library picked.  A task's result comes back to the main
+process; where a task writes files (a frame's record and images) it writes
+them atomically, so a killed worker leaves no half file and its task is simply
+done again.
+
+Things a task reports to an observer are kept by a :class:`ReportBuffer` in
+the worker and come back with its result; the main process passes them to its
+own observer (one recording, in task order): :func:`replay`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+from collections import OrderedDict
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from toolkit.errors import InputError, ToolkitError
+
+#: How often a task is retried when it raised (a worker that died is no failure of its task: Dask
+#: reschedules what it held on its own, up to ``distributed.scheduler.allowed-failures`` deaths).
+RETRIES = 1
+#: Tasks submitted ahead per worker (a bounded queue: a producer such as stage 1 runs ahead, no further).
+AHEAD_PER_WORKER = 2
+#: Worker-side objects kept per process (:func:`worker_cache`): a few runs' contexts.
+CACHE_SIZE = 2
+_SCHEDULER = re.compile(r"^(tcp|tls|inproc|ucx|ws|wss)://\S+$")
+
+_CACHE: OrderedDict = OrderedDict()
+
+
+@dataclass(frozen=True)
+class ParallelConfig:
+    """Where tasks run.
+
+    Parameters
+    ----------
+    workers : int
+        Worker processes of a local cluster; 1: in this process, no Dask.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://HOST:PORT``); ``workers`` is then ignored.
+    """
+
+    workers: int = 1
+    scheduler: str | None = None
+
+    def __post_init__(self):
+        if int(self.workers) != self.workers or int(self.workers) < 1:
+            raise InputError("workers (--workers)", "a number of worker processes >= 1", repr(self.workers))
+        if self.scheduler is not None and not _SCHEDULER.match(str(self.scheduler)):
+            raise InputError("scheduler (--scheduler)", "a Dask scheduler address such as tcp://HOST:8786",
+                             repr(self.scheduler))
+
+    @property
+    def sequential(self) -> bool:
+        """Tasks run in this process, one after the other."""
+        return self.scheduler is None and self.workers == 1
+
+
+def single_threaded() -> contextlib.AbstractContextManager:
+    """Limit this process to one thread for BLAS / OpenMP (threadpoolctl) and OpenCV while in the block."""
+    import cv2
+    from threadpoolctl import threadpool_limits
+
+    stack = contextlib.ExitStack()
+    stack.enter_context(threadpool_limits(limits=1))
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    stack.callback(cv2.setNumThreads, before)
+    return stack
+
+
+def worker_cache(key: str, build: Callable[[], Any]) -> Any:
+    """An object built once per process and key (a run's dataset, renderer ...), kept for its next tasks.
+
+    Parameters
+    ----------
+    key : str
+        Unique per run (e.g. a token drawn by the main process).
+    build : callable
+        Makes the object the first time; an object with ``close()`` is closed when evicted.
+    """
+    if key in _CACHE:
+        _CACHE.move_to_end(key)
+        return _CACHE[key]
+    value = build()
+    _CACHE[key] = value
+    while len(_CACHE) > CACHE_SIZE:
+        _, old = _CACHE.popitem(last=False)
+        close = getattr(old, "close", None)
+        if callable(close):
+            close()
+    return value
+
+
+def drop_cached(key: str) -> None:
+    """Forget (and close) this process's object of ``key``, if any."""
+    old = _CACHE.pop(key, None)
+    close = getattr(old, "close", None)
+    if callable(close):
+        close()
+
+
+def _copied(value):
+    """Arrays copied (a report keeps what was reported, even if the caller changes its array later)."""
+    if isinstance(value, np.ndarray):
+        return value.copy()
+    if isinstance(value, dict):
+        return {k: _copied(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_copied(v) for v in value]
+    return value
+
+
+@dataclass
+class ReportBuffer:
+    """An observer that keeps the reports of a task, to be replayed by the main process (:func:`replay`).
+
+    Attributes
+    ----------
+    reports : list of (str, dict)
+    """
+
+    reports: list = field(default_factory=list)
+
+    def report(self, kind: str, **data: Any) -> None:
+        self.reports.append((kind, _copied(data)))
+
+
+def replay(reports: list, observer) -> None:
+    """Pass a task's reports to ``observer``, in the order they were made."""
+    if observer is None:
+        return
+    for kind, data in reports:
+        observer.report(kind, **data)
+
+
+@dataclass(frozen=True)
+class _Failed:
+    """A toolkit error raised by a task, carried back as data (InputError does not unpickle as itself)."""
+
+    kind: str
+    args: tuple
+
+
+def _call(fn: Callable, args: tuple) -> Any:
+    """Run one task single-threaded; toolkit errors come back as :class:`_Failed`."""
+    with single_threaded():
+        try:
+            return fn(*args)
+        except InputError as e:
+            return _Failed("input", (e.where, e.expected, e.found))
+        except ToolkitError as e:
+            return _Failed("toolkit", (str(e),))
+
+
+def _unwrap(value):
+    if isinstance(value, _Failed):
+        raise InputError(*value.args) if value.kind == "input" else ToolkitError(*value.args)
+    return value
+
+
+def _client(config: ParallelConfig):
+    """A Dask client: of the scheduler given, or of a new local cluster (closed with the client)."""
+    from dask.distributed import Client, LocalCluster
+
+    if config.scheduler is not None:
+        try:
+            return Client(config.scheduler, timeout="30s")
+        except (OSError, TimeoutError) as e:
+            raise InputError("scheduler (--scheduler)", "the address of a running Dask scheduler",
+                             f"{config.scheduler!r}: {e}") from None
+    cluster = LocalCluster(n_workers=int(config.workers), threads_per_worker=1, processes=True,
+                           dashboard_address=None, silence_logs=40)
+    client = Client(cluster)
+    client._toolkit_cluster = cluster  # closed with the client (_close)
+    return client
+
+
+def _close(client) -> None:
+    cluster = getattr(client, "_toolkit_cluster", None)
+    client.close()
+    if cluster is not None:
+        cluster.close()
+
+
+def map_tasks(fn: Callable, tasks: Iterable[tuple], *, parallel: ParallelConfig = ParallelConfig(),
+              on_result: Callable[[int, Any], None] | None = None, total: int | None = None,
+              progress: bool = False, desc: str | None = None, unit: str = "task") -> list:
+    """Run ``fn(*args)`` for every ``args`` of ``tasks``; results handed back in task order.
+
+    Parameters
+    ----------
+    fn : callable
+        Picklable (a module-level function, or an instance of a module-level class).
+    tasks : iterable of tuple
+        Arguments of each task; may be a generator (e.g. stage 1 over the
+        frames): it is read ahead of the running tasks by at most
+        ``AHEAD_PER_WORKER`` tasks per worker.
+    parallel : ParallelConfig
+    on_result : callable, optional
+        ``on_result(i, result)`` for task ``i`` (0-based, in the order given), in
+        that order, as soon as every earlier task's result was handed on.
+        None: the results are returned.
+    total : int, optional
+        Number of tasks, for the progress bar.
+    progress : bool
+        One progress bar over all workers (driven by the tasks as they finish).
+    desc, unit : str
+        The bar's label and unit.
+
+    Returns
+    -------
+    list
+        The results in task order (empty when ``on_result`` takes them).
+
+    Raises
+    ------
+    InputError
+        A task's (re-raised in the main process), or a scheduler that cannot be reached.
+    KeyboardInterrupt
+        Interrupted: the tasks running are cancelled; results handed on stay handed on.
+    """
+    from tqdm import tqdm
+
+    kept: list = []
+    give = on_result if on_result is not None else (lambda i, r: kept.append(r))
+    with tqdm(total=total, desc=desc, unit=unit, disable=not progress) as bar:
+        if parallel.sequential:
+            for i, args in enumerate(tasks):
+                result = _unwrap(_call(fn, tuple(args)))
+                bar.update(1)
+                give(i, result)
+            return kept
+        _map_dask(fn, tasks, parallel, give, bar)
+    return kept
+
+
+def _map_dask(fn, tasks, parallel: ParallelConfig, give, bar) -> None:
+    """:func:`map_tasks` on a Dask cluster: submit ahead, collect as completed, hand on in order."""
+    from dask.distributed import as_completed
+
+    client = _client(parallel)
+    futures: dict = {}
+    try:
+        slots = max(1, sum(client.nthreads().values())) if parallel.scheduler is not None else int(parallel.workers)
+        ahead = AHEAD_PER_WORKER * slots
+        done = as_completed()
+        ready: dict = {}
+        index_of: dict = {}
+        nxt = 0
+
+        def collect(block: bool) -> None:
+            nonlocal nxt
+            batch = done.next_batch(block=block) if (block or done.has_ready()) else []
+            for f in batch:
+                i = index_of.pop(f.key)
+                ready[i] = _unwrap(f.result())
+                futures.pop(i)
+                bar.update(1)
+            while nxt in ready:
+                give(nxt, ready.pop(nxt))
+                nxt += 1
+
+        for i, args in enumerate(tasks):
+            while len(futures) >= ahead:
+                collect(block=True)
+            f = client.submit(_call, fn, tuple(args), pure=False, retries=RETRIES)
+            futures[i], index_of[f.key] = f, i
+            done.add(f)
+            collect(block=False)
+        while futures:
+            collect(block=True)
+    finally:
+        if futures:
+            client.cancel(list(futures.values()))
+        _close(client)
+
+
+def map_scenes(fn: Callable, scenes: Iterable, *, workers: int = 1, scheduler: str | None = None,
+               progress: bool = False, desc: str = "scenes") -> list:
+    """``fn(scene)`` for every scene of a benchmark, in parallel; results in the scenes' order.
+
+    Parameters
+    ----------
+    fn : callable
+        Picklable, one argument (a scene: a seed, a spec, a folder ...).
+    scenes : iterable
+    workers : int
+        Worker processes (1: in this process).
+    scheduler : str, optional
+        A Dask scheduler's address.
+    progress : bool
+    desc : str
+
+    Returns
+    -------
+    list
+    """
+    scenes = list(scenes)
+    return map_tasks(fn, ((s,) for s in scenes), parallel=ParallelConfig(int(workers), scheduler),
+                     total=len(scenes), progress=progress, desc=desc, unit="scene")
