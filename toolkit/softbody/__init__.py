@@ -1,0 +1,23 @@
+"""Articulated soft-object (metaball) body models fitted to 3D point clouds (source 002).
+
+* :mod:`~toolkit.softbody.model` -- the kinematic chain, the metaballs, the parameters;
+* :mod:`~toolkit.softbody.distance` -- point-to-surface distance and its analytic Jacobian;
+* :mod:`~toolkit.softbody.init` -- scaling and posing from 3D joints or 2D joints in two images;
+* :mod:`~toolkit.softbody.mesh` -- the surface as a triangle mesh (marching cubes), surface samples;
+* :mod:`~toolkit.softbody.track` -- frame-to-frame tracking of the pose;
+* :mod:`~toolkit.softbody.global_fit` -- all frames at once, with lengths and widths.
+"""
+
+from toolkit.softbody.distance import distance, distance_and_jacobian
+from toolkit.softbody.init import init_from_2d, model_from_joints, params_from_pose14
+from toolkit.softbody.model import (
+    DOF_NAMES,
+    LENGTH_NAMES,
+    N_PARAMS,
+    WIDTH_GROUPS,
+    SoftBodyModel,
+    SoftBodyParams,
+)
+
+__all__ = ["DOF_NAMES", "LENGTH_NAMES", "N_PARAMS", "WIDTH_GROUPS", "SoftBodyModel", "SoftBodyParams",
+           "distance", "distance_and_jacobian", "init_from_2d", "model_from_joints", "params_from_pose14"]

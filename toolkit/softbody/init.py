@@ -1,0 +1,197 @@
+"""Initialisation of the soft body in one frame: a rough scaling of the skeleton and an approximate pose.
+
+Source 002 initialises interactively: key joints clicked in two images and
+triangulated.  Here the joints come either as 3D positions (the project's own
+stage 1 or depth tracker, :func:`model_from_joints`) or as 2D positions in two
+calibrated images (:func:`init_from_2d`, triangulated with
+:func:`toolkit.cameras.triangulation.triangulate_linear`).  Segment lengths
+are measured on the joints, the stature estimated from them sets the
+reference metaball radii, the angles come from
+:func:`toolkit.motion.inverse_kinematics` and are then refined by a least-squares
+fit of the model's joints to the given ones (``scipy.optimize.least_squares``
+with the model's analytic joint Jacobian).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from toolkit.anthropometry.proportions import STATURE_RATIOS, BodyProportions
+from toolkit.cameras.triangulation import triangulate_linear
+from toolkit.errors import InputError
+from toolkit.motion.kinematics import Pose14, inverse_kinematics
+from toolkit.skeleton import SKELETON_14
+from toolkit.softbody.model import (LENGTH_NAMES, LENGTHS, N_POSE, POSE, WIDTH_GROUPS, SoftBodyModel,
+                                    SoftBodyParams, pose_bounds)
+
+__all__ = ["params_from_pose14", "model_from_joints", "init_from_2d", "fit_pose_to_joints", "STATURE_LIMITS"]
+
+_J = {n: i for i, n in enumerate(SKELETON_14.joint_names)}
+#: Statures the estimate from the joints is clipped to (metres): the metaball radii scale with it.
+STATURE_LIMITS = (1.3, 2.1)
+#: Head centre above the floor as a fraction of stature, minus the ankle height.
+_HEAD_ABOVE_ANKLE = (STATURE_RATIOS["neck_height"] - STATURE_RATIOS["ankle_height"]
+                     + STATURE_RATIOS["neck_to_head"])
+
+
+def params_from_pose14(pose: Pose14, t: int, lengths, widths=None) -> SoftBodyParams:
+    """Soft-body parameters of frame ``t`` of a :class:`~toolkit.motion.Pose14`.
+
+    Parameters
+    ----------
+    pose : Pose14
+    t : int
+        Frame index.
+    lengths : array_like of shape (13,)
+        Metres, :data:`~toolkit.softbody.LENGTH_NAMES`.
+    widths : array_like of shape (7,), optional
+        Default 1.
+
+    Returns
+    -------
+    SoftBodyParams
+        The trunk's lateral bend is 0 (the motion library has none).
+    """
+    rv = Rotation.from_matrix(pose.pelvis_rotation()[t]).as_rotvec()
+    ang = [pose.lean[t], 0.0, pose.twist[t], pose.head_pitch[t], pose.head_roll[t]]
+    for side in (0, 1):
+        ang += [*pose.shoulder[t, side], pose.elbow[t, side]]
+    for side in (0, 1):
+        ang += [*pose.hip[t, side], pose.knee[t, side]]
+    w = np.ones(len(WIDTH_GROUPS)) if widths is None else widths
+    return SoftBodyParams.build(np.r_[rv, pose.root[t], ang], lengths, w)
+
+
+def _lengths_from_joints(j: np.ndarray, pose: Pose14) -> np.ndarray:
+    g = {n: j[i] for n, i in _J.items()}
+    dist = lambda a, b: float(np.linalg.norm(g[a] - g[b]))  # noqa: E731
+    mid_hip = 0.5 * (g["l_hip"] + g["r_hip"])
+    Rt = pose.trunk_rotation()[0]
+    drop = [-(Rt.T @ (g[f"{s}_shoulder"] - g["neck"]))[2] for s in "lr"]
+    v = {"neck_to_head": dist("neck", "head"), "shoulder_half_width": 0.5 * dist("l_shoulder", "r_shoulder"),
+         "shoulder_drop": max(float(np.mean(drop)), 0.005), "torso": float(np.linalg.norm(g["neck"] - mid_hip)),
+         "hip_half_width": 0.5 * dist("l_hip", "r_hip")}
+    for s in "lr":
+        v.update({f"{s}_upper_arm": dist(f"{s}_shoulder", f"{s}_elbow"), f"{s}_forearm": dist(f"{s}_elbow", f"{s}_wrist"),
+                  f"{s}_thigh": dist(f"{s}_hip", f"{s}_knee"), f"{s}_shank": dist(f"{s}_knee", f"{s}_ankle")})
+    return np.maximum(np.array([v[n] for n in LENGTH_NAMES]), 1e-3)
+
+
+def fit_pose_to_joints(model: SoftBodyModel, params: SoftBodyParams, joints: np.ndarray, *,
+                       fit_lengths: bool = False) -> SoftBodyParams:
+    """Refine the pose (and optionally the lengths) so that the model's joints meet ``joints``.
+
+    Parameters
+    ----------
+    model : SoftBodyModel
+    params : SoftBodyParams
+        Start.
+    joints : ndarray of shape (14, 3)
+        Metres, world.
+    fit_lengths : bool
+
+    Returns
+    -------
+    SoftBodyParams
+    """
+    target = np.asarray(joints, float)
+    cols = np.r_[np.arange(N_POSE), np.arange(LENGTHS.start, LENGTHS.stop) if fit_lengths else []].astype(int)
+    lo, hi = pose_bounds()
+    lo = np.r_[lo, np.full(len(cols) - N_POSE, 0.01)]
+    hi = np.r_[hi, np.full(len(cols) - N_POSE, 2.0)]
+    x0 = np.clip(params.vector[cols], lo + 1e-9, hi - 1e-9)
+
+    def full(x):
+        v = params.vector.copy()
+        v[cols] = x
+        return SoftBodyParams(v)
+
+    def fun(x):
+        return (model.joints(full(x)) - target).ravel()
+
+    def jac(x):
+        return model.joints_jacobian(full(x)).reshape(42, -1)[:, cols]
+
+    res = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0, max_nfev=100)
+    return full(res.x)
+
+
+def model_from_joints(joints, *, stature: float | None = None, girth: float = 1.0
+                      ) -> tuple[SoftBodyModel, SoftBodyParams]:
+    """A soft body scaled and posed on 3D joints (the initialisation of source 002).
+
+    Parameters
+    ----------
+    joints : array_like of shape (14, 3)
+        Metres, world, z up, order of ``SKELETON_14`` (e.g. stage 1's or the depth tracker's output).
+    stature : float, optional
+        Metres; default estimated from the vertical chain (shank + thigh + torso
+        + neck-to-head) with the anthropometric ratios, clipped to :data:`STATURE_LIMITS`.
+    girth : float
+        Radial size multiplier of the reference radii.
+
+    Returns
+    -------
+    model : SoftBodyModel
+        Reference radii of a median person of that stature.
+    params : SoftBodyParams
+        Lengths measured on the joints (shoulder offsets symmetric), widths 1,
+        pose from inverse kinematics refined by least squares.
+
+    Raises
+    ------
+    InputError
+        If ``joints`` is not a finite (14, 3) array or ``stature`` is out of range.
+    """
+    j = np.asarray(joints, float)
+    if j.shape != (14, 3) or not np.all(np.isfinite(j)):
+        raise InputError("joints", "a finite array of shape (14, 3), metres (SKELETON_14 order)",
+                         f"shape {j.shape}" + ("" if j.shape != (14, 3) else " with NaN/inf"))
+    pose = inverse_kinematics(j)
+    lengths = _lengths_from_joints(j, pose)
+    if stature is None:
+        chain = lengths[LENGTH_NAMES.index("torso")] + lengths[LENGTH_NAMES.index("neck_to_head")] + 0.5 * (
+            lengths[LENGTH_NAMES.index("l_thigh")] + lengths[LENGTH_NAMES.index("r_thigh")]
+            + lengths[LENGTH_NAMES.index("l_shank")] + lengths[LENGTH_NAMES.index("r_shank")])
+        stature = float(np.clip(chain / _HEAD_ABOVE_ANKLE, *STATURE_LIMITS))
+    elif not (np.isfinite(stature) and 1.0 <= stature <= 2.5):
+        raise InputError("stature", "a stature between 1.0 and 2.5 metres", repr(stature))
+    model = SoftBodyModel(BodyProportions.from_height(stature), girth=girth)
+    params = params_from_pose14(pose, 0, lengths)
+    return model, fit_pose_to_joints(model, params, j)
+
+
+def init_from_2d(points2d_a, points2d_b, cam_a, cam_b, *, stature: float | None = None
+                 ) -> tuple[SoftBodyModel, SoftBodyParams]:
+    """The soft body from 2D joints clicked (or given) in two calibrated images.
+
+    Parameters
+    ----------
+    points2d_a, points2d_b : array_like of shape (14, 2)
+        Pixels in each camera's image, ``SKELETON_14`` order.
+    cam_a, cam_b : toolkit.cameras.Camera
+    stature : float, optional
+        See :func:`model_from_joints`.
+
+    Returns
+    -------
+    model, params
+        As :func:`model_from_joints` on the triangulated joints.
+
+    Raises
+    ------
+    InputError
+        If an array has the wrong shape or a joint is missing (NaN) in either image.
+    """
+    pts = []
+    for name, p in (("points2d_a", points2d_a), ("points2d_b", points2d_b)):
+        a = np.asarray(p, float)
+        if a.shape != (14, 2) or not np.all(np.isfinite(a)):
+            raise InputError(name, "a finite array of shape (14, 2), pixels (every joint clicked)", f"shape {a.shape}")
+        pts.append(a)
+    joints = triangulate_linear([cam_a, cam_b], np.stack(pts))
+    if not np.all(np.isfinite(joints)):
+        raise InputError("cam_a, cam_b", "two cameras that triangulate every joint", "a degenerate pair")
+    return model_from_joints(joints, stature=stature)
