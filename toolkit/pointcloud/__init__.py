@@ -4,7 +4,9 @@
   frame, centroid and principal direction, the user's cloud, Open3D point clouds;
 * :mod:`toolkit.pointcloud.mask` -- the user mask (given, or a background model
   and connected components);
-* :mod:`toolkit.pointcloud.normals` -- normal maps from depth gradients.
+* :mod:`toolkit.pointcloud.normals` -- normal maps from depth gradients;
+* :mod:`toolkit.pointcloud.stereo` -- clouds of trinocular stereo heads (OpenCV SGBM, third-camera check);
+* :mod:`toolkit.pointcloud.patches` -- robust local surface patches (a cloud reduced to patch centres).
 
 Depth files and the depth camera's intrinsics are read by :mod:`toolkit.io.depth_readers`.
 The depth tracker (:mod:`toolkit.depth`) builds on these; so will the soft-body
