@@ -14,7 +14,7 @@ def test_zoo_covers_the_scene_space():
     assert len(specs) == 24
     quick = {(s.camera_count, s.layout) for s in specs[:bench_zoo.QUICK_SCENES]}
     assert quick == {(c, lay) for c in (2, 3, 4) for lay in ("broadcast", "studio")}
-    assert {s.motion for s in specs} == set(MOTIONS)
+    assert {s.motion for s in specs} == set(MOTIONS) - {"rom"}    # rom: the marker labs' calibration trial
     assert {s.resolution for s in specs} == set(bench_zoo.RESOLUTIONS)
     assert any(s.outfit == "like_background" for s in specs[:bench_zoo.QUICK_SCENES])
     assert all(s.novel_placement == "around" and s.novel_count >= 3 for s in specs)

@@ -26,6 +26,7 @@ from toolkit.errors import InputError
 from toolkit.motion.actions import GRAVITY_M_S2, _crouch, _idle, _jump, _kick, _turn, _wave
 from toolkit.motion.gait import LINE_HALF_LENGTH_M, RUN_CADENCE_HZ, WALK_CADENCE_HZ, _run, _walk
 from toolkit.motion.planning import PLACEMENT_RADIUS_M, Motion, _Ctx, _finish
+from toolkit.motion.rom import rom_motion
 from toolkit.observe import as_observer
 from toolkit.skeleton import SKELETON_14
 
@@ -34,10 +35,11 @@ __all__ = ["MOTIONS", "Motion", "synthesize_motion", "generate_motion", "GRAVITY
 
 
 #: Motion names understood by :func:`generate_motion`.
-MOTIONS = ("walk", "run", "jump", "kick", "turn", "wave", "crouch", "idle")
+MOTIONS = ("walk", "run", "jump", "kick", "turn", "wave", "crouch", "idle", "rom")
 
+#: Builders return a plan (finished by ``_finish``) or a finished Motion (``rom``).
 _BUILDERS = {"walk": _walk, "run": _run, "jump": _jump, "kick": _kick, "turn": _turn,
-             "wave": _wave, "crouch": _crouch, "idle": _idle}
+             "wave": _wave, "crouch": _crouch, "idle": _idle, "rom": rom_motion}
 
 
 # ---------------------------------------------------------------------- API
@@ -86,7 +88,7 @@ def synthesize_motion(name: str, proportions: BodyProportions, n_frames: int, fp
     rng = np.random.default_rng(rng)
     ctx = _Ctx(proportions, int(n_frames), float(fps), rng)
     plan = _BUILDERS[name](ctx)
-    motion = _finish(ctx, plan, name)
+    motion = plan if isinstance(plan, Motion) else _finish(ctx, plan, name)
     obs = as_observer(observer)
     for i, frame in enumerate(motion.joints):
         obs.report("joints3d", joints=frame, name=f"motion/{name}", skeleton=SKELETON_14, frame=i)

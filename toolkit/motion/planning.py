@@ -58,6 +58,10 @@ class Motion:
         Left and right foot flat on the ground (ankle planted, not moving).
     params : dict
         The parameters drawn from ``rng`` (name -> float, int or str).
+    ankle : ndarray of shape (T, 2) or None
+        Foot rotation about the ankle relative to the shank, radians (left,
+        right; > 0 lifts the toes), for motions that move the ankle (``rom``);
+        not part of the 14-joint skeleton.  None: the foot is rigid with the shank.
     """
 
     name: str
@@ -66,6 +70,7 @@ class Motion:
     pose: Pose14
     contacts: np.ndarray
     params: dict = field(default_factory=dict)
+    ankle: np.ndarray | None = None
 
     @property
     def n_frames(self) -> int:
