@@ -1,0 +1,408 @@
+"""The soft-body system's run: clouds -> patches -> initial model -> tracking -> global fit (source 002).
+
+:func:`run` is what ``recipes/fit_soft_body.py`` calls (its docstring lists the
+outputs).  One run is one sequence:
+
+1. per frame, a cloud from the dataset's depth camera or trinocular stereo
+   heads (:mod:`toolkit.pipeline.soft_body_sources`), reduced to robust
+   surface-patch centres (:func:`toolkit.pointcloud.patches.surface_patches`);
+2. the model scaled and posed on 14 joints of one frame
+   (:func:`toolkit.softbody.model_from_joints`): the depth tracker's skeleton
+   for depth input, a joints file or two-view clicks for stereo;
+3. frame-to-frame tracking of the pose (:func:`toolkit.softbody.track_sequence`);
+4. the global fit of all postures with the bone lengths and metaball widths
+   (:func:`toolkit.softbody.global_fit`), unless ``global_fit = false``.
+
+The run folder is identified like every run (``OUT/run.json``: the dataset and
+the options that change the results); a folder of another run is refused
+(``replace_stale`` moves it aside).  Tracking carries its state from frame to
+frame and the global fit needs every frame, so a run always starts from the
+first frame and replaces earlier results.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from toolkit.errors import InputError
+from toolkit.pipeline.run import RunResult, open_run
+from toolkit.pointcloud.patches import PatchConfig
+from toolkit.pointcloud.stereo import StereoConfig
+from toolkit.softbody.track import TrackConfig
+
+#: Cloud sources.
+SOURCES = ("auto", "depth", "stereo")
+#: Where the initial joints come from.
+INITS = ("auto", "depth_tracker", "joints", "clicks")
+
+
+@dataclass(frozen=True)
+class SoftBodyRunConfig:
+    """Options of a soft-body run (the recipe's flags; a TOML file holds the same keys).
+
+    Parameters
+    ----------
+    source : str
+        One of :data:`SOURCES` (``auto``: depth when the dataset has ``depth_camera/``).
+    foreground : str
+        Stereo: how the subject is found in the images (``auto``, ``masks``, ``plate``,
+        ``groundtruth``; see :mod:`toolkit.pipeline.soft_body_sources`).
+    init : str
+        One of :data:`INITS` (``auto``: the depth tracker for depth input, else
+        ``init_joints`` or ``clicks``, whichever is given).
+    init_joints : Path, optional
+        ``.npz`` with ``joints`` (T, 14, 3) or (14, 3), metres, world (stage 1's output,
+        triangulated clicks, ...).
+    clicks : Path, optional
+        ``.npz`` with 2D joints in two images (see :func:`~toolkit.pipeline.soft_body_sources.read_clicks`).
+    init_frame : int
+        Frame whose joints initialise the model (the first frame's pose is found by the tracker).
+    stereo : StereoConfig
+    patches : PatchConfig
+    track : TrackConfig
+        Frame-to-frame tracking (``viewpoints`` default to the source's camera centres).
+    global_fit : bool
+        Run the global fit after tracking.
+    mesh_voxel_m : float
+        Grid step of the surface meshes (recording, ``meshes``), metres.
+    meshes : bool
+        Write ``OUT/meshes/NNNNNN.ply``.
+    max_frames : int, optional
+        Use at most this many frames (the first ones).
+    recording : bool
+        Write ``recording.rrd``.
+    replace_stale : bool
+        Move another run's results aside instead of refusing them.
+    progress : bool
+        Show a progress bar.
+    """
+
+    source: str = "auto"
+    foreground: str = "auto"
+    init: str = "auto"
+    init_joints: Path | None = None
+    clicks: Path | None = None
+    init_frame: int = 0
+    stereo: StereoConfig = field(default_factory=StereoConfig)
+    patches: PatchConfig = field(default_factory=PatchConfig)
+    track: TrackConfig = field(default_factory=TrackConfig)
+    global_fit: bool = True
+    mesh_voxel_m: float = 0.015
+    meshes: bool = False
+    max_frames: int | None = None
+    recording: bool = True
+    replace_stale: bool = False
+    progress: bool = True
+
+    #: Fields that do not change the joints and the model (left out of the run identity).
+    RUNTIME = ("meshes", "max_frames", "recording", "replace_stale", "progress", "mesh_voxel_m")
+
+    def __post_init__(self):
+        if self.source not in SOURCES:
+            raise InputError("SoftBodyRunConfig.source (--source)", f"one of {SOURCES}", repr(self.source))
+        if self.init not in INITS:
+            raise InputError("SoftBodyRunConfig.init (--init)", f"one of {INITS}", repr(self.init))
+        if int(self.init_frame) < 0:
+            raise InputError("SoftBodyRunConfig.init_frame (--init-frame)", "a frame >= 0", repr(self.init_frame))
+        if not 0.003 <= self.mesh_voxel_m <= 0.1:
+            raise InputError("SoftBodyRunConfig.mesh_voxel_m", "a grid step from 0.003 to 0.1 m",
+                             repr(self.mesh_voxel_m))
+        if self.max_frames is not None and int(self.max_frames) < 1:
+            raise InputError("SoftBodyRunConfig.max_frames (--frames)", "a number of frames >= 1",
+                             repr(self.max_frames))
+
+
+def build_clouds(source, n: int, patches: PatchConfig, observer=None, progress: bool = False):
+    """Raw clouds reduced to patch centres for frames ``0..n-1``.
+
+    Returns
+    -------
+    centres : list of ndarray of shape (P_t, 3)
+        Patch centres per frame, metres, world (empty arrays allowed).
+    stats : dict
+        ``raw_points`` and ``patches`` per frame (lists of int), ``seconds`` per frame (list).
+    """
+    from tqdm import tqdm
+
+    from toolkit.pointcloud.patches import surface_patches
+
+    centres, stats = [], {"raw_points": [], "patches": [], "seconds": []}
+    for t in tqdm(range(n), desc="clouds", unit="frame", disable=not progress):
+        t0 = time.perf_counter()
+        raw = source.cloud(t)
+        p = surface_patches(raw, patches)
+        centres.append(p.centres)
+        stats["raw_points"].append(len(raw))
+        stats["patches"].append(len(p))
+        stats["seconds"].append(time.perf_counter() - t0)
+        if observer is not None:
+            observer.report("points3d", frame=t, points=raw, name="softbody/cloud", radii=0.003,
+                            colors=np.array([150, 150, 150], np.uint8))
+            observer.report("points3d", frame=t, points=p.centres, name="softbody/patches", radii=0.008,
+                            colors=np.array([60, 160, 255], np.uint8))
+    return centres, stats
+
+
+def _tracker_joints(source, n: int, frame: int) -> np.ndarray:
+    """14 joints of the depth tracker at ``frame`` (or the first later frame where it is tracking)."""
+    from toolkit.depth import DepthTracker, track_sequence
+    from toolkit.depth.tracker_state import TrackerConfig
+    from toolkit.pipeline.soft_body_sources import joints14_from_control13
+
+    inp = source.input
+    tracker = DepthTracker(inp.camera, inp.pose_known, TrackerConfig(), background=inp.background, rng=0)
+    res = track_sequence(tracker, (inp.read(i) for i in range(n)))
+    world = res.coordinates == "world"
+    for t in range(frame, n):
+        j13 = np.asarray(res.joints[t], float)
+        if np.isfinite(j13).all():
+            j13 = j13 if world else source.to_world(j13)
+            return joints14_from_control13(j13)
+    raise InputError(f"{inp.frames[0].parent}", f"a frame from {frame} on where the depth tracker finds the user",
+                     "none")
+
+
+def initial_model(config: SoftBodyRunConfig, source, n: int):
+    """The model and parameters the tracking starts from, and the joints they came from (14, 3)."""
+    from toolkit.pipeline.soft_body_sources import read_clicks, read_init_joints
+    from toolkit.softbody import init_from_2d, model_from_joints
+
+    init = config.init
+    if init == "auto":
+        init = ("joints" if config.init_joints is not None else "clicks" if config.clicks is not None
+                else "depth_tracker" if source.kind == "depth" else None)
+        if init is None:
+            raise InputError("--init-joints / --clicks", "initial joints for a stereo dataset (a joints .npz, "
+                             "e.g. stage 1's, or 2D joints clicked in two images)", "neither")
+    if init == "depth_tracker":
+        if source.kind != "depth":
+            raise InputError("init (--init)", "'depth_tracker' only for depth input", source.kind)
+        joints = _tracker_joints(source, n, min(config.init_frame, n - 1))
+        return (*model_from_joints(joints), joints)
+    if init == "joints":
+        if config.init_joints is None:
+            raise InputError("init_joints (--init-joints)", "a joints .npz for init = 'joints'", "none")
+        joints = read_init_joints(config.init_joints, config.init_frame)
+        return (*model_from_joints(joints), joints)
+    if config.clicks is None:
+        raise InputError("clicks (--clicks)", "a clicks .npz for init = 'clicks'", "none")
+    a, b, cam_a, cam_b, _ = read_clicks(config.clicks, source.data.rig)
+    model, params = init_from_2d(a, b, cam_a, cam_b)
+    return model, params, model.joints(params)
+
+
+def body_model_json(model, params) -> dict:
+    """``body_model.json``: lengths, bone lengths, widths and the metaballs (in the given pose)."""
+    from toolkit.skeleton import SKELETON_14
+    from toolkit.softbody import LENGTH_NAMES, WIDTH_GROUPS
+
+    st = model.state(params)
+    names = SKELETON_14.joint_names
+    bones = {f"{names[a]}-{names[b]}": float(v) for (a, b), v in zip(SKELETON_14.bones, model.bone_lengths(params))}
+    groups = np.asarray(model.prim_group)
+    return {"units": "metres", "lengths": dict(zip(LENGTH_NAMES, map(float, params.lengths))),
+            "bone_lengths": bones, "widths": dict(zip(WIDTH_GROUPS, map(float, params.widths))),
+            "metaballs": [{"centre": np.round(c, 5).tolist(), "radii": np.round(r, 5).tolist(),
+                           "group": WIDTH_GROUPS[g], "weight": float(params.widths[g])}
+                          for c, r, g in zip(st.centres, st.radii, groups)],
+            "metaball_note": "centres and radii in the first frame's pose (world); weight: the width "
+                             "multiplier of the metaball's group"}
+
+
+def _scores(joints: np.ndarray, truth: np.ndarray) -> dict:
+    """MPJPE (mm) and the mean absolute bone-length error (mm) against ground-truth joints (T, 14, 3)."""
+    from toolkit.skeleton import SKELETON_14
+
+    ok = np.isfinite(truth).all(-1) & np.isfinite(joints).all(-1)
+    err = np.linalg.norm(joints - truth, axis=-1)[ok]
+    lt = np.nanmean(SKELETON_14.bone_lengths(truth), axis=0)
+    lf = np.nanmean(SKELETON_14.bone_lengths(joints), axis=0)
+    return {"mpjpe_mm": 1000 * float(np.mean(err)) if err.size else float("nan"),
+            "bone_length_error_mm": 1000 * float(np.mean(np.abs(lf - lt)))}
+
+
+def _truth(dataset, n: int):
+    """Ground-truth joints (n, 14, 3) of a synthetic dataset, or None."""
+    p = Path(dataset) / "groundtruth" / "joints3d.npz"
+    if not p.is_file():
+        return None
+    with np.load(p) as z:
+        j = np.asarray(z["joints"], float)
+    return j[:n] if j.ndim == 3 and j.shape[1:] == (14, 3) and len(j) >= n else None
+
+
+def _write(out: Path, model, track, fit, n: int, config: SoftBodyRunConfig, observer, dataset) -> dict:
+    """``joints.npz``, ``body_model.json``, the meshes and ``metrics.json`` (returned)."""
+    from toolkit.io import atomic_save_npz, atomic_write_text
+    from toolkit.skeleton import SKELETON_14
+    from toolkit.softbody import SoftBodyParams
+
+    final = fit if fit is not None else track
+    atomic_save_npz(out / "joints.npz", joints=final.joints, names=np.array(SKELETON_14.joint_names),
+                    joints_tracking=track.joints, state=np.array(track.states, dtype=str))
+    atomic_write_text(out / "body_model.json", json.dumps(body_model_json(model, SoftBodyParams(final.params[0])), indent=1) + "\n")
+    _meshes(out, model, final.params, config, observer)
+    metrics = {"frames": n, "states": {s: int(np.sum(np.array(track.states) == s)) for s in set(track.states)}}
+    truth = _truth(dataset, n)
+    if truth is not None:
+        metrics["tracking"] = _scores(track.joints, truth)
+        if fit is not None:
+            metrics["global_fit"] = _scores(fit.joints, truth)
+    atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
+    return metrics
+
+
+def _meshes(out: Path, model, params_list, config: SoftBodyRunConfig, observer) -> None:
+    """The model surface per frame: to the recording and, with ``config.meshes``, ``OUT/meshes/NNNNNN.ply``."""
+    if observer is None and not config.meshes:
+        return
+    from toolkit.io import frame_filename
+    from toolkit.softbody import SoftBodyParams
+    from toolkit.softbody.mesh import surface_mesh
+
+    for t, vector in enumerate(params_list):
+        params = SoftBodyParams(vector)
+        v, f = surface_mesh(model, params, voxel=config.mesh_voxel_m)
+        if observer is not None:
+            observer.report("mesh", frame=t, vertices=v, triangles=f, name="softbody/surface",
+                            vertex_colors=np.tile(np.array([230, 170, 120], np.uint8), (len(v), 1)))
+            observer.report("joints3d", frame=t, joints=model.joints(params), name="softbody/joints")
+        if config.meshes:
+            _write_ply(out / "meshes" / frame_filename(t, ".ply"), v, f)
+
+
+def _write_ply(path: Path, vertices: np.ndarray, triangles: np.ndarray) -> None:
+    """A triangle mesh as binary PLY (Open3D's writer, via a temporary name renamed into place)."""
+    import open3d as o3d
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    mesh = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(vertices), o3d.utility.Vector3iVector(triangles))
+    tmp = path.with_name(path.stem + ".tmp.ply")
+    if not o3d.io.write_triangle_mesh(str(tmp), mesh):
+        raise OSError(f"could not write {tmp}")
+    tmp.replace(path)
+
+
+def _residuals(model, params_list, clouds, observer) -> None:
+    """The patch centres coloured by their distance to the fitted surface (blue 0, red >= 3 cm)."""
+    from toolkit.softbody import SoftBodyParams, distance
+
+    for t, (vector, pts) in enumerate(zip(params_list, clouds)):
+        if not len(pts):
+            continue
+        d = np.abs(distance(model, SoftBodyParams(vector), pts))
+        c = np.clip(d / 0.03, 0, 1)[:, None]
+        colors = np.round(255 * ((1 - c) * [0.1, 0.3, 1.0] + c * [1.0, 0.15, 0.1])).astype(np.uint8)
+        observer.report("points3d", frame=t, points=pts, name="softbody/residuals", colors=colors, radii=0.01)
+        observer.report("scalar", frame=t, name="softbody/median_residual_mm", value=1000 * float(np.median(d)))
+
+
+def fit_clouds(model, params0, clouds, config: SoftBodyRunConfig, viewpoints=None, observer=None):
+    """Track, then (with ``config.global_fit``) fit globally: ``(track, fit or None)`` of :mod:`toolkit.softbody`.
+
+    ``viewpoints`` (V, 3): the cameras' centres, so that the tracker expects data only
+    on the model's side facing them.
+    """
+    from dataclasses import replace
+
+    from toolkit.softbody.track import track_sequence
+
+    tcfg = config.track
+    if viewpoints is not None and tcfg.viewpoints is None:
+        tcfg = replace(tcfg, viewpoints=tuple(tuple(map(float, v)) for v in viewpoints))
+    track = track_sequence(model, params0, clouds, config=tcfg, observer=observer)
+    if not config.global_fit:
+        return track, None
+    from toolkit.softbody import global_fit
+
+    return track, global_fit(model, track, clouds, observer=observer)
+
+
+def run(config: SoftBodyRunConfig, *, dataset, out, observer=None, log=print) -> RunResult:
+    """Fit the soft body to one sequence into ``out``.
+
+    Parameters
+    ----------
+    config : SoftBodyRunConfig
+    dataset : path
+        A dataset folder with ``depth_camera/`` or trinocular cameras, or a folder of depth frames.
+    out : path
+        Output folder (``recipes/fit_soft_body.py`` lists what it holds).
+    observer : Observer, optional
+        Receives every intermediate; default: ``OUT/recording.rrd`` (``config.recording``).
+    log : callable or None
+
+    Returns
+    -------
+    RunResult
+        ``metrics``: ``metrics.json``'s content plus ``seconds`` (clouds, tracking, fit) per frame;
+        ``extra``: ``source``, ``joints``, ``body_model``.
+
+    Raises
+    ------
+    InputError
+        Bad input or options, or an output folder of another run.
+    """
+    from toolkit.io.runs import run_recording
+    from toolkit.pipeline.soft_body_sources import open_source
+
+    out = Path(out)
+    source = open_source(dataset, config.source, stereo=config.stereo, foreground=config.foreground)
+    n = len(source) if config.max_frames is None else min(len(source), int(config.max_frames))
+    if n < 1:
+        raise InputError(str(dataset), "at least one frame", "none")
+    open_run(out, "fit_soft_body", dataset, config, n, exclude=SoftBodyRunConfig.RUNTIME,
+             extra={"source": source.kind}, replace_stale=config.replace_stale, recording=False, log=log)
+    own = observer is None and config.recording
+    obs = _recording(out, run_recording(out, False)[1]) if own else observer
+    t0 = time.perf_counter()
+    try:
+        clouds, stats = build_clouds(source, n, config.patches, obs, config.progress)
+        t1 = time.perf_counter()
+        model, params0, joints0 = initial_model(config, source, n)
+        if obs is not None:
+            obs.report("joints3d", frame=min(config.init_frame, n - 1), joints=joints0, name="softbody/init_joints")
+        track, fit = fit_clouds(model, params0, clouds, config, source.viewpoints, observer=obs)
+        t2 = time.perf_counter()
+        final = fit if fit is not None else track
+        if obs is not None:
+            _residuals(model, final.params, clouds, obs)
+        metrics = _write(out, model, track, fit, n, config, obs, dataset)
+    finally:
+        if own:
+            obs.close()
+    wall = time.perf_counter() - t0
+    metrics["seconds_per_frame"] = {"clouds": (t1 - t0) / n, "fit": (t2 - t1) / n}
+    metrics["patches_median"] = float(np.median(stats["patches"]))
+    return RunResult(out, n, n, n, 0, "", wall, metrics, out / "recording.rrd" if own else None,
+                     {"source": source.kind, "joints": out / "joints.npz", "body_model": out / "body_model.json",
+                      "meshes": out / "meshes" if config.meshes else None})
+
+
+def _recording(out: Path, recording_id: str):
+    from toolkit.viz import RerunObserver
+
+    return RerunObserver(application_id="fit_soft_body", path=out / "recording.rrd", recording_id=recording_id)
+
+
+def summary_lines(result: RunResult) -> list:
+    """What a soft-body run says when it ends (the recipe prints these)."""
+    m, x = result.metrics, result.extra
+    lines = [f"fitted {result.frames} frames ({x['source']}) in {result.seconds:.1f} s: "
+             + ", ".join(f"{v} {k}" for k, v in m["states"].items())
+             + f"; {m['patches_median']:.0f} patches per frame (median)",
+             f"  joints:      {x['joints']}", f"  body model:  {x['body_model']}"]
+    if x["meshes"] is not None:
+        lines.append(f"  meshes:      {x['meshes']}/")
+    if result.recording is not None:
+        lines.append(f"  recording:   {result.recording}  (open with: rerun {result.recording})")
+    for stage in ("tracking", "global_fit"):
+        if stage in m:
+            lines.append(f"  {stage:<12} MPJPE {m[stage]['mpjpe_mm']:.1f} mm, bone lengths "
+                         f"{m[stage]['bone_length_error_mm']:.1f} mm off (mean)")
+    return lines

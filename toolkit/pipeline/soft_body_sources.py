@@ -1,0 +1,241 @@
+"""Where the soft-body run's data come from: per-frame clouds and the initial joints.
+
+Two sources of 3D points (issue 18 item 2):
+
+* :class:`DepthClouds` -- a depth camera (a dataset folder with ``depth_camera/``
+  or a folder of depth frames, :func:`toolkit.io.depth_readers.open_depth_input`):
+  the user's pixels (:func:`toolkit.pointcloud.user_mask`, against the empty
+  scene when there is one) back-projected to the world;
+* :class:`StereoClouds` -- the trinocular heads of a dataset
+  (:mod:`toolkit.pointcloud.stereo`), limited to the subject by a foreground
+  mask: the dataset's own masks (``masks/``), else background subtraction
+  against the clean plates (``background/``, :mod:`toolkit.foreground`), or the
+  ground-truth masks when asked for (``foreground = "groundtruth"``, for
+  benchmarks that isolate the stereo from the segmentation).
+
+and the initial 14 joints of one frame (item 3): the depth tracker's 13
+control points turned into the 14-joint skeleton (:func:`joints14_from_control13`),
+a joints file (stage 1's ``joints3d.npz``-like ``joints`` array), or 2D joints
+clicked in two calibrated images (a ``clicks.npz``, triangulated by
+:func:`toolkit.softbody.init_from_2d`).
+
+A depth camera without a known pose (real Kinect frames) gives camera
+coordinates; they are turned into a level world frame (x right, y forward,
+z up: :data:`LEVEL_FROM_CAMERA`) so that the body model's "up" is up.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from toolkit.errors import InputError
+
+#: World-from-camera rotation of a level camera (camera x right, y down, z forward -> x, y forward, z up).
+LEVEL_FROM_CAMERA = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+#: Foreground choices of stereo sources.
+FOREGROUNDS = ("auto", "masks", "plate", "groundtruth")
+
+
+class DepthClouds:
+    """The user's points in each depth frame, world (or level camera) coordinates, metres."""
+
+    kind = "depth"
+
+    def __init__(self, dataset, *, mask_config=None):
+        from toolkit.io.depth_readers import open_depth_input
+        from toolkit.pointcloud import BackgroundModel, MaskConfig
+
+        self.input = open_depth_input(dataset)
+        self.background = None if self.input.background is None else BackgroundModel(self.input.background)
+        self.mask_config = mask_config or MaskConfig()
+        self._previous = None
+
+    def __len__(self) -> int:
+        return len(self.input)
+
+    @property
+    def viewpoints(self) -> np.ndarray:
+        """The depth camera's centre in the run's world frame, (1, 3)."""
+        return self.input.camera.center[None] if self.input.pose_known else np.zeros((1, 3))
+
+    def to_world(self, points_cam: np.ndarray) -> np.ndarray:
+        """Camera-frame points (N, 3) to the run's world frame."""
+        cam = self.input.camera
+        if self.input.pose_known:
+            return (points_cam - cam.t) @ cam.R
+        return points_cam @ LEVEL_FROM_CAMERA.T
+
+    def cloud(self, t: int) -> np.ndarray:
+        """The user's points of frame ``t``, (N, 3) metres (empty when no user is found)."""
+        from toolkit.pointcloud import depth_to_points, user_mask
+
+        d = self.input.read(t)
+        um = user_mask(d, self.input.camera, background=self.background, previous=self._previous,
+                       config=self.mask_config)
+        self._previous = um.mask if um.found else None
+        if not um.found:
+            return np.zeros((0, 3))
+        pts, _, _ = depth_to_points(d, self.input.camera, um.mask)
+        return self.to_world(pts)
+
+
+class StereoClouds:
+    """The points of every trinocular head of a dataset in each frame, world, metres."""
+
+    kind = "stereo"
+
+    def __init__(self, dataset, *, stereo=None, foreground: str = "auto"):
+        from toolkit.io import Dataset
+        from toolkit.pointcloud.stereo import StereoConfig, head_pairs, trinocular_heads
+
+        if foreground not in FOREGROUNDS:
+            raise InputError("foreground (--foreground)", f"one of {FOREGROUNDS}", repr(foreground))
+        self.data = Dataset.open(dataset)
+        self.heads = trinocular_heads(self.data.rig)
+        self.pairs = [head_pairs(h) for h in self.heads]
+        self.config = stereo or StereoConfig()
+        self.foreground = self._choose(foreground)
+        self._plates = {}
+
+    def _choose(self, foreground: str) -> str:
+        d, first = self.data, self.data.camera_names[0]
+        if foreground == "auto":
+            if d.has_masks:
+                return "masks"
+            if d.background(first) is not None:
+                return "plate"
+            raise InputError(f"{d.root}", "subject masks (masks/) or clean plates (background/) to find the "
+                             "subject in the stereo images", "neither")
+        if foreground == "plate" and d.background(first) is None:
+            raise InputError(f"{d.root}/background", "clean plates (foreground = 'plate')", "none")
+        if foreground == "masks" and not d.has_masks:
+            raise InputError(f"{d.root}/masks", "subject masks (foreground = 'masks')", "none")
+        if foreground == "groundtruth" and not d.has_groundtruth:
+            raise InputError(f"{d.root}/groundtruth", "ground-truth masks (foreground = 'groundtruth')", "none")
+        return foreground
+
+    def __len__(self) -> int:
+        return self.data.n_frames
+
+    @property
+    def viewpoints(self) -> np.ndarray:
+        """The heads' reference camera centres, (H, 3) metres."""
+        return np.array([h[0].center for h in self.heads])
+
+    def mask(self, camera: str, t: int, image: np.ndarray) -> np.ndarray | None:
+        """The subject in ``camera``'s frame ``t`` as the config's foreground sees it."""
+        if self.foreground == "groundtruth":
+            return self.data.gt_mask(camera, t)
+        if self.foreground == "masks":
+            return self.data.mask(camera, t)
+        from toolkit.foreground import BackgroundConfig, BackgroundModel, clean_mask
+
+        if camera not in self._plates:
+            cfg = BackgroundConfig()
+            plate = self.data.background(camera)
+            self._plates[camera] = BackgroundModel(cfg, plate, np.full(plate.shape[:2], cfg.min_threshold,
+                                                                       np.float32))
+        return clean_mask(self._plates[camera].foreground(image))
+
+    def cloud(self, t: int) -> np.ndarray:
+        """The heads' points of frame ``t``, (N, 3) metres (empty when nothing matched)."""
+        from toolkit.pointcloud.stereo import head_cloud
+
+        out = []
+        for head, pairs in zip(self.heads, self.pairs):
+            images = [self.data.frame(c.name, t) for c in head]
+            masks = [self.mask(c.name, t, im) if k == 0 else None for k, (c, im) in enumerate(zip(head, images))]
+            out.append(head_cloud(images, head, masks, self.config, pairs).points)
+        return np.concatenate(out) if out else np.zeros((0, 3))
+
+
+def open_source(dataset, kind: str = "auto", *, stereo=None, foreground: str = "auto"):
+    """The cloud source of ``dataset``: ``"depth"`` (a ``depth_camera/`` or a folder of depth frames),
+    ``"stereo"`` (a dataset of trinocular heads), or ``"auto"`` (depth when there is a ``depth_camera/``
+    folder or no ``calibration.toml``)."""
+    root = Path(dataset)
+    if kind == "auto":
+        kind = "depth" if (root / "depth_camera").is_dir() or not (root / "calibration.toml").is_file() else "stereo"
+    if kind == "depth":
+        return DepthClouds(root)
+    if kind == "stereo":
+        return StereoClouds(root, stereo=stereo, foreground=foreground)
+    raise InputError("source (--source)", "'auto', 'depth' or 'stereo'", repr(kind))
+
+
+def joints14_from_control13(points13: np.ndarray, stature: float = 1.75) -> np.ndarray:
+    """The 14-joint skeleton under the depth tracker's 13 control points (the inverse of
+    :func:`toolkit.body.control_points.control_points`, with its offsets undone along the
+    limbs' directions; the neck a median shoulder drop above the shoulders' midpoint).
+
+    Parameters
+    ----------
+    points13 : ndarray of shape (13, 3)
+        ``JOINTS_13`` order, metres, z up.
+    stature : float
+        Metres (scales the hand and foot offsets).
+
+    Returns
+    -------
+    ndarray of shape (14, 3)
+        ``SKELETON_14`` order (NaN where the control point was missing).
+    """
+    from toolkit.body.control_points import (FOOT_CENTRE_DOWN, FOOT_CENTRE_FORWARD, HAND_CENTRE_BEYOND_WRIST,
+                                             HEAD_CENTRE_UP)
+    from toolkit.anthropometry import BodyProportions
+    from toolkit.skeleton import JOINTS_13, SKELETON_14
+
+    p = np.asarray(points13, float)
+    if p.shape != (13, 3):
+        raise InputError("points13", "an array of shape (13, 3)", f"shape {p.shape}")
+    g = {n: p[i] for i, n in enumerate(JOINTS_13)}
+    s = stature / 1.75
+    unit = lambda v: v / max(np.linalg.norm(v), 1e-9)  # noqa: E731
+    mid = 0.5 * (g["l_shoulder"] + g["r_shoulder"])
+    neck = mid + BodyProportions.from_height(stature).shoulder_drop * unit(g["head"] - mid)
+    out = {"head": g["head"] - HEAD_CENTRE_UP * s * unit(g["head"] - neck), "neck": neck}
+    lateral = unit(g["r_shoulder"] - g["l_shoulder"] + g["r_hip"] - g["l_hip"])
+    for side in ("l", "r"):
+        for n in ("shoulder", "elbow", "hip", "knee"):
+            out[f"{side}_{n}"] = g[f"{side}_{n}"]
+        hand, elbow = g[f"{side}_hand"], g[f"{side}_elbow"]
+        out[f"{side}_wrist"] = hand - HAND_CENTRE_BEYOND_WRIST * s * unit(hand - elbow)
+        foot, knee = g[f"{side}_foot"], g[f"{side}_knee"]
+        d = unit(foot - knee)
+        w = unit(np.cross(-d, lateral))
+        out[f"{side}_ankle"] = foot - FOOT_CENTRE_FORWARD * s * w - FOOT_CENTRE_DOWN * s * d
+    return np.stack([out[n] for n in SKELETON_14.joint_names])
+
+
+def read_init_joints(path, frame: int) -> np.ndarray:
+    """Joints (14, 3) of ``frame`` from an ``.npz`` with ``joints`` (T, 14, 3) or (14, 3), metres, world."""
+    p = Path(path)
+    try:
+        with np.load(p) as z:
+            j = np.asarray(z["joints"], float)
+    except (OSError, ValueError, KeyError) as e:
+        raise InputError(str(p), "an .npz file with 'joints' (T, 14, 3) or (14, 3), metres", str(e)) from None
+    if j.shape == (14, 3):
+        return j
+    if j.ndim != 3 or j.shape[1:] != (14, 3) or not 0 <= frame < len(j):
+        raise InputError(f"{p}: joints", f"shape (T, 14, 3) with frame {frame} in it, or (14, 3)", f"{j.shape}")
+    return j[frame]
+
+
+def read_clicks(path, rig):
+    """2D joints clicked in two images: ``.npz`` with ``camera_a``, ``camera_b`` (names in ``rig``),
+    ``points2d_a``, ``points2d_b`` ((14, 2) pixels) and ``frame``; returns ``(a, b, cam_a, cam_b, frame)``."""
+    p = Path(path)
+    try:
+        with np.load(p) as z:
+            a, b = np.asarray(z["points2d_a"], float), np.asarray(z["points2d_b"], float)
+            names, frame = (str(z["camera_a"]), str(z["camera_b"])), int(z["frame"])
+    except (OSError, ValueError, KeyError) as e:
+        raise InputError(str(p), "an .npz with camera_a, camera_b, points2d_a, points2d_b (14, 2) and frame",
+                         str(e)) from None
+    for n in names:
+        if n not in rig.names:
+            raise InputError(f"{p}: camera", f"one of {rig.names}", repr(n))
+    return a, b, rig[names[0]], rig[names[1]], frame
