@@ -1,0 +1,325 @@
+"""Centres and axes of rotation between two rigid marker subsets.
+
+Two methods of Ehrig, Taylor, Duda and Heller, both linear least squares on the
+rigid motions of the two subsets (``x_world = R_t x_local + t_t`` per frame,
+from :func:`toolkit.markers.rigid.rigid_motions`):
+
+* **SCoRE**, the symmetrical centre of rotation estimation (Ehrig et al. 2006,
+  "A survey of formal methods for determining the centre of rotation of ball
+  joints", J Biomech 39:2798-2809): the point fixed in both segments' frames,
+  ``c_p`` in the parent's and ``c_c`` in the child's, minimising
+  ``sum_t |R_p,t c_p + t_p,t - R_c,t c_c - t_c,t|^2``.  Neither segment needs
+  to stand still and the soft-tissue errors of both enter symmetrically.
+* **SARA**, the symmetrical axis of rotation approach (Ehrig et al. 2007, "A
+  survey of formal methods for determining functional joint axes", J Biomech
+  40:2150-2157): for a hinge (knee, elbow) the same system has a one-dimensional
+  null space whose right singular vector gives the axis in both frames; the
+  points of the axis are the least-squares solution plus any multiple of it.
+  Where on the axis the joint centre lies is not observable from the motion; it
+  is taken from an anatomical estimate (the scaled generic skeleton's joint,
+  projected onto the axis).
+
+The linear algebra is numpy's (``lstsq``, ``svd``); relative orientations and
+their spread (the range of motion) use ``scipy.spatial.transform.Rotation``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from toolkit.errors import InputError
+
+#: How a joint centre was obtained.
+METHODS = ("score", "sara", "sphere", "generic", "none")
+
+
+@dataclass(frozen=True)
+class CentreFit:
+    """A centre (and for SARA an axis) of rotation between a parent and a child subset.
+
+    Attributes
+    ----------
+    method : str
+        ``"score"`` or ``"sara"``.
+    local_parent, local_child : ndarray of shape (3,)
+        The centre in the parent's and the child's reference frames, metres.
+    axis_parent, axis_child : ndarray of shape (3,) or None
+        SARA: unit axis direction in each frame; None for SCoRE.
+    centre : ndarray of shape (T, 3)
+        The centre in the world per frame (mean of the two segments' estimates
+        where both are seen), NaN where neither segment is.
+    axis : ndarray of shape (T, 3) or None
+        SARA: the axis direction in the world per frame (from the parent).
+    residual_m : float
+        RMS over frames of the distance between the parent's and the child's
+        estimate of the centre, metres.
+    rom_deg : ndarray of shape (3,)
+        Range of motion of the child relative to the parent along the three
+        principal axes of the relative rotations (2.5-97.5 percentile extent), degrees.
+    n_frames : int
+        Frames with both motions known (the equations used).
+    conditioning : float
+        Smallest over second smallest singular value of the system (near 0: a
+        hinge, whose centre along the axis is not determined by the motion).
+    """
+
+    method: str
+    local_parent: np.ndarray
+    local_child: np.ndarray
+    axis_parent: np.ndarray | None
+    axis_child: np.ndarray | None
+    centre: np.ndarray
+    axis: np.ndarray | None
+    residual_m: float
+    rom_deg: np.ndarray
+    n_frames: int
+    conditioning: float
+
+
+def _check_motion(rot, trans, where):
+    rot = np.asarray(rot, dtype=float)
+    trans = np.asarray(trans, dtype=float)
+    if rot.ndim != 3 or rot.shape[1:] != (3, 3) or trans.shape != (rot.shape[0], 3):
+        raise InputError(where, "rotations (T, 3, 3) and translations (T, 3)", f"{rot.shape}, {trans.shape}")
+    return rot, trans
+
+
+def range_of_motion(rot_parent: np.ndarray, rot_child: np.ndarray, *, smooth: int = 9) -> np.ndarray:
+    """Range of motion of a child segment relative to its parent, degrees.
+
+    Parameters
+    ----------
+    rot_parent, rot_child : ndarray of shape (T, 3, 3)
+        World rotations of the two segments, NaN where unknown.
+    smooth : int
+        The relative rotations are averaged over this many consecutive frames
+        first, so that the jitter of rotations fitted to few, noisy markers is
+        not taken for motion.
+
+    Returns
+    -------
+    ndarray of shape (3,)
+        Extent (2.5th to 97.5th percentile) of the relative rotations about
+        their mean, along their principal axes, largest first; zeros with fewer
+        than two frames.
+    """
+    from scipy.ndimage import uniform_filter1d
+
+    from scipy.spatial.transform import Rotation
+
+    ok = np.all(np.isfinite(rot_parent), axis=(1, 2)) & np.all(np.isfinite(rot_child), axis=(1, 2))
+    if ok.sum() < 2:
+        return np.zeros(3)
+    rel = Rotation.from_matrix(np.einsum("tji,tjk->tik", rot_parent[ok], rot_child[ok]))
+    dev = (rel.mean().inv() * rel).as_rotvec()
+    if smooth > 1 and len(dev) > smooth:
+        dev = uniform_filter1d(dev, size=smooth, axis=0, mode="nearest")
+    dev = dev - dev.mean(axis=0)
+    _, _, vt = np.linalg.svd(dev, full_matrices=False)
+    proj = dev @ vt.T
+    ext = np.percentile(proj, 97.5, axis=0) - np.percentile(proj, 2.5, axis=0)
+    out = np.zeros(3)
+    out[:len(ext)] = np.degrees(ext)
+    return np.sort(out)[::-1]
+
+
+def _system(rp, tp, rc, tc):
+    ok = (np.all(np.isfinite(rp), axis=(1, 2)) & np.all(np.isfinite(rc), axis=(1, 2))
+          & np.all(np.isfinite(tp), axis=1) & np.all(np.isfinite(tc), axis=1))
+    if ok.sum() < 3:
+        raise InputError("rigid motions", "at least three frames with both segments seen", f"{int(ok.sum())}")
+    a = np.concatenate([rp[ok], -rc[ok]], axis=2).reshape(-1, 6)  # (3n, 6)
+    b = (tc[ok] - tp[ok]).reshape(-1)
+    return a, b, int(ok.sum())
+
+
+def _world(rp, tp, rc, tc, cp, cc):
+    gp = np.einsum("tij,j->ti", rp, cp) + tp
+    gc = np.einsum("tij,j->ti", rc, cc) + tc
+    both = np.isfinite(gp).all(axis=1) & np.isfinite(gc).all(axis=1)
+    centre = np.where(both[:, None], 0.5 * (gp + gc), np.where(np.isfinite(gp), gp, gc))
+    d = np.linalg.norm(gp - gc, axis=1)[both]
+    residual = float(np.sqrt(np.mean(d ** 2))) if d.size else float("nan")
+    return centre, residual
+
+
+def _local_anchor(rot, trans, anchor):
+    """Median over frames of a world point in a segment's frame (NaN-aware), or None."""
+    if anchor is None:
+        return None
+    anc = np.broadcast_to(np.asarray(anchor, dtype=float), trans.shape)
+    local = np.einsum("tji,tj->ti", rot, anc - trans)
+    ok = np.isfinite(local).all(axis=1)
+    return np.median(local[ok], axis=0) if ok.any() else None
+
+
+def _solve(a, b, prior, cols, weight):
+    """Least squares ``a x = b``, pulled towards ``prior`` on ``cols``.
+
+    Tikhonov regularisation of weight ``weight`` x the largest singular value of ``a``.
+    """
+    s = np.linalg.svd(a, compute_uv=False)
+    if prior is None or weight <= 0:
+        x, *_ = np.linalg.lstsq(a, b, rcond=None)
+        return x, s
+    lam = weight * s[0]
+    reg = np.zeros((len(cols), a.shape[1]))
+    reg[np.arange(len(cols)), cols] = lam
+    x, *_ = np.linalg.lstsq(np.vstack([a, reg]), np.concatenate([b, lam * prior]), rcond=None)
+    return x, s
+
+
+def score(rot_parent, trans_parent, rot_child, trans_child, *, anchor: np.ndarray | None = None,
+          prior_weight: float = 0.05) -> CentreFit:
+    """SCoRE centre of rotation (Ehrig et al. 2006, J Biomech 39:2798).
+
+    Parameters
+    ----------
+    rot_parent, rot_child : ndarray of shape (T, 3, 3)
+        World rotations of the segments' reference frames, NaN where unknown.
+    trans_parent, trans_child : ndarray of shape (T, 3)
+        World translations, metres.
+
+    anchor : ndarray of shape (T, 3) or (3,), optional
+        An anatomical estimate of the centre (world, NaN allowed).  The
+        solution is pulled towards it (Tikhonov regularisation of weight
+        ``prior_weight`` x the system's largest singular value), which only
+        matters along directions the motion does not determine (a joint that
+        moved about one axis: the centre along that axis).
+    prior_weight : float
+
+    Returns
+    -------
+    CentreFit
+        ``method="score"``.
+
+    Raises
+    ------
+    InputError
+        Fewer than three frames with both segments seen.
+    """
+    rp, tp = _check_motion(rot_parent, trans_parent, "rot_parent/trans_parent")
+    rc, tc = _check_motion(rot_child, trans_child, "rot_child/trans_child")
+    a, b, n = _system(rp, tp, rc, tc)
+    ap, ac = _local_anchor(rp, tp, anchor), _local_anchor(rc, tc, anchor)
+    prior = None if ap is None or ac is None else np.concatenate([ap, ac])
+    x, s = _solve(a, b, prior, np.arange(6), prior_weight)
+    centre, residual = _world(rp, tp, rc, tc, x[:3], x[3:])
+    return CentreFit("score", x[:3], x[3:], None, None, centre, None, residual,
+                     range_of_motion(rp, rc), n, float(s[-1] / max(s[-2], 1e-30)))
+
+
+def sara(rot_parent, trans_parent, rot_child, trans_child, *, anchor: np.ndarray | None = None) -> CentreFit:
+    """SARA hinge axis (Ehrig et al. 2007, J Biomech 40:2150), with the centre placed on it.
+
+    Parameters
+    ----------
+    rot_parent, trans_parent, rot_child, trans_child
+        As for :func:`score`.
+    anchor : ndarray of shape (T, 3) or (3,), optional
+        An anatomical estimate of the joint centre in the world (per frame, NaN
+        allowed): the centre is the point of the axis nearest to it (median
+        over frames, in the parent's frame).  Without it, the minimum-norm
+        least-squares point (nearest the two subsets' reference origins).
+
+    Returns
+    -------
+    CentreFit
+        ``method="sara"`` with the axis in both frames and in the world.
+    """
+    rp, tp = _check_motion(rot_parent, trans_parent, "rot_parent/trans_parent")
+    rc, tc = _check_motion(rot_child, trans_child, "rot_child/trans_child")
+    a, b, n = _system(rp, tp, rc, tc)
+    u, s, vt = np.linalg.svd(a, full_matrices=False)
+    v = vt[-1]
+    # least-squares solution without the axis direction (pseudo-inverse of the first five)
+    x0 = vt[:-1].T @ ((u[:, :-1].T @ b) / s[:-1])
+    ap, ac = v[:3], v[3:]
+    if np.dot(ap, ap) < 1e-12:
+        raise InputError("rigid motions", "a hinge whose axis is seen in the parent's frame", "a degenerate system")
+    lam = 0.0
+    if anchor is not None:
+        anc = np.broadcast_to(np.asarray(anchor, dtype=float), tp.shape)
+        local = np.einsum("tji,tj->ti", rp, anc - tp)  # R^T (x - t)
+        lam_t = (local - x0[:3]) @ ap / np.dot(ap, ap)
+        if np.isfinite(lam_t).any():
+            lam = float(np.nanmedian(lam_t))
+    x = x0 + lam * v
+    centre, residual = _world(rp, tp, rc, tc, x[:3], x[3:])
+    axp = ap / np.linalg.norm(ap)
+    axc = ac / np.linalg.norm(ac) if np.linalg.norm(ac) > 0 else ac
+    axis = np.einsum("tij,j->ti", rp, axp)
+    return CentreFit("sara", x[:3], x[3:], axp, axc, centre, axis, residual,
+                     range_of_motion(rp, rc), n, float(s[-1] / max(s[-2], 1e-30)))
+
+
+def sphere_centre(rot_parent, trans_parent, points: np.ndarray, *, anchor: np.ndarray | None = None,
+                  prior_weight: float = 0.05) -> CentreFit:
+    """Centre of the spheres that child markers describe in the parent's frame.
+
+    Used when the child segment has fewer than three markers (no rigid motion
+    of its own, e.g. Plug-in Gait's thigh: ``THI`` and ``KNE``): each child
+    marker keeps its distance to the joint centre, so in the parent's frame it
+    moves on a sphere about it.  The common centre and one radius per marker
+    are the linear least-squares solution of ``|x|^2 = 2 x.c + (r_k^2 - |c|^2)``
+    (the algebraic sphere fit of Gamage and Lasenby 2002, "New least squares
+    solutions for estimating the average centre of rotation and the axis of
+    rotation", J Biomech 35:87-93, with a common centre for all markers).
+
+    Parameters
+    ----------
+    rot_parent : ndarray of shape (T, 3, 3)
+    trans_parent : ndarray of shape (T, 3)
+    points : ndarray of shape (T, K, 3)
+        The child's markers in the world, metres, NaN where missing.
+    anchor, prior_weight
+        As for :func:`score` (the centre is pulled towards the anchor along
+        directions the motion leaves undetermined).
+
+    Returns
+    -------
+    CentreFit
+        ``method="sphere"``: ``local_parent`` the centre in the parent's frame,
+        ``local_child`` the radii (K,) padded/truncated to 3 values, ``residual_m``
+        the RMS of ``|x - c| - r_k``; the range of motion is that of the
+        markers' directions seen from the centre.
+    """
+    rp, tp = _check_motion(rot_parent, trans_parent, "rot_parent/trans_parent")
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 3 or pts.shape[0] != rp.shape[0] or pts.shape[2] != 3:
+        raise InputError("points", f"an array of shape ({rp.shape[0]}, K, 3)", f"{pts.shape}")
+    local = np.einsum("tji,tkj->tki", rp, pts - tp[:, None])  # (T, K, 3) in the parent's frame
+    k = pts.shape[1]
+    # in coordinates centred on the markers' mean m (better conditioned): |y|^2 = 2 y.c' + d_k,
+    # y = x - m, c' = c - m, d_k = r_k^2 - |c'|^2
+    with np.errstate(invalid="ignore"):
+        mean = np.nanmean(local.reshape(-1, 3), axis=0)
+    ys = [local[:, j][np.isfinite(local[:, j]).all(axis=1)] - mean for j in range(k)]
+    a = np.concatenate([np.concatenate([2 * y, np.eye(k)[[j] * len(y)]], axis=1) for j, y in enumerate(ys)])
+    b = np.concatenate([(y ** 2).sum(axis=1) for y in ys])
+    if len(b) < 3 + k + 3:
+        raise InputError("points", "enough frames with the child's markers and the parent's motion", f"{len(b)}")
+    pl = _local_anchor(rp, tp, anchor)
+    sol, s = _solve(a, b, None if pl is None else pl - mean, np.arange(3), prior_weight)
+    c = sol[:3] + mean
+    radii = np.sqrt(np.maximum(sol[3:] + sol[:3] @ sol[:3], 0.0))
+    dist = np.linalg.norm(local - c, axis=-1) - radii  # (T, K)
+    residual = float(np.sqrt(np.nanmean(dist ** 2)))
+    centre = np.einsum("tij,j->ti", rp, c) + tp
+    # range of motion: spread of the directions of the markers seen from the centre
+    dirs = local - c
+    dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
+    rom = np.zeros(3)
+    for j in range(k):
+        d = dirs[:, j][np.isfinite(dirs[:, j]).all(axis=1)]
+        if len(d) > 1 and radii[j] > 0.05:  # a marker near the centre gives no direction
+            mean = d.mean(axis=0)
+            mean /= np.linalg.norm(mean)
+            ang = np.degrees(np.arccos(np.clip(d @ mean, -1, 1)))
+            rom[0] = max(rom[0], 2 * np.percentile(ang, 97.5))
+    radii3 = np.full(3, np.nan)
+    radii3[:min(3, k)] = radii[:3]
+    return CentreFit("sphere", c, radii3, None, None, centre, None, residual, rom, len(b),
+                     float(s[-1] / max(s[-2], 1e-30)))

@@ -1,0 +1,436 @@
+"""Joint centres from labelled or unlabelled marker trajectories.
+
+:func:`joint_centres` is the step after labelling (or after reading a C3D):
+
+1. **Subsets.** With labels, each body segment's markers (from the marker
+   set, or :data:`toolkit.markers.skeleton_fit.LABEL_RULES`), checked for
+   rigidity (:func:`toolkit.markers.rigid.check_segments`: a marker that does
+   not move with its segment mates is dropped from the fits).  A limb segment with
+   fewer than three markers borrows a marker of its parent limb segment that
+   moves rigidly with it (a marker on the joint axis, e.g. Plug-in Gait's ``KNE`` for the
+   shank) and, for a limb, the centre already found at its proximal joint
+   (the hip for the thigh, as Plug-in Gait chains its segments).  Without
+   labels, :func:`toolkit.markers.rigid.find_rigid_subsets`.
+2. **Centres of rotation** between adjacent subsets
+   (:mod:`toolkit.markers.centres`): SCoRE for ball joints (hips, shoulders),
+   SARA for hinges (knees, elbows, ankles) and for a ball joint that only
+   moved about one axis (walking hips), with the centre placed on the axis
+   nearest the generic skeleton's joint; a child with fewer than three markers
+   (Plug-in Gait's thigh and upper arm) by a sphere fit in the parent's frame.
+   A joint that moved less than ``min_rom_deg`` keeps the generic skeleton's
+   joint, and the result says so.
+3. **Skeleton.** The 14 joints: the centres found, the generic skeleton's
+   joints (template regression of the marker set scaled to the performer, or
+   anatomical rules) for the others; bone lengths for ``skeleton.json``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from toolkit.errors import InputError
+from toolkit.markers import centres as _c
+from toolkit.markers import rigid as _r
+from toolkit.markers import skeleton_fit as _s
+from toolkit.observe import as_observer
+from toolkit.skeleton import SKELETON_14
+
+#: Joints found from the motion: (joint, parent segment, child segment, kind), proximal ones first.
+FUNCTIONAL_JOINTS = tuple(
+    (f"{s}_{j}", parent.replace("X", s), child.replace("X", s), kind)
+    for j, parent, child, kind in (
+        ("hip", "pelvis", "X_thigh", "ball"), ("shoulder", "thorax", "X_upperarm", "ball"),
+        ("knee", "X_thigh", "X_shank", "hinge"), ("elbow", "X_upperarm", "X_forearm", "hinge"),
+        ("ankle", "X_shank", "X_foot", "hinge"))
+    for s in "lr")
+#: The parent segment of each limb segment.
+PARENT = {ch: p for _j, p, ch, _k in FUNCTIONAL_JOINTS}
+#: The joint at the proximal end of a limb segment (its centre may serve as a virtual marker).
+PROXIMAL = {ch: j for j, _p, ch, _k in FUNCTIONAL_JOINTS}
+
+#: How each joint was placed.
+JOINT_METHODS = ("score", "sara", "sphere", "template", "anatomical", "none")
+
+
+@dataclass(frozen=True)
+class JointCentresConfig:
+    """Options of :func:`joint_centres`.
+
+    Attributes
+    ----------
+    marker_set : str
+        ``"auto"`` (the known set most of whose labels are present, else
+        :data:`~toolkit.markers.skeleton_fit.LABEL_RULES`), a set name, or
+        ``"none"`` (find rigid subsets without labels).
+    min_rom_deg : float
+        Least range of motion (degrees, largest principal extent) for a
+        functional centre; less keeps the generic skeleton's joint.
+    planar_ratio : float
+        A ball joint whose second range of motion is below this share of the
+        first moved about one axis only and is treated as a hinge (SARA).
+    rigid_tolerance_m : float
+        Median pairwise distance std under which a neighbour's marker counts
+        as rigid with a segment (borrowed markers), metres.
+    segment_tolerance_m : float
+        Median distance std to its segment mates above which a labelled
+        marker is dropped from the fits, metres.
+    subset_threshold_m : float
+        Distance-std cut of the clustering without labels, metres.
+    max_joint_residual_m : float
+        Without labels: a pair of subsets is a joint only if its SCoRE
+        residual is below this, metres.
+    height_m : float
+        Performer's stature, metres; 0 = fitted from the markers.
+    """
+
+    marker_set: str = "auto"
+    min_rom_deg: float = 20.0
+    planar_ratio: float = 0.25
+    rigid_tolerance_m: float = 0.010
+    segment_tolerance_m: float = 0.02
+    subset_threshold_m: float = 0.01
+    max_joint_residual_m: float = 0.03
+    height_m: float = 0.0
+
+
+@dataclass
+class JointCentresResult:
+    """What :func:`joint_centres` found.
+
+    Attributes
+    ----------
+    names : tuple of str
+        :data:`toolkit.skeleton.JOINTS_14`.
+    joints : ndarray of shape (T, 14, 3)
+        Metres, NaN where a joint could not be placed.
+    method : tuple of str
+        Per joint, one of :data:`JOINT_METHODS`.
+    residual_m : ndarray of shape (14,)
+        Functional centres: RMS disagreement of the two segments' estimates
+        (sphere fit: of the radii), metres; NaN for other joints.
+    rom_deg : ndarray of shape (14,)
+        Range of motion seen at each functional joint (largest principal extent), degrees; NaN if not measured.
+    fits : dict of str to CentreFit
+        The functional fits by joint name (unlabelled: by subset pair ``"S0-S1"``).
+    subsets : dict of str to tuple of int
+        Marker indices used for each segment (labelled) or subset (unlabelled).
+    height_m : float
+        Stature of the scaled generic skeleton, metres.
+    lengths : dict of str to float
+        Bone lengths of the skeleton (median over frames of the joints; the
+        scaled generic skeleton's where a bone's joints are never seen), metres.
+    messages : list of str
+        What the caller should know (joints left at the generic skeleton, markers dropped).
+    labelled : bool
+        Whether segments came from labels.
+    marker_set : str
+        The marker set used (or ``"labels"`` for :data:`LABEL_RULES`, ``"none"``).
+    generic : ndarray of shape (T, 14, 3)
+        The scaled generic skeleton's joints from the markers (regression).
+    """
+
+    names: tuple
+    joints: np.ndarray
+    method: tuple
+    residual_m: np.ndarray
+    rom_deg: np.ndarray
+    fits: dict
+    subsets: dict
+    height_m: float
+    lengths: dict
+    messages: list = field(default_factory=list)
+    labelled: bool = True
+    marker_set: str = "none"
+    generic: np.ndarray | None = None
+
+    def summary(self) -> dict:
+        """Per joint: method, residual (mm), range of motion (degrees); JSON-ready."""
+        def num(v, scale, digits):
+            return None if not np.isfinite(v) else round(scale * float(v), digits)
+
+        out = {}
+        for j, name in enumerate(self.names):
+            out[name] = {"method": self.method[j], "residual_mm": num(self.residual_m[j], 1e3, 2),
+                         "rom_deg": num(self.rom_deg[j], 1.0, 1)}
+        for key, fit in self.fits.items():
+            if key not in out:
+                out[key] = {"method": fit.method, "residual_mm": round(1e3 * fit.residual_m, 2),
+                            "rom_deg": round(float(fit.rom_deg[0]), 1)}
+        return out
+
+
+def _choose_marker_set(labels, name: str):
+    from toolkit.markers.marker_sets import MARKER_SETS, get_marker_set
+
+    if name == "none":
+        return None
+    if name != "auto":
+        return get_marker_set(name)
+    best, share = None, 0.0
+    for ms in MARKER_SETS.values():
+        s = np.mean([lab in labels for lab in ms.labels])
+        if s > share:
+            best, share = ms, s
+    return best if share >= 0.6 else None
+
+
+def _segment_groups(traj, mset) -> dict:
+    if traj.segments is not None:
+        segs = traj.segments
+    elif mset is not None:
+        segs = tuple(mset.segments[mset.labels.index(lab)] if lab in mset.labels else None for lab in traj.labels)
+    else:
+        segs = tuple(_s.segment_of_label(lab) for lab in traj.labels)
+    groups = {}
+    for i, seg in enumerate(segs):
+        if seg is not None:
+            groups.setdefault(seg, []).append(i)
+    return groups
+
+
+def _extend(groups: dict, std: np.ndarray, tol: float) -> dict:
+    """Limb segments of fewer than three markers borrow their parent limb's markers rigid with them."""
+    out = {k: list(v) for k, v in groups.items()}
+    for seg, idx in groups.items():
+        if len(idx) >= 3 or not idx:
+            continue
+        cands = []
+        parent = PARENT.get(seg)
+        if parent is None or parent in ("pelvis", "thorax"):
+            continue
+        for m in groups.get(parent, ()):
+            cands.append((float(np.median(std[m, idx])), m))
+        for d, m in sorted(cands):
+            if len(out[seg]) >= 3 or not d <= tol:
+                break
+            out[seg].append(m)
+    return out
+
+
+def _motion(pos: np.ndarray):
+    if pos.shape[1] < 3:
+        return None
+    try:
+        ref = _r.reference_shape(pos)
+    except InputError:
+        return None
+    rot, trans, _ = _r.rigid_motions(ref, pos)
+    if np.isfinite(trans).all(axis=1).sum() < 3:
+        return None
+    return rot, trans
+
+
+def _fit_joint(kind, parent_pos, child_pos, anchor, config):
+    """One functional joint: (CentreFit or None, why-not message)."""
+    pm = _motion(parent_pos)
+    if pm is None:
+        return None, "its parent segment has fewer than three markers seen together"
+    cm = _motion(child_pos)
+    try:
+        if cm is None:
+            if child_pos.shape[1] == 0:
+                return None, "its child segment has no markers"
+            fit = _c.sphere_centre(pm[0], pm[1], child_pos, anchor=anchor)
+        else:
+            rom = _c.range_of_motion(pm[0], cm[0])
+            planar = rom[1] < config.planar_ratio * rom[0]
+            if kind == "hinge" or planar:
+                fit = _c.sara(pm[0], pm[1], cm[0], cm[1], anchor=anchor)
+            else:
+                fit = _c.score(pm[0], pm[1], cm[0], cm[1], anchor=anchor)
+    except InputError as e:
+        return None, str(e)
+    if not fit.rom_deg[0] >= config.min_rom_deg:
+        return fit, (f"it moved {fit.rom_deg[0]:.0f} degrees, less than {config.min_rom_deg:.0f}: "
+                     "functional centres need movement")
+    return fit, ""
+
+
+def joint_centres(traj, *, config: JointCentresConfig = JointCentresConfig(), observer=None) -> JointCentresResult:
+    """Joint centres of the 14-joint skeleton from marker trajectories.
+
+    Parameters
+    ----------
+    traj : MarkerTrajectories
+        Labelled markers (T frames, M markers, metres, NaN where missing);
+        labels that no marker set or rule knows (e.g. ``M000``) or
+        ``config.marker_set == "none"`` take the path without labels.
+    config : JointCentresConfig
+    observer : Observer, optional
+        Receives ``text`` reports (one per joint) and, without labels, the subsets.
+
+    Returns
+    -------
+    JointCentresResult
+
+    Raises
+    ------
+    InputError
+        Fewer than three frames or two markers.
+    """
+    obs = as_observer(observer)
+    pos = np.asarray(traj.positions, dtype=float)
+    if pos.ndim != 3 or pos.shape[0] < 3 or pos.shape[1] < 2:
+        raise InputError(f"{traj.source}: positions", "at least 3 frames of at least 2 markers", f"{pos.shape}")
+    mset = _choose_marker_set(traj.labels, config.marker_set)
+    groups = {} if config.marker_set == "none" else _segment_groups(traj, mset)
+    if sum(1 for g in groups.values() if g) < 2:
+        return _unlabelled(traj, config, obs)
+    return _labelled(traj, groups, mset, config, obs)
+
+
+def _labelled(traj, groups, mset, config, obs) -> JointCentresResult:
+    pos = traj.positions
+    t = pos.shape[0]
+    messages = []
+    std, _ = _r.distance_std(pos)
+    bad = _r.check_segments(pos, groups, tolerance_m=config.segment_tolerance_m)
+    for seg, idx in bad.items():
+        messages.append(f"{seg}: markers {[traj.labels[i] for i in idx]} do not move rigidly with the "
+                        f"others of the segment (distance std over {1e3 * config.segment_tolerance_m:.0f} mm); "
+                        "left out of the fits")
+        groups[seg] = [i for i in groups[seg] if i not in idx]
+    ext = _extend(groups, std, config.rigid_tolerance_m)
+    # generic skeleton: the marker set's template scaled to the performer, else anatomical rules
+    height = float(config.height_m) if config.height_m > 0 else 0.0
+    generic = np.full((t, 14, 3), np.nan)
+    if mset is not None:
+        labels = traj.labels
+        if height <= 0:
+            height = _s.fit_stature(pos, ext, mset, labels)
+        from toolkit.anthropometry.proportions import BodyProportions
+        tm, tj, _ = _s.template_frames(mset, BodyProportions.from_height(height), labels)
+        generic, _ = _s.template_joints(pos, ext, tm, tj)
+    anat = _s.anatomical_joints(traj.labels, pos, height_m=height if height > 0 else 1.75)
+    has_t = np.isfinite(generic).all(axis=-1).any(axis=0)
+    has_a = np.isfinite(anat).all(axis=-1).any(axis=0)
+    # trajectories labelled against the marker set's own template (a synthetic capture, traj.segments
+    # given) trust the template first; a file from elsewhere trusts the anatomical landmark rules first
+    template_first = traj.segments is not None
+    use_t = has_t & (template_first | ~has_a)
+    source = np.where(use_t, "template", "anatomical")
+    generic = np.where(use_t[None, :, None], generic, anat)
+
+    joints = generic.copy()
+    method = [str(s) if np.isfinite(generic[:, j]).any() else "none" for j, s in enumerate(source)]
+    residual = np.full(14, np.nan)
+    rom = np.full(14, np.nan)
+    fits = {}
+    functional = {}
+    for name, parent, child, kind in FUNCTIONAL_JOINTS:
+        j = _s.J14[name]
+        p_idx, c_idx = ext.get(parent, []), ext.get(child, [])
+        if not p_idx:
+            continue
+        ppos = pos[:, p_idx]
+        if len(p_idx) < 3 and PROXIMAL.get(parent) in functional:
+            ppos = np.concatenate([ppos, functional[PROXIMAL[parent]][:, None]], axis=1)
+        fit, why = _fit_joint(kind, ppos, pos[:, c_idx], generic[:, j], config)
+        if fit is not None:
+            rom[j] = fit.rom_deg[0]
+        if fit is None or why:
+            messages.append(f"{name}: generic skeleton's joint kept, {why}")
+            obs.report("text", text=f"{name}: generic ({why})", name="markers/joints", level="WARN")
+            continue
+        fits[name] = fit
+        residual[j] = fit.residual_m
+        functional[name] = fit.centre
+        ok = np.isfinite(fit.centre).all(axis=1)
+        joints[ok, j] = fit.centre[ok]
+        method[j] = fit.method
+        obs.report("text", text=f"{name}: {fit.method}, residual {1e3 * fit.residual_m:.1f} mm, "
+                   f"range of motion {fit.rom_deg[0]:.0f} deg", name="markers/joints")
+    if not fits:
+        messages.append("no functional centre: the trial shows too little movement (functional centres need "
+                        "movement); the joints are the scaled generic skeleton's")
+    if height <= 0:
+        from toolkit.markers.marker_sets import proportions_from_joints
+        filled = np.where(np.isfinite(joints), joints, 0.0)
+        height = proportions_from_joints(filled).height if np.isfinite(joints).all() else 1.75
+    lengths = _s.bone_lengths(joints)
+    gl = _s.generic_lengths(height)
+    lengths = {k: (v if np.isfinite(v) else gl[k]) for k, v in lengths.items()}
+    return JointCentresResult(names=SKELETON_14.joint_names, joints=joints, method=tuple(method),
+                              residual_m=residual, rom_deg=rom, fits=fits,
+                              subsets={k: tuple(v) for k, v in ext.items()}, height_m=float(height),
+                              lengths=lengths, messages=messages, labelled=True,
+                              marker_set=mset.name if mset is not None else "labels", generic=generic)
+
+
+def _unlabelled(traj, config, obs) -> JointCentresResult:
+    pos = traj.positions
+    t = pos.shape[0]
+    rs = _r.find_rigid_subsets(pos, threshold_m=config.subset_threshold_m)
+    subsets = {f"S{k}": s for k, s in enumerate(rs.subsets)}
+    motions = {k: _motion(pos[:, list(s)]) for k, s in subsets.items()}
+    cents = {k: np.nanmean(pos[:, list(s)], axis=1) for k, s in subsets.items()}
+    cands = []
+    names = list(subsets)
+    for a in range(len(names)):
+        for b in range(a + 1, len(names)):
+            ma, mb = motions[names[a]], motions[names[b]]
+            if ma is None or mb is None:
+                continue
+            try:
+                fit = _c.score(ma[0], ma[1], mb[0], mb[1])
+            except InputError:
+                continue
+            with _r._quiet():
+                da = np.nanmedian(np.linalg.norm(fit.centre - cents[names[a]], axis=1))
+                db = np.nanmedian(np.linalg.norm(fit.centre - cents[names[b]], axis=1))
+            if fit.residual_m <= config.max_joint_residual_m and max(da, db) < 0.4 \
+                    and fit.rom_deg[0] >= config.min_rom_deg:
+                if fit.rom_deg[1] < config.planar_ratio * fit.rom_deg[0]:
+                    anchor = 0.5 * (cents[names[a]] + cents[names[b]])
+                    fit = _c.sara(ma[0], ma[1], mb[0], mb[1], anchor=anchor)
+                cands.append((fit.residual_m, names[a], names[b], fit))
+    # a spanning forest of the best joints (a body's subsets form a tree)
+    parent = {n: n for n in names}
+
+    def root(n):
+        while parent[n] != n:
+            n = parent[n]
+        return n
+
+    fits = {}
+    for _res, a, b, fit in sorted(cands, key=lambda c: c[0]):
+        ra, rb = root(a), root(b)
+        if ra != rb:
+            parent[rb] = ra
+            fits[f"{a}-{b}"] = fit
+            obs.report("text", text=f"{a}-{b}: {fit.method}, residual {1e3 * fit.residual_m:.1f} mm, "
+                       f"range of motion {fit.rom_deg[0]:.0f} deg", name="markers/joints")
+    messages = [f"no labels: {len(subsets)} rigid subsets and {len(fits)} centres of rotation between them; "
+                "the 14-joint skeleton needs labelled markers"]
+    if rs.leftover:
+        messages.append(f"markers in no rigid subset: {[traj.labels[i] for i in rs.leftover]}")
+    return JointCentresResult(names=SKELETON_14.joint_names, joints=np.full((t, 14, 3), np.nan),
+                              method=("none",) * 14, residual_m=np.full(14, np.nan), rom_deg=np.full(14, np.nan),
+                              fits=fits, subsets=subsets, height_m=float("nan"), lengths={},
+                              messages=messages, labelled=False, marker_set="none")
+
+
+def trajectories_from_c3d(path, *, require_labels: bool = False):
+    """The 3D points of a C3D file as :class:`~toolkit.markers.trajectories.MarkerTrajectories`.
+
+    Parameters
+    ----------
+    path : str or PathLike
+    require_labels : bool
+        See :func:`toolkit.io.c3d.read_c3d`.
+
+    Returns
+    -------
+    MarkerTrajectories
+        State ``FROM_FILE`` where a sample is present, ``MISSING`` where not.
+    """
+    from toolkit.io.c3d import read_c3d
+    from toolkit.markers.trajectories import FROM_FILE, MISSING, MarkerTrajectories
+
+    pts = read_c3d(path, require_labels=require_labels)
+    seen = np.isfinite(pts.positions).all(axis=-1)
+    pos = np.where(seen[..., None], pts.positions, np.nan)
+    return MarkerTrajectories(pts.labels, pos, np.where(seen, FROM_FILE, MISSING).astype(np.int8), pts.fps,
+                              None, str(path))
