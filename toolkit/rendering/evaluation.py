@@ -16,6 +16,10 @@ from toolkit.cameras import Camera
 from toolkit.errors import InputError
 
 
+#: Background plates :class:`BackgroundPlates` keeps (~11 MB each at 1280x720).
+PLATES_KEPT = 8
+
+
 class BackgroundPlates:
     """Background plates of a synthetic scene, (H, W, 3) float32 0..255 per camera.
 
@@ -37,10 +41,24 @@ class BackgroundPlates:
         scene = build_scene(spec)
         env = make_environment(spec.layout, scene.rngs["environment"])
         self._renderer = make_renderer(spec, env)
+        self._kept: dict = {}
 
     def plate(self, camera: Camera) -> np.ndarray:
-        """The surroundings seen by ``camera`` (its size must be the scene's resolution)."""
-        return self._renderer.background_plate(camera)
+        """The surroundings seen by ``camera`` (its size must be the scene's resolution); read-only.
+
+        The last :data:`PLATES_KEPT` cameras' plates are kept (a novel camera's
+        is drawn once per run, a camera path's views once each, without
+        keeping them all).
+        """
+        key = (camera.K.tobytes(), camera.cam_from_world.tobytes())
+        plate = self._kept.pop(key, None)
+        if plate is None:
+            plate = self._renderer.background_plate(camera, keep=False)
+            plate.flags.writeable = False
+        self._kept[key] = plate  # the most recently used last
+        while len(self._kept) > PLATES_KEPT:
+            self._kept.pop(next(iter(self._kept)))
+        return plate
 
 
 #: PSNRs are capped at this in the averages, dB (identical images give inf).

@@ -158,10 +158,11 @@ class SceneRenderer:
         self._env_names = []
         self._show_bodies(True)
 
-    def background_plate(self, camera: Camera) -> np.ndarray:
-        """The surroundings alone as seen by ``camera``, (H, W, 3) float32 in [0, 255] (cached)."""
+    def background_plate(self, camera: Camera, keep: bool = True) -> np.ndarray:
+        """The surroundings alone as seen by ``camera``, (H, W, 3) float32 in [0, 255] (cached unless
+        ``keep`` is False)."""
         self.prepare([camera])
-        return self._plates[self._key(camera)]
+        return self._plates[self._key(camera)] if keep else self._plates.pop(self._key(camera))
 
     def render_layer(self, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
         """The bodies alone: premultiplied colour (H, W, 3) float32 and coverage alpha (H, W) in [0, 1]."""
@@ -259,9 +260,23 @@ class Raycaster:
         return labels, subject, depth
 
 
-def _bilinear(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Sample ``texture`` (H, W, 3) uint8 at ``uv`` (N, 2) in [0, 1] (v down): (N, 3) float32 in [0, 255]."""
+def _packed(texture: np.ndarray) -> np.ndarray:
+    """``texture`` (H, W, 3) uint8 as one uint32 per texel (RGB and a zero byte), (H, W): one load per gather."""
     h, w = texture.shape[:2]
+    rgba = np.zeros((h, w, 4), np.uint8)
+    rgba[..., :3] = texture
+    return rgba.view(np.uint32)[..., 0]
+
+
+def _bilinear(texture: np.ndarray, uv: np.ndarray, packed: np.ndarray | None = None) -> np.ndarray:
+    """Sample ``texture`` (H, W, 3) uint8 at ``uv`` (N, 2) in [0, 1] (v down): (N, 3) float32 in [0, 255].
+
+    ``packed``: :func:`_packed` of ``texture`` when the caller keeps it.  The
+    four neighbours are gathered as uint8 texels and converted after the
+    gather (the values of a float32 copy, at a quarter of its memory traffic).
+    """
+    h, w = texture.shape[:2]
+    flat = (_packed(texture) if packed is None else packed).reshape(-1)
     x = np.clip(uv[:, 0] * w - 0.5, 0, w - 1)
     y = np.clip(uv[:, 1] * h - 0.5, 0, h - 1)
     x0 = np.floor(x).astype(np.int64)
@@ -270,10 +285,23 @@ def _bilinear(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
     y1 = np.minimum(y0 + 1, h - 1)
     fx = (x - x0)[:, None].astype(np.float32)
     fy = (y - y0)[:, None].astype(np.float32)
-    t = texture if texture.dtype == np.float32 else texture.astype(np.float32)
-    top = t[y0, x0] * (1 - fx) + t[y0, x1] * fx
-    bot = t[y1, x0] * (1 - fx) + t[y1, x1] * fx
+    r0, r1 = y0 * w, y1 * w
+    gx = 1 - fx
+
+    def at(i):
+        return flat[i].view(np.uint8).reshape(-1, 4)[:, :3].astype(np.float32)
+
+    top = at(r0 + x0) * gx + at(r0 + x1) * fx
+    bot = at(r1 + x0) * gx + at(r1 + x1) * fx
     return top * (1 - fy) + bot * fy
+
+
+#: Rays shaded per block when a background plate is coloured (keeps the temporaries in the CPU's cache;
+#: every ray's colour is computed by the same operations whatever the block size).
+SHADE_BLOCK = 1 << 15
+#: Ray-direction grids kept per renderer (one per distinct intrinsics; a path through cameras with
+#: interpolated focal lengths has a new one per view, so the cache is bounded).
+DIR_CACHE_SIZE = 4
 
 
 class RaycastRenderer:
@@ -310,10 +338,14 @@ class RaycastRenderer:
         self._plates: dict = {}
         self._bodies: list[tuple[BodyMesh, np.ndarray]] = []
         self._dir_cache: dict = {}
-        self._tex_cache: dict = {}
+        self._tables: dict = {}
 
-    def _subpixel_dirs(self, camera: Camera, x0=0, y0=0, x1=None, y1=None) -> np.ndarray:
-        """World ray directions (unnormalised, camera z = 1) of the sub-pixel grid of a pixel window."""
+    def _subpixel_dirs(self, camera: Camera, x0=0, y0=0, x1=None, y1=None, out: np.ndarray | None = None
+                       ) -> np.ndarray:
+        """World ray directions (unnormalised, camera z = 1) of the sub-pixel grid of a pixel window.
+
+        ``out`` (h*s, w*s, 3) float32, optional: written in place (and returned).
+        """
         w, h = self.size
         x1 = w if x1 is None else x1
         y1 = h if y1 is None else y1
@@ -323,17 +355,43 @@ class RaycastRenderer:
             off = (np.arange(s) + 0.5) / s - 0.5
             xs = (np.arange(w)[:, None] + off[None, :]).ravel()
             ys = (np.arange(h)[:, None] + off[None, :]).ravel()
-            u, v = np.meshgrid(xs, ys)
-            n = camera.undistort_points(np.stack([u, v], -1)).astype(np.float32)
+            if camera.has_distortion:
+                u, v = np.meshgrid(xs, ys)
+                n = camera.undistort_points(np.stack([u, v], -1)).astype(np.float32)
+            else:  # Camera.undistort_points' pinhole inverse, by rows and columns (the same values)
+                fx, skew, cx = camera.K[0]
+                y = (ys - camera.K[1, 2]) / camera.K[1, 1]
+                n = np.empty((len(ys), len(xs), 2), np.float32)
+                n[..., 0] = (xs[None, :] - cx - skew * y[:, None]) / fx
+                n[..., 1] = y[:, None]
+            while len(self._dir_cache) >= DIR_CACHE_SIZE:
+                self._dir_cache.pop(next(iter(self._dir_cache)))
             self._dir_cache[key] = n
         n = self._dir_cache[key][y0 * s:y1 * s, x0 * s:x1 * s]
         R = camera.R.astype(np.float32)
-        return n[..., 0:1] * R[0] + n[..., 1:2] * R[1] + R[2]  # (h*s, w*s, 3): R^T (x, y, 1)
+        if out is None:
+            return n[..., 0:1] * R[0] + n[..., 1:2] * R[1] + R[2]  # (h*s, w*s, 3): R^T (x, y, 1)
+        np.multiply(n[..., 0:1], R[0], out=out)  # the same three steps, without temporaries
+        out += n[..., 1:2] * R[1]
+        out += R[2]
+        return out
 
     @staticmethod
     def _downsample(img: np.ndarray, s: int) -> np.ndarray:
+        """The mean of each s x s block, (H/s, W/s[, C]) float32.
+
+        A colour image (H, W, 3) is summed block element by block element in
+        row-major order, the order of NumPy's ``mean`` over the block axes
+        (the same values, ~3x faster; ``tests/synthetic/test_plates_golden.py``
+        checks it); other arrays by ``mean``.
+        """
         H, W = img.shape[:2]
-        return img.reshape(H // s, s, W // s, s, *img.shape[2:]).mean(axis=(1, 3))
+        if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.float32:  # (mean's order depends on the layout)
+            return img.reshape(H // s, s, W // s, s, *img.shape[2:]).mean(axis=(1, 3))
+        acc = img[::s, ::s].copy()
+        for k in range(1, s * s):
+            acc += img[k // s::s, k % s::s]
+        return np.true_divide(acc, np.intp(s * s), out=acc, casting="unsafe")  # as ``mean`` divides
 
     def _cast(self, scene, camera: Camera, dirs: np.ndarray):
         rays = np.empty(dirs.shape[:-1] + (6,), np.float32)
@@ -345,42 +403,65 @@ class RaycastRenderer:
         """Compute the background plates (and their depth) of ``cameras``."""
         for cam in cameras:
             key = (cam.K.tobytes(), cam.cam_from_world.tobytes())
-            if key in self._plates:
-                continue
-            scene = o3d.t.geometry.RaycastingScene()
-            for s in self.surfaces:
-                scene.add_triangles(o3d.core.Tensor(s.vertices.astype(np.float32)),
-                                    o3d.core.Tensor(s.triangles.astype(np.uint32)))
-            dirs = self._subpixel_dirs(cam)
-            ans = self._cast(scene, cam, dirs)
-            t = ans["t_hit"].numpy()
-            gid = ans["geometry_ids"].numpy().astype(np.int64)
-            pid = ans["primitive_ids"].numpy().astype(np.int64)
-            bary = ans["primitive_uvs"].numpy()
-            col = np.empty(t.shape + (3,), np.float32)
-            col[:] = self.background
-            for i, s in enumerate(self.surfaces):
-                sel = np.isfinite(t) & (gid == i)
-                if not sel.any():
-                    continue
-                tri = s.triangles[pid[sel]]
-                b1, b2 = bary[sel, 0:1], bary[sel, 1:2]
-                b0 = 1.0 - b1 - b2
-                if s.texture is None:
-                    vc = np.asarray(s.vertex_colors, np.float32) * 255.0
-                    col[sel] = b0 * vc[tri[:, 0]] + b1 * vc[tri[:, 1]] + b2 * vc[tri[:, 2]]
-                else:
-                    uv = np.asarray(s.uvs, np.float64)
-                    p_uv = b0 * uv[tri[:, 0]] + b1 * uv[tri[:, 1]] + b2 * uv[tri[:, 2]]
-                    if s.name not in self._tex_cache:
-                        self._tex_cache[s.name] = s.texture.astype(np.float32)
-                    col[sel] = _bilinear(self._tex_cache[s.name], p_uv)
-            self._plates[key] = (self._downsample(col, self.ss), np.where(np.isfinite(t), t, np.inf))
+            if key not in self._plates:
+                self._plates[key] = self._plate(cam)
 
-    def background_plate(self, camera: Camera) -> np.ndarray:
-        """The surroundings alone, (H, W, 3) float32 in [0, 255]."""
+    def _plate(self, cam: Camera) -> tuple[np.ndarray, np.ndarray]:
+        """The surroundings seen by ``cam``: (H, W, 3) float32 colour and the sub-pixel rays' depth."""
+        scene = o3d.t.geometry.RaycastingScene()
+        for s in self.surfaces:
+            scene.add_triangles(o3d.core.Tensor(s.vertices.astype(np.float32)),
+                                o3d.core.Tensor(s.triangles.astype(np.uint32)))
+        w, h = self.size
+        rays = np.empty((h * self.ss, w * self.ss, 6), np.float32)
+        rays[..., :3] = cam.center
+        self._subpixel_dirs(cam, out=rays[..., 3:])
+        ans = scene.cast_rays(o3d.core.Tensor(rays))
+        del rays
+        t = ans["t_hit"].numpy()
+        col = np.empty(t.shape + (3,), np.float32)
+        col[:] = self.background
+        flat = (t.reshape(-1), ans["geometry_ids"].numpy().reshape(-1), ans["primitive_ids"].numpy().reshape(-1),
+                ans["primitive_uvs"].numpy().reshape(-1, 2), col.reshape(-1, 3))
+        for a in range(0, t.size, SHADE_BLOCK):
+            self._shade(*(f[a:a + SHADE_BLOCK] for f in flat))
+        return self._downsample(col, self.ss), np.where(np.isfinite(t), t, np.inf)
+
+    def _shade(self, t: np.ndarray, gid: np.ndarray, pid: np.ndarray, bary: np.ndarray, col: np.ndarray) -> None:
+        """Colour a block of rays (N,) where they hit a surface; ``col`` (N, 3) float32 is written in place."""
+        hit = np.isfinite(t)
+        for i, s in enumerate(self.surfaces):
+            sel = hit & (gid == i)
+            if sel.all():
+                sel = slice(None)  # the same rays, without the boolean gathers
+            elif not sel.any():
+                continue
+            corners, packed = self._surface_tables(i)
+            c = corners[pid[sel]]  # (N, 3, k): the hit triangle's corner colours or texture coordinates
+            b1, b2 = bary[sel, 0:1], bary[sel, 1:2]
+            b0 = 1.0 - b1 - b2
+            v = b0 * c[:, 0] + b1 * c[:, 1] + b2 * c[:, 2]
+            col[sel] = v if packed is None else _bilinear(s.texture, v, packed)
+
+    def _surface_tables(self, i: int) -> tuple[np.ndarray, np.ndarray | None]:
+        """Surface ``i``'s corner values per triangle, (T, 3, 3) float32 colours 0..255 or (T, 3, 2) float64
+        texture coordinates, and its :func:`_packed` texture (None: vertex colours); kept."""
+        if i not in self._tables:
+            s = self.surfaces[i]
+            if s.texture is None:
+                self._tables[i] = ((np.asarray(s.vertex_colors, np.float32) * 255.0)[s.triangles], None)
+            else:
+                self._tables[i] = (np.asarray(s.uvs, np.float64)[s.triangles], _packed(s.texture))
+        return self._tables[i]
+
+    def background_plate(self, camera: Camera, keep: bool = True) -> np.ndarray:
+        """The surroundings alone, (H, W, 3) float32 in [0, 255] (cached with their depth unless ``keep`` is
+        False: a camera seen once, e.g. a view of a camera path)."""
+        key = (camera.K.tobytes(), camera.cam_from_world.tobytes())
+        if key not in self._plates and not keep:
+            return self._plate(camera)[0]
         self.prepare([camera])
-        return self._plates[(camera.K.tobytes(), camera.cam_from_world.tobytes())][0]
+        return self._plates[key][0]
 
     def set_bodies(self, meshes: list[tuple[BodyMesh, np.ndarray]]) -> None:
         """Replace the posed bodies: a list of (mesh, vertex colours (V, 3) in [0, 1])."""
