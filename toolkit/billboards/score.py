@@ -122,6 +122,7 @@ class _Source:
     rays: np.ndarray       # (K, 3) unit world directions of the segment outline
     n_pixels: int
     has_occluder: bool
+    hidden: np.ndarray     # (h, w) uint8: ``occluder`` times 2 (bit 1 of the batched scorer's pixel code)
 
 
 @dataclass(frozen=True)
@@ -177,6 +178,25 @@ class MoveEvidence:
     def n_pairs(self) -> int:
         """Camera pairs that score at least one of the joint's bones."""
         return int(np.isfinite(self.pair_gain).sum())
+
+
+def _dot3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot products (N,) of (N, 3) arrays, summed left to right (as BLAS ``ddot`` sums three terms)."""
+    return (a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1]) + a[..., 2] * b[..., 2]
+
+
+def _norm3(a: np.ndarray) -> np.ndarray:
+    """Row-wise Euclidean norms (N,) of (N, 3) arrays: ``np.linalg.norm`` of each row, bit for bit."""
+    return np.sqrt(_dot3(a, a))
+
+
+#: Pixel codes of a camera pair in the batched score (bit 0: active in camera 1, bit 1: hidden by another
+#: part in camera 1, bits 2-3: the same for camera 2): which codes count as active in both, and as
+#: active in camera 1 (resp. 2) and not hidden in the other camera (eq. 3 with occlusion).
+_CODES = np.arange(16)
+_BOTH = (((_CODES & 1) > 0) & ((_CODES & 4) > 0)).astype(np.int64)
+_ACTIVE1 = (((_CODES & 1) > 0) & (((_CODES & 8) == 0) | ((_CODES & 4) > 0))).astype(np.int64)
+_ACTIVE2 = (((_CODES & 4) > 0) & (((_CODES & 2) == 0) | ((_CODES & 1) > 0))).astype(np.int64)
 
 
 class PositionScorer:
@@ -237,7 +257,7 @@ class PositionScorer:
                 bx1, by1 = min(x1 + self._border, cam.width), min(y1 + self._border, cam.height)
                 occ = ((members[cam.name][by0:by1, bx0:bx1] != 0) & ~m[by0:by1, bx0:bx1]).astype(np.uint8)
                 per[p] = _Source(patch, occ, np.array([x0, y0], float), np.array([bx0, by0], float), d, n,
-                                 bool(occ.any()))
+                                 bool(occ.any()), occ * np.uint8(2))
             self.sources.append(per)
         # constant per (view, source camera): relative pose and intrinsics
         self._rel = []
@@ -259,6 +279,15 @@ class PositionScorer:
         # so this is the angle between their viewing directions of the subject)
         fw = np.array([c.forward for c in rig])
         self._pair_w = pair_weight(np.arccos(np.clip(fw @ fw.T, -1.0, 1.0)), config.sigma)
+        self._view_R = [v.camera.R.copy() for v in self.views]
+        self._view_t = [v.camera.t.copy() for v in self.views]
+        # per-pixel look-ups of the batched score: alpha -> active (bit 0), squared RGB distance -> min(ε, 1)
+        # (the same float32 operations as the per-pixel formula, so the same values)
+        self._active = (np.arange(256) >= self._thr).astype(np.uint8)
+        self._eps = np.minimum(np.sqrt(np.arange(3 * 255 ** 2 + 1, dtype=np.int32).astype(np.float32))
+                               * (config.eps_gain / RGB_DIAGONAL), 1.0)
+        #: Part scores computed so far, by (part, ends, visibility): a position is scored once per frame.
+        self._memo: dict = {}
         #: Joint-score evaluations so far (one per candidate position of a joint).
         self.n_evaluations = 0
 
@@ -336,97 +365,246 @@ class PositionScorer:
         view) or pushes behind the view contributes nothing: its pairs score 0
         in that view, so degenerate fans are penalised, not skipped.
         """
-        cfg = self.config
         J = np.asarray(joints, float)
-        vis = self.visibility(J, part) if visibility is None else np.asarray(visibility, bool)
         ends = self._W[part] @ J
-        mid = ends.mean(axis=0)
+        return self.part_scores(part, ends[None], visibility if visibility is not None
+                                else self.visibility(J, part))[0]
+
+    def part_scores(self, part: int, ends: np.ndarray, visibility: np.ndarray) -> list[PartScore]:
+        """Scores of one bone at several positions of its ends, all on the same views and billboards.
+
+        The batched form of :meth:`part_score` (same values, bit for bit): the
+        geometry of all positions is computed at once, each billboard is warped
+        into its view's region of the output buffers, and the pixel counts and
+        colour distances of every position come from a few array operations
+        over those buffers.  A position scored before (same ends, same
+        visibility) is not recomputed.
+
+        Parameters
+        ----------
+        part : int
+            0-based part index.
+        ends : ndarray of shape (N, 2, 3)
+            Proximal and distal end of the bone per position, metres.
+        visibility : ndarray of shape (n_views, n_cams), bool
+
+        Returns
+        -------
+        list of PartScore
+            One per position.
+        """
+        E = np.asarray(ends, float).reshape(-1, 2, 3)
+        vis = np.asarray(visibility, bool)
+        vkey = vis.tobytes()
+        keys = [(part, e.tobytes(), vkey) for e in E]
+        todo = [i for i, k in enumerate(keys) if k not in self._memo]
+        if todo:
+            # a repeated position inside the batch is computed once
+            first = {}
+            for i in todo:
+                first.setdefault(keys[i], i)
+            idx = list(first.values())
+            for i, ps in zip(idx, self._score_batch(part, E[idx], vis)):
+                self._memo[keys[i]] = ps
+        return [self._memo[k] for k in keys]
+
+    # ------------------------------------------------------------ batched scoring
+    def _footprints(self, ci: int, part: int, E: np.ndarray) -> dict | None:
+        """The billboards of part ``part`` from camera ``ci`` at N bone positions (vectorised :meth:`_billboard`).
+
+        Returns None when the camera has no segment of the part, else a dict of
+        ``ok`` (N,) bool (a billboard exists), ``normal``, ``origin`` (N, 3),
+        ``quad`` (N, K, 3) footprint points and ``hit`` (N, K) bool (which of them exist),
+        ``row`` (N, 3) the plane row of :meth:`_plane_row` (NaN where not ``ok``).
+        The frame arithmetic is :func:`billboard_frame`'s, element by element (its norms and
+        dot products of 3-vectors are left-to-right sums, as BLAS ``ddot`` does them).
+        """
+        src = self.sources[ci].get(part)
+        if src is None:
+            return None
+        c = self._centers[ci]
+        x, y = E[:, 0], E[:, 1]
+        with np.errstate(all="ignore"):
+            b = y - x
+            L = _norm3(b)
+            ok = np.isfinite(L) & ~(L < 1e-6)
+            b = b / L[:, None]
+            d = c - x
+            dn = _norm3(d)
+            ok &= ~(dn < 1e-9)
+            d_perp = d - _dot3(d, b)[:, None] * b
+            npp = _norm3(d_perp)
+            ok &= ~(npp / dn < self._sin_edge)
+            n = d_perp / npp[:, None]
+            e_u = np.stack([n[:, 1] * b[:, 2] - n[:, 2] * b[:, 1], n[:, 2] * b[:, 0] - n[:, 0] * b[:, 2],
+                            n[:, 0] * b[:, 1] - n[:, 1] * b[:, 0]], axis=1)
+            # the outline's rays onto the plane (the footprint; it only bounds the warp region)
+            r = src.rays
+            den = n @ r.T  # (N, K)
+            num = _dot3(x - c, n)
+            hit = den < -1e-9
+            ok &= hit.any(axis=1)
+            t = num[:, None] / den
+            pts = c + t[..., None] * r - x[:, None]  # (N, K, 3)
+            a = np.einsum("nkd,nd->nk", pts, e_u)
+            s = np.einsum("nkd,nd->nk", pts, b)
+            mx = self.bconfig.max_extent_m
+            a0 = np.maximum(np.where(hit, a, np.inf).min(axis=1), -mx)
+            a1 = np.minimum(np.where(hit, a, -np.inf).max(axis=1), mx)
+            s0 = np.maximum(np.where(hit, s, np.inf).min(axis=1), -mx)
+            s1 = np.minimum(np.where(hit, s, -np.inf).max(axis=1), L + mx)
+            ok &= ~((a1 <= a0) | (s1 <= s0))
+            ac = np.clip(a, a0[:, None], a1[:, None])
+            sc = np.clip(s, s0[:, None], s1[:, None])
+            quad = x[:, None] + ac[..., None] * e_u[:, None] + sc[..., None] * b[:, None]
+            # the plane rows feed the warps: _plane_row's operations, the matrix products stacked
+            # (numpy calls the same BLAS product per item)
+            cam = self.rig.cameras[ci]
+            R = cam.R
+            n_s = (R @ n[:, :, None])[:, :, 0]
+            d_s = _dot3(n_s, (R @ x[:, :, None])[:, :, 0] + cam.t)
+            row = (n_s[:, None, :] @ self._Kinv[ci])[:, 0] / d_s[:, None]
+        return {"ok": ok, "normal": n, "quad": quad, "hit": hit & ok[:, None], "row": row}
+
+    def _score_batch(self, part: int, E: np.ndarray, vis: np.ndarray) -> list[PartScore]:
+        """:meth:`part_scores` without the memo: N positions (N, 2, 3) of one bone."""
+        N = len(E)
         nv, nc = len(self.views), len(self.rig)
-        per_view = np.full(nv, np.nan)
-        per_pair = np.full((nv, nc, nc), np.nan)
-        counts = np.zeros(nv, int)
+        per_view = np.full((N, nv), np.nan)
+        per_pair = np.full((N, nv, nc, nc), np.nan)
+        counts = np.zeros((N, nv), int)
         used = [ci for ci in range(nc) if vis[:, ci].any()]
-        if len(used) < 2:
-            return PartScore(float("nan"), per_view, counts, per_pair)
-        bbs = {ci: self._billboard(ci, part, ends) for ci in used}
-        rows = {ci: self._plane_row(ci, r[0].normal, r[0].origin) for ci, r in bbs.items() if r is not None}
-        for vi, view in enumerate(self.views):
-            cams = [ci for ci in used if vis[vi, ci]]
-            if len(cams) < 2:
-                continue
-            vc = view.camera
+        if len(used) >= 2:
+            mid = (E[:, 0] + E[:, 1]) / 2.0
+            bbs = {ci: f for ci in used if (f := self._footprints(ci, part, E)) is not None}
+            for vi in range(nv):
+                cams = [ci for ci in used if vis[vi, ci]]
+                if len(cams) >= 2:
+                    self._score_view(part, vi, cams, bbs, mid, per_view, per_pair, counts)
+        out = []
+        for n in range(N):
+            pv = per_view[n]
+            ok = np.isfinite(pv)
+            out.append(PartScore(float(pv[ok].mean()) if ok.any() else float("nan"), pv, counts[n], per_pair[n]))
+        return out
+
+    def _score_view(self, part: int, vi: int, cams: list, bbs: dict, mid: np.ndarray, per_view, per_pair,
+                    counts) -> None:
+        """Fill view ``vi``'s entries of the batch's scores (eqs. 2-5) for the cameras ``cams``."""
+        N = len(mid)
+        vc = self.views[vi].camera
+        R, tv, K = self._view_R[vi], self._view_t[vi], vc.K
+        with np.errstate(all="ignore"):
             to_v = self._view_centers[vi] - mid
-            to_v /= np.linalg.norm(to_v)
-            alive = {}
-            for ci in cams:
-                r = bbs[ci]
-                if r is None:
+            to_v = to_v / _norm3(to_v)[:, None]
+        alive, lo, hi = {}, np.full((N, 2), np.inf), np.full((N, 2), -np.inf)
+        for ci in cams:
+            f = bbs.get(ci)
+            if f is None:
+                continue
+            with np.errstate(all="ignore"):
+                ok = f["ok"] & ~(np.abs(_dot3(f["normal"], to_v)) < self._sin_graze)
+                qc = f["quad"] @ R.T + tv  # (N, K, 3)
+                ok &= ~np.any(f["hit"] & (qc[..., 2] <= 1e-6), axis=1)
+                px = qc[..., :2] / qc[..., 2:3] @ K[:2, :2].T + K[:2, 2]
+            m = (f["hit"] & ok[:, None])[..., None]
+            lo = np.minimum(lo, np.where(m, px, np.inf).min(axis=1))
+            hi = np.maximum(hi, np.where(m, px, -np.inf).max(axis=1))
+            alive[ci] = ok
+        w, h = vc.size
+        with np.errstate(invalid="ignore"):
+            x0 = np.maximum(np.floor(lo[:, 0]), 0)
+            y0 = np.maximum(np.floor(lo[:, 1]), 0)
+            x1 = np.minimum(np.ceil(hi[:, 0]) + 1, w)
+            y1 = np.minimum(np.ceil(hi[:, 1]) + 1, h)
+        anyalive = np.any([a for a in alive.values()], axis=0) if alive else np.zeros(N, bool)
+        has = anyalive & (x1 > x0) & (y1 > y0)
+        sel = np.flatnonzero(has)
+        warped = {ci: a & has for ci, a in alive.items()}
+        for ci in warped:
+            counts[:, vi] += warped[ci]
+        # pair weights and the denominator are those of every pair the view counts
+        pairs = [(cams[i], cams[k]) for i in range(len(cams)) for k in range(i + 1, len(cams))]
+        den = 0.0
+        for c1, c2 in pairs:
+            den += self._pair_w[c1, c2]
+            per_pair[:, vi, c1, c2] = 0.0
+        num = np.zeros(N)
+        if sel.size:
+            X0, Y0 = x0[sel].astype(int), y0[sel].astype(int)
+            ww, hh = x1[sel].astype(int) - X0, y1[sel].astype(int) - Y0
+            sizes = ww * hh
+            offs = np.concatenate([[0], np.cumsum(sizes)])
+            total = int(offs[-1])
+            rgba, code = {}, {}
+            for ci in warped:
+                rgba[ci], code[ci] = self._warp_batch(part, vi, ci, bbs[ci]["row"], sel, warped[ci][sel], X0, Y0,
+                                                      ww, hh, offs, total)
+            seg16 = np.repeat(np.arange(0, 16 * sel.size, 16), sizes)
+            for c1, c2 in pairs:
+                if c1 not in warped or c2 not in warped:
                     continue
-                fr, quad = r
-                if abs(float(fr.normal @ to_v)) < self._sin_graze:
-                    continue
-                qc = quad @ vc.R.T + vc.t
-                if np.any(qc[:, 2] <= 1e-6):
-                    continue
-                alive[ci] = (fr, qc[:, :2] / qc[:, 2:3] @ vc.K[:2, :2].T + vc.K[:2, 2])
-            act, occl, rgb = {}, {}, {}
-            if alive:
-                allp = np.concatenate([q for _, q in alive.values()])
-                w, h = vc.size
-                x0 = int(max(np.floor(allp[:, 0].min()), 0))
-                y0 = int(max(np.floor(allp[:, 1].min()), 0))
-                x1 = int(min(np.ceil(allp[:, 0].max()) + 1, w))
-                y1 = int(min(np.ceil(allp[:, 1].max()) + 1, h))
-                if x1 > x0 and y1 > y0:
-                    dsize = (x1 - x0, y1 - y0)
-                    bx, by = -x0, -y0
-                    for ci, (fr, _) in alive.items():
-                        src = self.sources[ci][part]
-                        H = self._M[vi][ci] + np.outer(self._kt[vi][ci], rows[ci])
-                        H[0] += bx * H[2]  # then into the ROI of the view
-                        H[1] += by * H[2]
-                        Hp = H.copy()  # from patch pixels
-                        Hp[:, 2] += H[:, :2] @ src.origin
-                        wp = cv2.warpPerspective(src.patch, Hp, dsize, flags=cv2.INTER_LINEAR,
-                                                 borderMode=cv2.BORDER_CONSTANT)
-                        act[ci] = wp[..., 3] >= self._thr
-                        rgb[ci] = wp[..., :3]
-                        if cfg.occlusion and src.has_occluder:
-                            Hp[:, 2] = H[:, 2] + H[:, :2] @ src.occ_origin
-                            hid = cv2.warpPerspective(src.occluder, Hp, dsize, flags=cv2.INTER_NEAREST,
-                                                      borderMode=cv2.BORDER_CONSTANT)
-                            occl[ci] = hid.astype(bool) & ~act[ci]
-                        elif cfg.occlusion:
-                            occl[ci] = np.zeros(act[ci].shape, bool)
-            counts[vi] = len(act)
-            num = 0.0
-            den = 0.0
-            for i in range(len(cams)):
-                for k in range(i + 1, len(cams)):
-                    c1, c2 = cams[i], cams[k]
-                    om = self._pair_w[c1, c2]
-                    den += om
-                    per_pair[vi, c1, c2] = 0.0
-                    if c1 not in act or c2 not in act:
-                        continue  # a degenerate billboard: the pair scores 0
-                    a1, a2 = act[c1], act[c2]
-                    if cfg.occlusion:  # seen by one camera, hidden behind another part in the other
-                        keep = ~(occl[c1] | occl[c2])
-                        a1, a2 = a1 & keep, a2 & keep
-                    both = a1 & a2
-                    n_both = int(np.count_nonzero(both))
-                    n_either = int(np.count_nonzero(a1)) + int(np.count_nonzero(a2)) - n_both
-                    if n_either == 0 or n_both == 0:
-                        continue
-                    d = rgb[c1][both].astype(np.int32) - rgb[c2][both]
-                    eps = np.sqrt(np.einsum("ij,ij->i", d, d).astype(np.float32)) * (cfg.eps_gain / RGB_DIAGONAL)
-                    per_pair[vi, c1, c2] = float(n_both - np.minimum(eps, 1.0).sum()) / n_either
-                    num += om * per_pair[vi, c1, c2]
-            if den > 0:
-                per_view[vi] = num / den
-        ok = np.isfinite(per_view)
-        value = float(per_view[ok].mean()) if ok.any() else float("nan")
-        return PartScore(value, per_view, counts, per_pair)
+                pp = self._pair_values(code[c1], code[c2], rgba[c1], rgba[c2], seg16, sel.size)
+                both = warped[c1][sel] & warped[c2][sel]
+                v = np.where(both, pp, 0.0)
+                per_pair[sel, vi, c1, c2] = v
+                num[sel] += self._pair_w[c1, c2] * v
+        if den > 0:
+            per_view[:, vi] = num / den
+
+    def _warp_batch(self, part, vi, ci, rows, sel, do, X0, Y0, ww, hh, offs, total):
+        """Warp camera ci's patch (and occluders) of the part into each selected position's region of view vi.
+
+        Returns the RGBA buffer (total, 4) uint8 and the per-pixel code (total,) uint8:
+        bit 0 the pixel is active (alpha >= the threshold), bit 1 another part hides it.
+        The homographies are part_score's, element by element (the 3x2 products stacked: numpy
+        calls the same BLAS product per item), so the warps are the same pixels.
+        """
+        src = self.sources[ci][part]
+        buf = np.zeros((total, 4), np.uint8)
+        hid = np.zeros(total, np.uint8)
+        occ = self.config.occlusion and src.has_occluder
+        M, kt = self._M[vi][ci], self._kt[vi][ci]
+        # H = M + kt row^T, then into the region of the view
+        H = M + kt[None, :, None] * rows[sel][:, None, :]
+        H[:, 0] += -X0[:, None] * H[:, 2]
+        H[:, 1] += -Y0[:, None] * H[:, 2]
+        Hp = H.copy()
+        Hp[:, :, 2] += H[:, :, :2] @ src.origin  # from patch pixels
+        if occ:
+            Ho = H.copy()
+            Ho[:, :, 2] = H[:, :, 2] + H[:, :, :2] @ src.occ_origin
+        lin, near, const = cv2.INTER_LINEAR, cv2.INTER_NEAREST, cv2.BORDER_CONSTANT
+        o, w, h = offs.tolist(), ww.tolist(), hh.tolist()
+        for j in np.flatnonzero(do).tolist():
+            a, b = o[j], o[j + 1]
+            cv2.warpPerspective(src.patch, Hp[j], (w[j], h[j]), dst=buf[a:b].reshape(h[j], w[j], 4), flags=lin,
+                                borderMode=const)
+            if occ:
+                cv2.warpPerspective(src.hidden, Ho[j], (w[j], h[j]), dst=hid[a:b].reshape(h[j], w[j]), flags=near,
+                                    borderMode=const)
+        return buf, self._active[buf[:, 3]] | hid
+
+    def _pair_values(self, code1, code2, rgba1, rgba2, seg16, n):
+        """Eq. 3 of one camera pair for each of n positions laid out in ``seg16`` (pixel -> 16 x position)."""
+        pc = code1 | (code2 << 2)  # bits: active 1, hidden 1, active 2, hidden 2
+        hist = np.bincount(seg16 + pc, minlength=n * 16).reshape(n, 16)
+        n_both = hist @ _BOTH
+        n_either = hist @ _ACTIVE1 + hist @ _ACTIVE2 - n_both
+        idx = np.flatnonzero((pc & 5) == 5)
+        out = np.zeros(n)
+        if idx.size == 0:
+            return out
+        d = rgba1.take(idx, axis=0).astype(np.int32)
+        d -= rgba2.take(idx, axis=0)
+        d = d[:, :3]
+        e = self._eps.take(np.einsum("ij,ij->i", d, d))
+        ends = np.cumsum(n_both).tolist()
+        nb, ne = n_both.tolist(), n_either.tolist()
+        for j in range(n):
+            if nb[j] > 0 and ne[j] > 0:  # Σ s(p) / #active, with part_score's float32 sum of the same values
+                out[j] = float(nb[j] - e[ends[j] - nb[j]:ends[j]].sum()) / ne[j]
+        return out
 
     def move_evidence(self, joints: np.ndarray, joint: int, position: np.ndarray,
                       visibility: dict | None = None) -> "MoveEvidence":
@@ -479,6 +657,13 @@ class PositionScorer:
         self.n_evaluations += 2
         return MoveEvidence(np.where(view_seen, view_gain, np.nan), pair_gain)
 
+    def _check(self, J: np.ndarray, joint: int) -> None:
+        """InputError unless ``J`` is a (n_joints, 3) pose and ``joint`` one of its joints."""
+        if J.shape != (self.skeleton.n_joints, 3):
+            raise InputError("joints", f"an array of shape ({self.skeleton.n_joints}, 3)", f"shape {J.shape}")
+        if not 0 <= joint < self.skeleton.n_joints:
+            raise InputError("joint", f"a joint index in [0, {self.skeleton.n_joints})", f"{joint}")
+
     def adjacent_parts(self, joint: int) -> list[int]:
         """0-based indices of the parts whose fans move with ``joint``."""
         return self._adjacent[joint]
@@ -491,10 +676,7 @@ class PositionScorer:
         adjacent bone can be scored (no camera pair sees any of them).
         """
         J = np.asarray(joints, float)
-        if J.shape != (self.skeleton.n_joints, 3):
-            raise InputError("joints", f"an array of shape ({self.skeleton.n_joints}, 3)", f"shape {J.shape}")
-        if not 0 <= joint < self.skeleton.n_joints:
-            raise InputError("joint", f"a joint index in [0, {self.skeleton.n_joints})", f"{joint}")
+        self._check(J, joint)
         vis = visibility or {}
         self.n_evaluations += 1
         vals = [self.part_score(J, p, vis.get(p)).value for p in self.adjacent_parts(joint)]
@@ -507,15 +689,27 @@ class PositionScorer:
 
         The views and billboards evaluated are those of ``joints`` (or ``visibility``)
         for every candidate, so that candidates are compared on the same terms.
+        Each is :meth:`joint_score` of the moved pose (the same value, bit for
+        bit), computed for all candidates at once (:meth:`part_scores`).
         """
         J = np.array(joints, float)
+        self._check(J, joint)
         pos = np.asarray(positions, float).reshape(-1, 3)
         if visibility is None:
             visibility = {p: self.visibility(J, p) for p in self.adjacent_parts(joint)}
+        Jn = np.repeat(J[None], len(pos), axis=0)
+        Jn[:, joint] = pos
+        values = []
+        for p in self.adjacent_parts(joint):
+            vp = visibility.get(p)
+            scores = self.part_scores(p, self._W[p] @ Jn, vp) if vp is not None else \
+                [self.part_score(Jc, p) for Jc in Jn]  # no fixed set: each pose's own
+            values.append([ps.value for ps in scores])
+        self.n_evaluations += len(pos)
         out = np.empty(len(pos))
-        for i, x in enumerate(pos):
-            J[joint] = x
-            out[i] = self.joint_score(J, joint, visibility)
+        for i in range(len(pos)):
+            vals = [v[i] for v in values if np.isfinite(v[i])]
+            out[i] = float(sum(vals)) if vals else float("nan")
         return out
 
     def pose_score(self, joints: np.ndarray) -> float:

@@ -222,11 +222,13 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
         if new:
             new = np.array(new)
             valid, codes = joint_rule_reasons(cons, J, joint, new)
+            # the level's valid candidates are scored together (one batch of the scorer)
+            scores = iter(scorer.candidate_scores(J, joint, new[valid], vis) if valid.any() else ())
             for p, ok, code in zip(new, valid, codes):
                 k = key(p)
                 pos_of[k] = p
                 if ok:
-                    s = scorer.candidate_scores(J, joint, p[None], vis)[0]
+                    s = next(scores)
                     seen[k] = float(s) if np.isfinite(s) else 0.0
                 else:
                     seen[k] = 0.0
