@@ -6,7 +6,9 @@ Usage::
     python recipes/make_scene.py datasets_synthetic/default.toml --out out/default
 
 Writes the dataset layout of ``docs/dataset_layout.md`` into ``--out`` and a
-rerun recording ``scene.rrd`` of the scene and its ground truth.
+rerun recording ``scene.rrd`` of the scene and its ground truth.  A spec with
+a ``[markers]`` table is a marker capture: only the calibration, the 2D marker
+blobs and the ground truth are written (``toolkit/io/marker_files.py``), no videos.
 """
 
 from __future__ import annotations
@@ -30,6 +32,14 @@ def parser() -> argparse.ArgumentParser:
     return ap
 
 
+def _marker_summary(args, info: dict, dt: float) -> None:
+    print(f"wrote marker capture {args.out} ({info['n_frames']} frames x {len(info['cameras'])} cameras,"
+          f" {info['n_markers']} {info['marker_set']} markers) in {dt:.1f} s")
+    print(f"  calibration (measured): {args.out / 'markers' / 'calibration.toml'}")
+    print(f"  2D blobs:               {args.out / 'markers' / 'detections'}/<camera>.npz")
+    print(f"  ground truth:           {args.out / 'groundtruth'}")
+
+
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
     from toolkit.synthetic import generate_scene, load_spec
@@ -44,7 +54,12 @@ def main(argv=None) -> int:
                                      camera_names=spec.camera_names)
         t0 = time.perf_counter()
         try:
-            ds = generate_scene(spec, args.out, observer=observer, progress=not args.quiet)
+            if spec.markers is not None:  # a marker capture: no videos
+                from toolkit.synthetic.marker_capture import generate_marker_capture
+
+                info = generate_marker_capture(spec, args.out, observer=observer)
+            else:
+                ds = generate_scene(spec, args.out, observer=observer, progress=not args.quiet)
         finally:
             if observer is not None:
                 observer.close()
@@ -52,6 +67,9 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     dt = time.perf_counter() - t0
+    if spec.markers is not None:
+        _marker_summary(args, info, dt)
+        return 0
     print(f"wrote dataset {args.out} ({ds.n_frames} frames x {len(ds.camera_names)} cameras"
           f" + {spec.novel_count} novel) in {dt:.1f} s")
     print(f"  calibration (measured): {args.out / 'calibration.toml'}")

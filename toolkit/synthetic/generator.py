@@ -153,6 +153,9 @@ def generate_scene(spec: SceneSpec, out: str | Path, observer: Observer | None =
     toolkit.io.Dataset
         The written dataset, reopened and validated.
     """
+    if spec.markers is not None:  # a marker capture has no videos: toolkit.synthetic.marker_capture writes it
+        raise InputError(f"{spec.source}: [markers]", "a colour scene (generate_marker_capture writes a marker "
+                         "capture)", "a [markers] table")
     obs = as_observer(observer)
     scene = build_scene(spec)
     out = Path(out)
