@@ -1,5 +1,6 @@
 """Joint centres from marker trajectories (source 004): marker sets, synthetic captures, labelling, centres."""
 
+from toolkit.markers.capture import MarkerCapture, load_marker_capture
 from toolkit.markers.marker_sets import MARKER_SETS, MarkerSet, Placement, get_marker_set
 from toolkit.markers.trajectories import (
     BRIDGED,
@@ -11,4 +12,4 @@ from toolkit.markers.trajectories import (
 )
 
 __all__ = ["MARKER_SETS", "MarkerSet", "Placement", "get_marker_set", "MarkerTrajectories", "MISSING",
-           "TRINOCULAR", "TWO_VIEW", "BRIDGED", "FROM_FILE"]
+           "TRINOCULAR", "TWO_VIEW", "BRIDGED", "FROM_FILE", "MarkerCapture", "load_marker_capture"]
