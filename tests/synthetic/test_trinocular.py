@@ -58,3 +58,12 @@ def test_spec_rejects_bad_trinocular_fields(extra, field):
 def test_heads_only_for_trinocular():
     with pytest.raises(InputError, match="cameras.heads"):
         parse_spec(BASE.replace('"trinocular"', '"studio"') + "count = 3\nheads = 1\n")
+
+
+def test_spacing_is_between_heads():
+    s = parse_spec(BASE + "count = 6\nspacing_deg = [80, 100]\n")
+    rig = make_rig("trinocular", 6, (160, 120), 1.75, np.random.default_rng(2), spacing_deg=s.spacing_deg)
+    a0, a1 = (np.degrees(np.arctan2(rig[k].center[1], rig[k].center[0])) for k in (0, 3))
+    assert 79 <= (a1 - a0) % 360 <= 101
+    with pytest.raises(InputError, match="spacing_deg"):
+        parse_spec(BASE + "count = 9\nspacing_deg = [190, 200]\n")

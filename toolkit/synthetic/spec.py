@@ -255,9 +255,10 @@ def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) 
     if not 0 <= err <= 100:
         raise InputError(S("cameras.calibration_error_px"), "a value from 0 to 100 pixels", str(err))
     spacing = _range(cams, "spacing_deg", "cameras", source, SPACING_RANGE_DEG)
-    if spacing is not None and count > 1 and spacing[0] * (count - 1) > 360.0:
-        raise InputError(S("cameras.spacing_deg"), f"at most {360.0 / (count - 1):g} degrees for {count} cameras",
-                         repr(cams["spacing_deg"]))
+    spaced = max(count // 3, 1) if layout == "trinocular" else count  # trinocular: the heads are spaced
+    if spacing is not None and spaced > 1 and spacing[0] * (spaced - 1) > 360.0:
+        raise InputError(S("cameras.spacing_deg"), f"at most {360.0 / (spaced - 1):g} degrees for {spaced} "
+                         + ("heads" if layout == "trinocular" else "cameras"), repr(cams["spacing_deg"]))
     subject_px = _range(cams, "subject_px", "cameras", source, SUBJECT_PX_RANGE)
     if subject_px is not None and layout != "broadcast":
         raise InputError(S("cameras.subject_px"), "no value for a studio (its cameras frame the whole volume)",
