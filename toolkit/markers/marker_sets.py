@@ -51,8 +51,8 @@ from toolkit.errors import InputError
 from toolkit.motion.kinematics import Pose14, forward_kinematics, inverse_kinematics, rot_x, rot_y, rot_z
 from toolkit.skeleton import SKELETON_14
 
-__all__ = ["MARKER_RADIUS_M", "PLATE_STANDOFF_M", "SEGMENTS", "SEGMENT_ORIGINS", "Placement", "MarkerSet",
-           "MARKER_SETS", "get_marker_set", "segment_rotations", "segment_origins", "proportions_from_joints"]
+__all__ = ["MARKER_RADIUS_M", "PLATE_STANDOFF_M", "SEGMENTS", "SEGMENT_ORIGINS", "SEGMENT_PARTS", "Placement",
+           "MarkerSet", "MARKER_SETS", "get_marker_set", "segment_rotations", "segment_origins", "proportions_from_joints"]
 
 #: Radius of a marker (14 mm spheres): the marker centre is this far off the skin.
 MARKER_RADIUS_M = 0.007
@@ -68,8 +68,8 @@ SEGMENT_ORIGINS = {
        (("thigh", "hip"), ("shank", "knee"), ("foot", "ankle"), ("upperarm", "shoulder"),
         ("forearm", "elbow"), ("hand", "wrist"))},
 }
-#: Body-mesh parts whose skin a segment's markers are placed on.
-_SEGMENT_PARTS = {
+#: Body-mesh parts (:data:`toolkit.skeleton.PARTS_14` names) whose skin a segment's markers are placed on.
+SEGMENT_PARTS = {
     "pelvis": ("torso",), "thorax": ("torso", "head"), "head": ("head",),
     **{f"{s}_{seg}": (f"{s}_{part}",) for s in "lr" for seg, part in
        (("thigh", "thigh"), ("shank", "shank"), ("foot", "shank"), ("upperarm", "upper_arm"),
@@ -361,7 +361,7 @@ def _local_points(mset: MarkerSet, props: BodyProportions, girth: float) -> np.n
     scenes = {}
     out = np.empty((mset.n_markers, 3))
     for m, (label, seg, pl) in enumerate(zip(mset.labels, mset.segments, mset.placements)):
-        parts = _SEGMENT_PARTS[seg]
+        parts = SEGMENT_PARTS[seg]
         if parts not in scenes:
             keep = np.flatnonzero(np.isin(mesh.triangle_parts, [part_id[p] for p in parts]))
             sc = o3d.t.geometry.RaycastingScene()
