@@ -9,7 +9,9 @@
 """
 
 from toolkit.softbody.distance import distance, distance_and_jacobian
+from toolkit.softbody.global_fit import GlobalFitConfig, SoftBodyFit, global_fit
 from toolkit.softbody.init import init_from_2d, model_from_joints, params_from_pose14
+from toolkit.softbody.mesh import sample_surface, surface_mesh
 from toolkit.softbody.model import (
     DOF_NAMES,
     LENGTH_NAMES,
@@ -18,6 +20,9 @@ from toolkit.softbody.model import (
     SoftBodyModel,
     SoftBodyParams,
 )
+from toolkit.softbody.track import FRAME_STATES, SoftBodyTrack, TrackConfig, track_sequence
 
 __all__ = ["DOF_NAMES", "LENGTH_NAMES", "N_PARAMS", "WIDTH_GROUPS", "SoftBodyModel", "SoftBodyParams",
-           "distance", "distance_and_jacobian", "init_from_2d", "model_from_joints", "params_from_pose14"]
+           "distance", "distance_and_jacobian", "init_from_2d", "model_from_joints", "params_from_pose14",
+           "GlobalFitConfig", "SoftBodyFit", "global_fit", "sample_surface", "surface_mesh", "FRAME_STATES",
+           "SoftBodyTrack", "TrackConfig", "track_sequence"]

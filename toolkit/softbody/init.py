@@ -25,6 +25,7 @@ from toolkit.motion.kinematics import Pose14, inverse_kinematics
 from toolkit.skeleton import SKELETON_14
 from toolkit.softbody.model import (LENGTH_NAMES, LENGTHS, N_POSE, POSE, WIDTH_GROUPS, SoftBodyModel,
                                     SoftBodyParams, pose_bounds)
+from toolkit.softbody.residuals import one_blas_thread
 
 __all__ = ["params_from_pose14", "model_from_joints", "init_from_2d", "fit_pose_to_joints", "STATURE_LIMITS"]
 
@@ -114,7 +115,8 @@ def fit_pose_to_joints(model: SoftBodyModel, params: SoftBodyParams, joints: np.
     def jac(x):
         return model.joints_jacobian(full(x)).reshape(42, -1)[:, cols]
 
-    res = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0, max_nfev=100)
+    with one_blas_thread():
+        res = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0, max_nfev=100)
     return full(res.x)
 
 

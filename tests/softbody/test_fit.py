@@ -1,0 +1,140 @@
+"""Tracking and the global fit on noiseless points of the model itself, bad clouds, meshes, initialisation."""
+
+import numpy as np
+import pytest
+
+from toolkit.anthropometry.proportions import BodyProportions
+from toolkit.cameras import Camera
+from toolkit.errors import InputError
+from toolkit.motion import generate_motion, inverse_kinematics
+from toolkit.observe import RecordingObserver
+from toolkit.softbody import (LENGTH_NAMES, SoftBodyModel, distance, init_from_2d, model_from_joints,
+                              params_from_pose14)
+from toolkit.softbody.global_fit import GlobalFitConfig, global_fit
+from toolkit.softbody.mesh import sample_surface, surface_mesh
+from toolkit.softbody.track import TrackConfig, track_sequence
+
+N_FRAMES = 6
+N_POINTS = 400
+#: Noiseless points of the model itself: the optimum is the truth; what is left is the
+#: solvers' stopping tolerance and the weak pull towards the start pose (well under 1 mm
+#: measured, 3 mm allowed).
+EXACT_MM = 3.0
+
+
+@pytest.fixture(scope="module")
+def scene():
+    prop = BodyProportions.sample(1.72, rng=2)
+    model = SoftBodyModel(prop)
+    joints = generate_motion("walk", prop, N_FRAMES, 25.0, rng=0)
+    pose = inverse_kinematics(joints)
+    lengths = model.lengths_from_proportions(prop)
+    truth = [params_from_pose14(pose, t, lengths) for t in range(N_FRAMES)]
+    rng = np.random.default_rng(0)
+    clouds = [sample_surface(model, p, N_POINTS, rng) for p in truth]
+    return model, truth, joints, clouds, lengths
+
+
+def _mpjpe_mm(a, b):
+    return 1000 * np.linalg.norm(a - b, axis=-1).mean(axis=-1)
+
+
+def test_tracking_recovers_the_pose_from_its_own_surface(scene):
+    model, truth, joints, clouds, _ = scene
+    rng = np.random.default_rng(5)
+    start = truth[0].replace(pose=truth[0].pose + np.r_[rng.normal(0, 0.03, 3), rng.normal(0, 0.03, 3),
+                                                        rng.normal(0, 0.05, 21)])
+    assert _mpjpe_mm(model.joints(start), joints[0]) > 30
+    obs = RecordingObserver()
+    track = track_sequence(model, start, clouds, observer=obs)
+    assert track.states == ("ok",) * N_FRAMES
+    assert np.all(_mpjpe_mm(track.joints, joints) < EXACT_MM)
+    assert len(obs.of_kind("joints3d")) == N_FRAMES
+
+
+def test_global_fit_recovers_lengths_that_tracking_gets_wrong(scene):
+    """Tracking with a thigh 5 cm too long and a shank 4 cm too short misplaces joints;
+    the global fit over all frames recovers the lengths and the poses."""
+    model, truth, joints, clouds, lengths = scene
+    wrong = lengths.copy()
+    wrong[LENGTH_NAMES.index("l_thigh")] += 0.05
+    wrong[LENGTH_NAMES.index("r_shank")] -= 0.04
+    track = track_sequence(model, truth[0].replace(lengths=wrong), clouds)
+    tracked = _mpjpe_mm(track.joints, joints).mean()
+    assert tracked > 8.0
+    obs = RecordingObserver()
+    fit = global_fit(model, track, clouds, config=GlobalFitConfig(max_points=200), observer=obs)
+    assert np.abs(fit.lengths - lengths).max() < 0.003
+    assert _mpjpe_mm(fit.joints, joints).mean() < EXACT_MM
+    series = {d["name"]: d["values"] for d in obs.of_kind("series")}
+    thigh = series["softbody/global/lengths/l_thigh"]
+    assert len(thigh) == len(fit.lengths_history) >= 3
+    assert abs(thigh[0] - wrong[LENGTH_NAMES.index("l_thigh")]) < 1e-12
+    assert abs(thigh[-1] - lengths[LENGTH_NAMES.index("l_thigh")]) < 0.003
+    assert fit.cost_history[-1] < fit.cost_history[0]
+
+
+def test_bad_clouds_give_states_not_crashes(scene):
+    """Empty and tiny clouds, far points only, and random points around the body."""
+    model, truth, joints, clouds, _ = scene
+    rng = np.random.default_rng(1)
+    far = clouds[1] + np.array([5.0, 0.0, 0.0])  # the person left; someone else far away
+    around = model.joints(truth[2]).mean(0) + rng.uniform(-0.6, 0.6, (300, 3))  # clutter, no body
+    bad = [clouds[0], np.zeros((0, 3)), clouds[1][:5], far, around, clouds[1]]
+    track = track_sequence(model, truth[0], bad)
+    assert track.states == ("ok", "empty", "empty", "empty", "lost", "ok")
+    np.testing.assert_allclose(track.params[1], track.params[0])  # carried over
+    assert _mpjpe_mm(track.joints[5], joints[1]) < EXACT_MM  # picked up again from the last good pose
+    fit = global_fit(model, track, bad, config=GlobalFitConfig(max_points=150, max_nfev=5))
+    assert np.all(np.isfinite(fit.joints))
+    with pytest.raises(InputError):
+        track_sequence(model, truth[0], [np.zeros((4, 2))])
+
+
+def test_second_person_and_floor_are_ignored(scene):
+    model, truth, joints, clouds, _ = scene
+    rng = np.random.default_rng(2)
+    other = clouds[3] + np.array([1.2, 0.5, 0.0])
+    floor = np.c_[rng.uniform(-1.5, 1.5, (400, 2)), np.zeros(400)]
+    noisy = [np.vstack([c, other, floor]) for c in clouds]
+    track = track_sequence(model, truth[0], noisy, config=TrackConfig(max_points=2000))
+    assert track.states == ("ok",) * N_FRAMES
+    assert np.all(_mpjpe_mm(track.joints, joints) < 15)
+
+
+def test_surface_mesh(scene):
+    model, truth, joints, _, _ = scene
+    voxel = 0.02
+    V, F = surface_mesh(model, truth[0], voxel=voxel)
+    assert len(F) > 2000 and F.max() < len(V)
+    # vertices on the zero level (interpolated along grid edges: within a fraction of a voxel)
+    assert np.abs(distance(model, truth[0], V)).max() < 0.3 * voxel
+    # triangles face outwards
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    c = V[F].mean(1) + 0.005 * n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+    assert np.mean(distance(model, truth[0], c) > 0) > 0.95
+    # it spans the body: from the feet to the top of the head
+    height = V[:, 2].max() - V[:, 2].min()
+    assert 1.5 < height < 1.95
+    with pytest.raises(InputError):
+        surface_mesh(model, truth[0], voxel=0.0)
+
+
+def test_model_from_joints_and_two_views(scene):
+    model, truth, joints, _, lengths = scene
+    m2, p2 = model_from_joints(joints[2])
+    assert abs(m2.proportions.height - 1.72) < 0.08
+    np.testing.assert_allclose(p2.lengths, lengths, atol=1e-6)  # measured on exact joints
+    assert _mpjpe_mm(m2.joints(p2), joints[2]) < 1.0
+    target = joints[2].mean(0)
+    cams = [Camera.look_at(n, target + off, target, size=(1280, 720), fov_x_deg=60.0) for n, off in
+            (("a", np.array([-1.5, 3.0, 0.3])), ("b", np.array([1.5, 3.0, 0.3])))]
+    uv = [c.project(joints[2]) for c in cams]
+    m3, p3 = init_from_2d(uv[0], uv[1], cams[0], cams[1])
+    assert _mpjpe_mm(m3.joints(p3), joints[2]) < 1.0
+    with pytest.raises(InputError):
+        model_from_joints(np.full((14, 3), np.nan))
+    bad = uv[0].copy()
+    bad[3] = np.nan
+    with pytest.raises(InputError):
+        init_from_2d(bad, uv[1], cams[0], cams[1])

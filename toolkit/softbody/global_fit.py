@@ -1,0 +1,286 @@
+"""Global fit over all frames at once: postures, segment lengths and metaball widths (source 002).
+
+The tracked postures start the fit; the state vector holds every frame's 27
+pose values plus the 13 lengths and 7 widths shared by all frames.  Residual
+blocks, per frame: the robust point-to-surface distances and the coverage
+block of :mod:`toolkit.softbody.residuals`; over frames: a small term
+favouring constant angular speed (second differences of the joint angles and
+of the root rotation over consecutive frames, as in the source); and weak
+priors keeping the widths near the reference.  Each frame's residuals depend
+on its own pose and the shared shape only, so the Jacobian is assembled as a
+``scipy.sparse`` matrix and ``least_squares(method="trf", tr_solver="lsmr")``
+solves it without forming a dense matrix: hundreds of frames stay tractable.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.optimize import least_squares
+from scipy.spatial import cKDTree
+
+from toolkit.errors import InputError
+from toolkit.observe import Observer, as_observer
+from toolkit.softbody.distance import check_points
+from toolkit.softbody.model import LENGTH_NAMES, N_PARAMS, N_POSE, SoftBodyModel, SoftBodyParams, pose_bounds
+from toolkit.softbody.residuals import (LOSSES, coverage_residuals, coverage_samples, data_residuals, gate_points,
+                                        coverage_margin,
+                                        one_blas_thread)
+from toolkit.softbody.track import SoftBodyTrack, subsample
+
+__all__ = ["GlobalFitConfig", "SoftBodyFit", "global_fit"]
+
+_N_SHAPE = N_PARAMS - N_POSE  # 20 shared values: lengths then widths
+_ANGLES = np.r_[0:3, 6:N_POSE]  # root rotation and joint angles: the constant-angular-speed term
+
+
+@dataclass(frozen=True)
+class GlobalFitConfig:
+    """Settings of the global fit.
+
+    Attributes
+    ----------
+    loss, f_scale : str, float
+        Robust loss of the point-to-surface block and its scale (metres).
+    coverage_weight, coverage_scale, coverage_margin, coverage_dirs, viewpoints
+        The coverage block, as in :class:`toolkit.softbody.track.TrackConfig`.
+    gate : float
+        Points further than this outside the tracked model are ignored, metres.
+    max_points : int
+        Points per frame (an even subsample).
+    smooth_weight : float
+        Weight of the constant-angular-speed residuals, metres per radian per
+        frame squared: small, so that it does not degrade the fit (source 002).
+    width_prior_weight : float
+        Pull of the widths towards the start values (metres per unit multiplier).
+    fit_lengths, fit_widths : bool
+        Which shape blocks are free.
+    max_nfev : int
+        Evaluations of the whole problem.
+    """
+
+    loss: str = "soft_l1"
+    f_scale: float = 0.02
+    coverage_weight: float = 0.3
+    coverage_scale: float = 0.05
+    coverage_margin: float = 0.03
+    coverage_dirs: int = 16
+    viewpoints: tuple | None = None
+    gate: float = 0.25
+    max_points: int = 300
+    smooth_weight: float = 0.02
+    width_prior_weight: float = 0.02
+    fit_lengths: bool = True
+    fit_widths: bool = True
+    max_nfev: int = 40
+
+    def __post_init__(self):
+        if self.loss not in LOSSES:
+            raise InputError("GlobalFitConfig.loss", f"one of {LOSSES}", repr(self.loss))
+        if not (self.f_scale > 0 and self.gate > 0 and self.max_points > 0):
+            raise InputError("GlobalFitConfig", "positive f_scale, gate and max_points",
+                             f"{self.f_scale}, {self.gate}, {self.max_points}")
+
+
+@dataclass(frozen=True)
+class SoftBodyFit:
+    """Result of the global fit.
+
+    Attributes
+    ----------
+    params : ndarray of shape (T, 47)
+        Per-frame parameter vectors (the shape block equal in every frame).
+    joints : ndarray of shape (T, 14, 3)
+        Metres, world.
+    lengths : ndarray of shape (13,)
+        Metres, :data:`~toolkit.softbody.LENGTH_NAMES`.
+    widths : ndarray of shape (7,)
+    states : tuple of str
+        The tracking states (frames without points had no data term).
+    lengths_history : ndarray of shape (n_iterations + 1, 13)
+        The lengths at the start and after each Jacobian evaluation (iteration).
+    cost_history : ndarray of shape (n_iterations + 1,)
+    success : bool
+        ``least_squares`` met a convergence test (False: stopped at ``max_nfev``
+        or nothing to fit).
+    message : str
+    """
+
+    params: np.ndarray
+    joints: np.ndarray
+    lengths: np.ndarray
+    widths: np.ndarray
+    states: tuple
+    lengths_history: np.ndarray
+    cost_history: np.ndarray
+    success: bool
+    message: str
+
+    def frame_params(self, t: int) -> SoftBodyParams:
+        return SoftBodyParams(self.params[t])
+
+
+class _Problem:
+    """Residuals and sparse Jacobian of the global fit."""
+
+    def __init__(self, model, track: SoftBodyTrack, clouds, config: GlobalFitConfig):
+        self.model, self.config = model, config
+        self.T = len(track.params)
+        self.shape0 = track.params[0, N_POSE:].copy()
+        self.free_shape = np.r_[np.full(13, config.fit_lengths), np.full(7, config.fit_widths)]
+        self.frames = []  # (t, points, tree, coverage samples, coverage margin)
+        for t in range(self.T):
+            if track.states[t] != "ok":
+                continue
+            p = SoftBodyParams(track.params[t])
+            pts = check_points(clouds[t], f"clouds[{t}]")
+            pts = subsample(pts[gate_points(model, p, pts, config.gate)], config.max_points)
+            if len(pts) == 0:
+                continue
+            samples = coverage_samples(model, p, n_dirs=config.coverage_dirs, viewpoints=config.viewpoints) \
+                if config.coverage_weight > 0 else None
+            tree = cKDTree(pts)
+            self.frames.append((t, pts, tree, samples, coverage_margin(tree, pts, config.coverage_margin)))
+        self.n = self.T * N_POSE + _N_SHAPE
+
+    def unpack(self, z):
+        return z[:self.T * N_POSE].reshape(self.T, N_POSE), z[self.T * N_POSE:]
+
+    def evaluate(self, z, with_jac=True):
+        poses, shape = self.unpack(z)
+        c = self.config
+        rows, blocks, res = 0, [], []
+        cols_frame = lambda t: np.r_[t * N_POSE + np.arange(N_POSE), self.T * N_POSE + np.arange(_N_SHAPE)]  # noqa
+        allc = np.arange(N_PARAMS)
+        for t, pts, tree, samples, margin in self.frames:
+            p = SoftBodyParams(np.r_[poses[t], shape])
+            st = self.model.state(p)
+            r, J = data_residuals(self.model, p, pts, st, allc, c.loss, c.f_scale, with_jac)
+            rr, JJ = [r], [J]
+            if samples is not None:
+                rc, Jc = coverage_residuals(self.model, st, samples, tree, pts, allc, "cauchy", c.coverage_scale,
+                                            margin, with_jac)
+                w = np.sqrt(c.coverage_weight)
+                rr.append(w * rc)
+                JJ.append(None if Jc is None else w * Jc)
+            r = np.concatenate(rr)
+            res.append(r)
+            if with_jac:
+                J = np.vstack(JJ)
+                J[:, N_POSE:] *= self.free_shape
+                blocks.append((rows, J, cols_frame(t)))
+            rows += len(r)
+        # constant angular speed: second differences over consecutive frames
+        if self.T >= 3 and c.smooth_weight > 0:
+            a = poses[:, _ANGLES]
+            dd = c.smooth_weight * (a[:-2] - 2 * a[1:-1] + a[2:])
+            res.append(dd.ravel())
+            n_sm = dd.size
+            k = np.arange(len(_ANGLES))
+            t = np.arange(self.T - 2)
+            r_idx = (t[:, None] * len(_ANGLES) + k[None]).ravel() + rows
+            sm = [(r_idx, ((t[:, None] + o) * N_POSE + _ANGLES[None]).ravel(), c.smooth_weight * w)
+                  for o, w in ((0, 1.0), (1, -2.0), (2, 1.0))]
+            rows += n_sm
+        else:
+            sm = []
+        wp = c.width_prior_weight
+        res.append(wp * (shape[13:] - self.shape0[13:]))
+        prior_rows = rows + np.arange(7)
+        rows += 7
+        r = np.concatenate(res)
+        if not with_jac:
+            return r, None
+        ri, ci, vals = [], [], []
+        for r0, J, cols in blocks:
+            ri.append(np.repeat(np.arange(r0, r0 + len(J)), J.shape[1]))
+            ci.append(np.tile(cols, len(J)))
+            vals.append(J.ravel())
+        for r_idx, c_idx, v in sm:
+            ri.append(r_idx)
+            ci.append(c_idx)
+            vals.append(np.full(len(r_idx), v))
+        if c.fit_widths:
+            ri.append(prior_rows)
+            ci.append(self.T * N_POSE + 13 + np.arange(7))
+            vals.append(np.full(7, wp))
+        J = sp.csr_matrix((np.concatenate(vals), (np.concatenate(ri), np.concatenate(ci))), shape=(rows, self.n))
+        return r, J
+
+
+def global_fit(model: SoftBodyModel, track: SoftBodyTrack, clouds, *, config: GlobalFitConfig = GlobalFitConfig(),
+               observer: Observer | None = None) -> SoftBodyFit:
+    """Refine all postures and the shared lengths and widths against all clouds at once.
+
+    Parameters
+    ----------
+    model : SoftBodyModel
+    track : SoftBodyTrack
+        Tracking result: the start of every posture and of the shape (frame 0's lengths and widths).
+    clouds : sequence of array_like of shape (N_t, 3)
+        The clouds tracked, metres, world.
+    config : GlobalFitConfig
+    observer : Observer, optional
+        Receives ``series`` reports ``softbody/global/lengths/<name>`` (each
+        length over the iterations, metres), ``softbody/global/cost`` and a ``text`` summary.
+
+    Returns
+    -------
+    SoftBodyFit
+
+    Raises
+    ------
+    InputError
+        If ``clouds`` and ``track`` differ in length.
+    """
+    obs = as_observer(observer)
+    if len(clouds) != len(track.params):
+        raise InputError("clouds", f"{len(track.params)} clouds (one per tracked frame)", f"{len(clouds)}")
+    prob = _Problem(model, track, clouds, config)
+    z0 = np.r_[track.params[:, :N_POSE].ravel(), prob.shape0] if len(track.params) else np.zeros(0)
+    hist_len, hist_cost = [], []
+    if not prob.frames:
+        return _result(model, track, z0, prob, [prob.shape0[:13]], [0.0], False, "no frame with points")
+    lo_p, hi_p = pose_bounds()
+    lo = np.r_[np.tile(lo_p, prob.T), np.full(13, 0.01), np.full(7, 0.3)]
+    hi = np.r_[np.tile(hi_p, prob.T), np.full(13, 1.5), np.full(7, 3.0)]
+    z0 = np.clip(z0, lo + 1e-9, hi - 1e-9)
+    cache = {}
+
+    def evaluate(z, with_jac=False):
+        key = z.tobytes()
+        if key not in cache or (with_jac and cache[key][1] is None):
+            cache.clear()
+            cache[key] = prob.evaluate(z, with_jac)
+        return cache[key]
+
+    def jac(z):
+        r, J = evaluate(z, True)
+        hist_len.append(prob.unpack(z)[1][:13].copy())
+        hist_cost.append(0.5 * float(r @ r))
+        return J
+
+    with one_blas_thread():
+        res = least_squares(lambda z: evaluate(z)[0], z0, jac=jac, bounds=(lo, hi), method="trf",
+                            tr_solver="lsmr", loss="linear", x_scale="jac", max_nfev=config.max_nfev)
+    r = evaluate(res.x)[0]
+    hist_len.append(prob.unpack(res.x)[1][:13].copy())
+    hist_cost.append(0.5 * float(r @ r))
+    hl = np.array(hist_len)
+    for i, name in enumerate(LENGTH_NAMES):
+        obs.report("series", name=f"softbody/global/lengths/{name}", values=hl[:, i], static=True)
+    obs.report("series", name="softbody/global/cost", values=np.array(hist_cost), static=True)
+    obs.report("text", text=f"global fit: {len(prob.frames)} frames with points, {len(hl) - 1} iterations, "
+                            f"cost {hist_cost[0]:.4g} -> {hist_cost[-1]:.4g} ({res.message})", static=True)
+    return _result(model, track, res.x, prob, hist_len, hist_cost, bool(res.status > 0), str(res.message))
+
+
+def _result(model, track, z, prob, hist_len, hist_cost, success, message) -> SoftBodyFit:
+    poses, shape = prob.unpack(z)
+    params = np.hstack([poses, np.tile(shape, (prob.T, 1))])
+    joints = np.stack([model.joints(SoftBodyParams(v)) for v in params]) if prob.T else np.zeros((0, 14, 3))
+    return SoftBodyFit(params, joints, shape[:13].copy(), shape[13:].copy(), tuple(track.states),
+                       np.array(hist_len), np.array(hist_cost), success, message)
+

@@ -1,0 +1,267 @@
+"""Frame-to-frame tracking of the soft body's pose in point clouds (source 002, "frame-to-frame tracking").
+
+Per frame, the root and the joint angles (27 values; lengths and widths
+fixed) minimise the robust point-to-surface distances of the cloud plus the
+coverage block of :mod:`toolkit.softbody.residuals` and a weak pull towards
+the start pose, with ``scipy.optimize.least_squares`` (trust-region
+reflective, analytic Jacobian, elbows and knees bounded to ``[0, pi]``).
+Each frame starts from the previous one (extrapolated by a damped constant
+velocity).  Points further than ``gate`` outside the start model are ignored
+(a second person, the far floor), and every frame gets an explicit state:
+
+* ``"ok"``: fitted, enough points near the fitted surface;
+* ``"empty"``: fewer than ``min_points`` points in the cloud (or after the
+  gate): the pose is carried over;
+* ``"lost"``: fitted, but too few points lie near the surface: the start pose
+  is kept.
+
+Silhouette observations (the source's optional term) are not implemented.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial import cKDTree
+
+from toolkit.errors import InputError
+from toolkit.observe import Observer, as_observer
+from toolkit.softbody.distance import check_points, distance
+from toolkit.softbody.model import N_POSE, SoftBodyModel, SoftBodyParams, pose_bounds
+from toolkit.softbody.residuals import (LOSSES, coverage_residuals, coverage_samples, data_residuals, gate_points,
+                                       coverage_margin,
+                                       one_blas_thread)
+
+__all__ = ["TrackConfig", "SoftBodyTrack", "track_sequence", "track_frame", "FRAME_STATES", "subsample"]
+
+FRAME_STATES = ("ok", "empty", "lost")
+
+
+@dataclass(frozen=True)
+class TrackConfig:
+    """Settings of frame-to-frame tracking.
+
+    Attributes
+    ----------
+    loss : str
+        Robust loss of the point-to-surface block (``soft_l1``, ``huber``, ``cauchy``, ``linear``).
+    f_scale : float
+        Distance where that loss turns robust, metres (about the cloud's noise).
+    coverage_weight : float
+        Weight of the coverage block (model points to their nearest cloud point);
+        it refines a first fit made without it (far from the solution its nearest
+        neighbours are wrong and it attracts to false minima).
+    coverage_scale : float
+        Scale of its Cauchy loss, metres: model points further than this from
+        the cloud pull only weakly (occluded parts, holes).
+    coverage_margin : float
+        Model points closer than this to the cloud count as covered, metres;
+        raised per frame to twice the cloud's spacing
+        (:func:`toolkit.softbody.residuals.coverage_margin`).
+    coverage_dirs : int
+        Model points per primitive considered for the coverage block.
+    viewpoints : tuple of (3,) or None
+        Camera centres (metres): coverage only from model points facing one.
+    gate : float
+        Points further than this outside the start model are ignored, metres.
+    max_points : int
+        Points kept per frame (an even subsample, the cloud's order kept).
+    min_points : int
+        Fewer points (after the gate): state ``"empty"``.
+    inlier_distance : float
+        A point within this of the fitted surface is an inlier, metres.
+    min_inlier_fraction : float
+        Fewer inliers than this fraction of the gated points: state ``"lost"``.
+    prior_weight : float
+        Pull of each angle towards the start pose, metres per radian (and
+        metre per metre for the root): keeps unobserved angles (e.g. the axial
+        rotation of a straight limb) still.
+    predict : float
+        Fraction of the last frame-to-frame change added to the start pose.
+    max_nfev : int
+        Evaluations per frame.
+    """
+
+    loss: str = "soft_l1"
+    f_scale: float = 0.02
+    coverage_weight: float = 0.3
+    coverage_scale: float = 0.05
+    coverage_margin: float = 0.03
+    coverage_dirs: int = 24
+    viewpoints: tuple | None = None
+    gate: float = 0.25
+    max_points: int = 1500
+    min_points: int = 30
+    inlier_distance: float = 0.05
+    min_inlier_fraction: float = 0.3
+    prior_weight: float = 0.01
+    predict: float = 0.5
+    max_nfev: int = 40
+
+    def __post_init__(self):
+        if self.loss not in LOSSES:
+            raise InputError("TrackConfig.loss", f"one of {LOSSES}", repr(self.loss))
+        for name in ("f_scale", "coverage_scale", "gate", "inlier_distance"):
+            if not getattr(self, name) > 0:
+                raise InputError(f"TrackConfig.{name}", "a positive distance in metres", repr(getattr(self, name)))
+        if self.min_points < 1 or self.max_points < self.min_points:
+            raise InputError("TrackConfig.max_points/min_points", "1 <= min_points <= max_points",
+                             f"{self.min_points}, {self.max_points}")
+
+
+@dataclass(frozen=True)
+class SoftBodyTrack:
+    """Tracking result over ``T`` frames.
+
+    Attributes
+    ----------
+    params : ndarray of shape (T, 47)
+        :class:`SoftBodyParams` vectors (lengths and widths as given).
+    joints : ndarray of shape (T, 14, 3)
+        Metres, world.
+    states : tuple of str
+        One of :data:`FRAME_STATES` per frame.
+    n_points : ndarray of shape (T,) int
+        Points used after the gate and the subsample.
+    inlier_fraction : ndarray of shape (T,)
+        Fraction of those within ``inlier_distance`` of the fitted surface (NaN when empty).
+    median_distance : ndarray of shape (T,)
+        Median absolute point-to-surface distance, metres (NaN when empty).
+    """
+
+    params: np.ndarray
+    joints: np.ndarray
+    states: tuple
+    n_points: np.ndarray
+    inlier_fraction: np.ndarray
+    median_distance: np.ndarray
+
+    def frame_params(self, t: int) -> SoftBodyParams:
+        return SoftBodyParams(self.params[t])
+
+
+def subsample(points: np.ndarray, n: int) -> np.ndarray:
+    """At most ``n`` points, evenly spread over the array's order (deterministic)."""
+    if len(points) <= n:
+        return points
+    return points[np.linspace(0, len(points) - 1, n).round().astype(int)]
+
+
+def _fit_pose(model, start: SoftBodyParams, pts: np.ndarray, config: TrackConfig,
+              coverage_weight: float) -> SoftBodyParams:
+    cols = np.arange(N_POSE)
+    tree = cKDTree(pts)
+    margin = coverage_margin(tree, pts, config.coverage_margin)
+    samples = coverage_samples(model, start, n_dirs=config.coverage_dirs, viewpoints=config.viewpoints) \
+        if coverage_weight > 0 else None
+    lo, hi = pose_bounds()
+    x0 = np.clip(start.pose, lo + 1e-9, hi - 1e-9)
+    wc, wp = np.sqrt(coverage_weight), config.prior_weight
+    cache = {}
+
+    def evaluate(x):
+        key = x.tobytes()
+        if key not in cache:
+            cache.clear()
+            p = start.replace(pose=x)
+            st = model.state(p)
+            r, J = data_residuals(model, p, pts, st, cols, config.loss, config.f_scale)
+            r, J = [r, wp * (x - x0)], [J, wp * np.eye(N_POSE)]
+            if samples is not None:
+                rc, Jc = coverage_residuals(model, st, samples, tree, pts, cols, "cauchy", config.coverage_scale,
+                                            margin)
+                r, J = r + [wc * rc], J + [wc * Jc]
+            cache[key] = (np.concatenate(r), np.vstack(J))
+        return cache[key]
+
+    with one_blas_thread():
+        res = least_squares(lambda x: evaluate(x)[0], x0, jac=lambda x: evaluate(x)[1], bounds=(lo, hi),
+                            method="trf", loss="linear", max_nfev=config.max_nfev, x_scale="jac")
+    return start.replace(pose=res.x)
+
+
+def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: TrackConfig = TrackConfig()
+                ) -> tuple[SoftBodyParams, str, int, float, float]:
+    """Fit the pose of one frame.
+
+    Parameters
+    ----------
+    model : SoftBodyModel
+    start : SoftBodyParams
+        Start (the previous frame's pose, or a prediction).
+    cloud : array_like of shape (N, 3)
+        Metres, world; may be empty.
+    config : TrackConfig
+
+    Returns
+    -------
+    params : SoftBodyParams
+    state : str
+        One of :data:`FRAME_STATES`.
+    n_points : int
+    inlier_fraction, median_distance : float
+        NaN when the frame is empty.
+    """
+    pts = check_points(cloud, "cloud")
+    pts = subsample(pts[gate_points(model, start, pts, config.gate)], config.max_points)
+    if len(pts) < config.min_points:
+        return start, "empty", len(pts), float("nan"), float("nan")
+    fitted = _fit_pose(model, start, pts, config, 0.0)
+    if config.coverage_weight > 0:
+        fitted = _fit_pose(model, fitted, pts, config, config.coverage_weight)
+    d = np.abs(distance(model, fitted, pts))
+    inl = float(np.mean(d < config.inlier_distance))
+    if inl < config.min_inlier_fraction:
+        return start, "lost", len(pts), inl, float(np.median(d))
+    return fitted, "ok", len(pts), inl, float(np.median(d))
+
+
+def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, config: TrackConfig = TrackConfig(),
+                   observer: Observer | None = None) -> SoftBodyTrack:
+    """Track the pose through a sequence of clouds, each frame started from the previous one.
+
+    Parameters
+    ----------
+    model : SoftBodyModel
+    params0 : SoftBodyParams
+        Initial state (e.g. from :func:`toolkit.softbody.model_from_joints` on the first frame).
+    clouds : sequence of array_like of shape (N_t, 3)
+        Metres, world, z up; empty arrays allowed.
+    config : TrackConfig
+    observer : Observer, optional
+        Receives per frame ``joints3d`` (``softbody/track/joints``) and
+        ``scalar`` reports (``softbody/track/inlier_fraction``, ``.../median_distance_m``).
+
+    Returns
+    -------
+    SoftBodyTrack
+    """
+    obs = as_observer(observer)
+    if not isinstance(params0, SoftBodyParams):
+        raise InputError("params0", "a SoftBodyParams", type(params0).__name__)
+    out = np.empty((len(clouds), params0.vector.size))
+    states, npts, inl, med = [], [], [], []
+    prev, prev2 = params0, None
+    for t, cloud in enumerate(clouds):
+        start = prev
+        if prev2 is not None and config.predict > 0:
+            start = prev.replace(pose=prev.pose + config.predict * (prev.pose - prev2.pose))
+        p, state, n, f_in, m = track_frame(model, start, cloud, config)
+        if state != "ok":
+            p = prev
+        out[t] = p.vector
+        states.append(state)
+        npts.append(n)
+        inl.append(f_in)
+        med.append(m)
+        prev2, prev = (prev, p) if state == "ok" else (None, p)
+        obs.report("joints3d", joints=model.joints(p), name="softbody/track/joints", frame=t)
+        if state != "empty":
+            obs.report("scalar", name="softbody/track/inlier_fraction", value=f_in, frame=t)
+            obs.report("scalar", name="softbody/track/median_distance_m", value=m, frame=t)
+        if state != "ok":
+            obs.report("text", text=f"frame {t}: {state} ({n} points)", level="WARN", frame=t)
+    joints = np.stack([model.joints(SoftBodyParams(v)) for v in out]) if len(out) else np.zeros((0, 14, 3))
+    return SoftBodyTrack(out, joints, tuple(states), np.array(npts, int), np.array(inl), np.array(med))
