@@ -172,7 +172,7 @@ def _solve(a, b, prior, cols, weight):
 
 
 def score(rot_parent, trans_parent, rot_child, trans_child, *, anchor: np.ndarray | None = None,
-          prior_weight: float = 0.05) -> CentreFit:
+          prior_weight: float = 0.0) -> CentreFit:
     """SCoRE centre of rotation (Ehrig et al. 2006, J Biomech 39:2798).
 
     Parameters
@@ -189,6 +189,8 @@ def score(rot_parent, trans_parent, rot_child, trans_child, *, anchor: np.ndarra
         matters along directions the motion does not determine (a joint that
         moved about one axis: the centre along that axis).
     prior_weight : float
+        0 (default): no pull; the caller treats a ball joint that moved about
+        one axis as a hinge (:func:`sara`) instead.
 
     Returns
     -------

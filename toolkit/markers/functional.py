@@ -81,6 +81,15 @@ class JointCentresConfig:
     max_joint_residual_m : float
         Without labels: a pair of subsets is a joint only if its SCoRE
         residual is below this, metres.
+    max_residual_m : float
+        With labels: a functional centre whose residual exceeds this (the
+        segments' markers do not move as two rigid bodies linked at a point:
+        soft tissue, few and nearly collinear markers, mislabels) is not
+        used; the generic skeleton's joint is kept and the result says so.
+    max_hinge_conditioning : float
+        A SARA fit whose two smallest singular values are closer than this
+        ratio did not see a clean hinge (the axis is not determined); it is
+        not used either.
     height_m : float
         Performer's stature, metres; 0 = fitted from the markers.
     """
@@ -92,6 +101,8 @@ class JointCentresConfig:
     segment_tolerance_m: float = 0.02
     subset_threshold_m: float = 0.01
     max_joint_residual_m: float = 0.03
+    max_residual_m: float = 0.015
+    max_hinge_conditioning: float = 0.2
     height_m: float = 0.0
 
 
@@ -245,6 +256,12 @@ def _fit_joint(kind, parent_pos, child_pos, anchor, config):
     if not fit.rom_deg[0] >= config.min_rom_deg:
         return fit, (f"it moved {fit.rom_deg[0]:.0f} degrees, less than {config.min_rom_deg:.0f}: "
                      "functional centres need movement")
+    if not fit.residual_m <= config.max_residual_m:
+        return fit, (f"the {fit.method} fit's residual {1e3 * fit.residual_m:.0f} mm exceeds "
+                     f"{1e3 * config.max_residual_m:.0f} mm")
+    if fit.method == "sara" and not fit.conditioning <= config.max_hinge_conditioning:
+        return fit, (f"no clean hinge axis (singular value ratio {fit.conditioning:.2f} > "
+                     f"{config.max_hinge_conditioning:.2f})")
     return fit, ""
 
 

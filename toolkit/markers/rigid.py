@@ -210,15 +210,15 @@ def reference_shape(positions: np.ndarray) -> np.ndarray:
         rot, trans, _ = rigid_motions(ref, p)
         local = np.einsum("tji,tkj->tki", rot, p - trans[:, None, :])  # R^T (x - t)
         with _quiet():
-            new = np.nanmean(local, axis=0)
+            new = np.nanmedian(local, axis=0)
         ok = np.isfinite(new).all(axis=1)
         ref = np.where(ok[:, None], new, ref)
         ref = ref - np.nanmean(ref, axis=0)
     return ref
 
 
-def rigid_motions(reference: np.ndarray, positions: np.ndarray, *, min_markers: int = 3
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def rigid_motions(reference: np.ndarray, positions: np.ndarray, *, min_markers: int = 3,
+                  outlier_m: float = 0.015) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Least-squares rigid motion from a reference shape to each frame (Kabsch).
 
     Parameters
@@ -229,6 +229,10 @@ def rigid_motions(reference: np.ndarray, positions: np.ndarray, *, min_markers: 
         The same markers in each frame, world, NaN where missing.
     min_markers : int
         Frames with fewer markers seen (or nearly collinear ones) get NaN.
+    outlier_m : float
+        After a first fit, a marker farther than this from its fitted place
+        (a mislabelled or swapped marker) is left out of that frame and the
+        frame is fitted again (when ``min_markers`` remain); 0 = no second pass.
 
     Returns
     -------
@@ -241,6 +245,19 @@ def rigid_motions(reference: np.ndarray, positions: np.ndarray, *, min_markers: 
     ref = np.asarray(reference, dtype=float)
     p = _check_positions(positions)
     w = (np.all(np.isfinite(p), axis=-1) & np.all(np.isfinite(ref), axis=-1)[None]).astype(float)  # (T, K)
+    rot, trans, rms, err = _kabsch(ref, p, w, min_markers)
+    if outlier_m > 0:
+        out = (err > outlier_m) & (w > 0)
+        keep = w * ~out
+        redo = out.any(axis=1) & (keep.sum(axis=1) >= min_markers)
+        if redo.any():
+            r2, t2, m2, _ = _kabsch(ref, p[redo], keep[redo], min_markers)
+            rot[redo], trans[redo], rms[redo] = r2, t2, m2
+    return rot, trans, rms
+
+
+def _kabsch(ref, p, w, min_markers):
+    """Weighted Kabsch of ``ref`` (K, 3) to ``p`` (T, K, 3) with 0/1 weights ``w`` (T, K); + per-marker errors."""
     n = w.sum(axis=1)
     x = np.where(w[..., None] > 0, p, 0.0)
     r = np.where(np.isfinite(ref), ref, 0.0)[None] * w[..., None]
@@ -256,12 +273,13 @@ def rigid_motions(reference: np.ndarray, positions: np.ndarray, *, min_markers: 
     dm[:, 2] = d
     rot = np.einsum("tji,tj,tkj->tik", vt, dm, u)  # V diag(1,1,d) U^T
     trans = cx - np.einsum("tij,tj->ti", rot, cr)
-    fitted = np.einsum("tij,tkj->tki", rot, r) + trans[:, None]
-    err = np.linalg.norm(fitted - x, axis=-1) * w
-    rms = np.sqrt((err ** 2).sum(axis=1) / ns[:, 0])
+    refall = np.where(np.isfinite(ref), ref, np.nan)
+    fitted = np.einsum("tij,kj->tki", rot, refall) + trans[:, None]
+    err = np.linalg.norm(fitted - p, axis=-1)  # every marker seen, fitted or not
+    rms = np.sqrt(np.nansum((err * w) ** 2, axis=1) / ns[:, 0])
     # degenerate: too few markers or (nearly) collinear ones (second singular value ~ 0)
     bad = (n < min_markers) | (s[:, 1] < 1e-4 * s[:, 0]) | (s[:, 0] <= 0)
     rot[bad] = np.nan
     trans[bad] = np.nan
     rms[bad] = np.nan
-    return rot, trans, rms
+    return rot, trans, rms, np.where(np.isfinite(err), err, 0.0)
