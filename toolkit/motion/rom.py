@@ -45,8 +45,8 @@ ROM_STAR_RAYS_DEG = (0.0, 45.0, 90.0, 135.0, 180.0)
 _DUR = {"prep": 0.35, "ray": 0.9, "circ": 2.2, "knee": 1.8, "ankle": 1.6, "sh_flex": 1.4, "sh_abd": 1.4,
         "sh_circ": 2.2, "elbow": 1.8, "rest": 0.3}
 #: Natural duration of the whole trial, seconds (two legs and two arms).
-NATURAL_DURATION_S = 2 * (4 * _DUR["prep"] + 5 * _DUR["ray"] + _DUR["circ"] + _DUR["knee"] + _DUR["ankle"]
-                          + 4 * _DUR["rest"] + _DUR["sh_flex"] + _DUR["sh_abd"] + _DUR["sh_circ"]
+NATURAL_DURATION_S = 2 * (2 * _DUR["prep"] + 5 * _DUR["ray"] + _DUR["circ"] + _DUR["knee"] + _DUR["ankle"]
+                          + 3 * _DUR["rest"] + _DUR["sh_flex"] + _DUR["sh_abd"] + _DUR["sh_circ"]
                           + _DUR["elbow"] + 4 * _DUR["rest"])
 #: Longest slowdown of the trial in a long clip.
 MAX_SLOWDOWN = 1.5
