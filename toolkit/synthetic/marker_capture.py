@@ -418,7 +418,7 @@ def simulate_detections(scene: MarkerScene, rng: np.random.Generator) -> dict:
         centres = np.vstack([cen.reshape(-1, 2), g])
         marker = np.r_[mm, np.full(len(gt), -1)]
         order = np.lexsort((rng.random(len(frame)), frame))   # by frame, random within a frame
-        keep = np.isfinite(centres[order]).all(1)
+        keep = cam.in_image(centres[order]) & np.isfinite(centres[order]).all(1)   # noise may push a blob out
         o = order[keep]
         per_camera[cam.name] = (centres[o], frame[o].astype(np.int32), marker[o].astype(np.int32))
     return {"per_camera": per_camera, "visible": visible, "missed": missed, "occluded": occluded,
