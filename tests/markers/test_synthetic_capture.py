@@ -281,3 +281,20 @@ def test_reader_refuses_fewer_than_three_cameras_and_missing_files(tmp_path, cap
         load_marker_capture(gone)
     with pytest.raises(InputError, match="calibration.toml"):
         load_marker_capture(tmp_path / "nowhere")
+
+
+def test_make_scene_writes_a_marker_capture_without_videos(tmp_path):
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[2]
+    spec = tmp_path / "walk.toml"
+    spec.write_text((root / "datasets_synthetic" / "markers_walk.toml").read_text().replace("frames = 300",
+                                                                                           "frames = 20"))
+    r = subprocess.run([sys.executable, str(root / "recipes" / "make_scene.py"), str(spec), "--out",
+                        str(tmp_path / "out")], capture_output=True, text=True, cwd=root)
+    assert r.returncode == 0, r.stderr
+    assert "marker capture" in r.stdout
+    cap = load_marker_capture(tmp_path / "out")
+    assert cap.n_frames == 20 and len(cap.rig) == 8
+    assert (tmp_path / "out" / "scene.rrd").is_file() and not (tmp_path / "out" / "videos").exists()
