@@ -328,7 +328,8 @@ def _labelled(traj, groups, mset, config, obs) -> JointCentresResult:
     template_first = traj.segments is not None
     use_t = has_t & (template_first | ~has_a)
     source = np.where(use_t, "template", "anatomical")
-    generic = np.where(use_t[None, :, None], generic, anat)
+    first, second = np.where(use_t[None, :, None], generic, anat), np.where(use_t[None, :, None], anat, generic)
+    generic = np.where(np.isfinite(first), first, second)  # a frame the first estimate misses: the other
 
     joints = generic.copy()
     method = [str(s) if np.isfinite(generic[:, j]).any() else "none" for j, s in enumerate(source)]
