@@ -268,12 +268,16 @@ def _packed(texture: np.ndarray) -> np.ndarray:
     return rgba.view(np.uint32)[..., 0]
 
 
-def _bilinear(texture: np.ndarray, uv: np.ndarray, packed: np.ndarray | None = None) -> np.ndarray:
+def _bilinear(texture: np.ndarray, uv: np.ndarray, packed: np.ndarray | None = None,
+              out: np.ndarray | None = None) -> np.ndarray:
     """Sample ``texture`` (H, W, 3) uint8 at ``uv`` (N, 2) in [0, 1] (v down): (N, 3) float32 in [0, 255].
 
-    ``packed``: :func:`_packed` of ``texture`` when the caller keeps it.  The
-    four neighbours are gathered as uint8 texels and converted after the
-    gather (the values of a float32 copy, at a quarter of its memory traffic).
+    ``packed``: :func:`_packed` of ``texture`` when the caller keeps it;
+    ``out`` (N, 3) float32, optional: written (and returned).  The four
+    neighbours are gathered as uint8 texels (a quarter of a float32 copy's
+    memory traffic) and blended one channel at a time (long loops instead of
+    rows of three); every value is computed as a whole-array blend of a float32
+    copy would.
     """
     h, w = texture.shape[:2]
     flat = (_packed(texture) if packed is None else packed).reshape(-1)
@@ -283,17 +287,16 @@ def _bilinear(texture: np.ndarray, uv: np.ndarray, packed: np.ndarray | None = N
     y0 = np.floor(y).astype(np.int64)
     x1 = np.minimum(x0 + 1, w - 1)
     y1 = np.minimum(y0 + 1, h - 1)
-    fx = (x - x0)[:, None].astype(np.float32)
-    fy = (y - y0)[:, None].astype(np.float32)
+    fx = (x - x0).astype(np.float32)
+    fy = (y - y0).astype(np.float32)
+    gx, gy = 1 - fx, 1 - fy
     r0, r1 = y0 * w, y1 * w
-    gx = 1 - fx
-
-    def at(i):
-        return flat[i].view(np.uint8).reshape(-1, 4)[:, :3].astype(np.float32)
-
-    top = at(r0 + x0) * gx + at(r0 + x1) * fx
-    bot = at(r1 + x0) * gx + at(r1 + x1) * fx
-    return top * (1 - fy) + bot * fy
+    texels = [flat[i].view(np.uint8).reshape(-1, 4) for i in (r0 + x0, r0 + x1, r1 + x0, r1 + x1)]
+    out = np.empty((len(x), 3), np.float32) if out is None else out
+    for c in range(3):
+        t00, t01, t10, t11 = (q[:, c].astype(np.float32) for q in texels)
+        out[:, c] = (t00 * gx + t01 * fx) * gy + (t10 * gx + t11 * fx) * fy
+    return out
 
 
 #: Rays shaded per block when a background plate is coloured (keeps the temporaries in the CPU's cache;
@@ -371,9 +374,8 @@ class RaycastRenderer:
         R = camera.R.astype(np.float32)
         if out is None:
             return n[..., 0:1] * R[0] + n[..., 1:2] * R[1] + R[2]  # (h*s, w*s, 3): R^T (x, y, 1)
-        np.multiply(n[..., 0:1], R[0], out=out)  # the same three steps, without temporaries
-        out += n[..., 1:2] * R[1]
-        out += R[2]
+        for k in range(3):  # the same sums, one component at a time (long loops instead of rows of three)
+            out[..., k] = n[..., 0] * R[0, k] + n[..., 1] * R[1, k] + R[2, k]
         return out
 
     @staticmethod
@@ -428,7 +430,12 @@ class RaycastRenderer:
         return self._downsample(col, self.ss), np.where(np.isfinite(t), t, np.inf)
 
     def _shade(self, t: np.ndarray, gid: np.ndarray, pid: np.ndarray, bary: np.ndarray, col: np.ndarray) -> None:
-        """Colour a block of rays (N,) where they hit a surface; ``col`` (N, 3) float32 is written in place."""
+        """Colour a block of rays (N,) where they hit a surface; ``col`` (N, 3) float32 is written in place.
+
+        Per ray: the barycentric blend of the hit triangle's corner colours or
+        texture coordinates (one component at a time), then the texture's
+        bilinear sample.
+        """
         hit = np.isfinite(t)
         for i, s in enumerate(self.surfaces):
             sel = hit & (gid == i)
@@ -437,21 +444,31 @@ class RaycastRenderer:
             elif not sel.any():
                 continue
             corners, packed = self._surface_tables(i)
-            c = corners[pid[sel]]  # (N, 3, k): the hit triangle's corner colours or texture coordinates
-            b1, b2 = bary[sel, 0:1], bary[sel, 1:2]
+            p = pid[sel]
+            b1, b2 = bary[sel, 0], bary[sel, 1]
             b0 = 1.0 - b1 - b2
-            v = b0 * c[:, 0] + b1 * c[:, 1] + b2 * c[:, 2]
-            col[sel] = v if packed is None else _bilinear(s.texture, v, packed)
+            v = np.empty((len(p), len(corners)), corners[0][0].dtype)
+            for k, (c0, c1, c2) in enumerate(corners):
+                v[:, k] = b0 * c0[p] + b1 * c1[p] + b2 * c2[p]
+            if packed is None:
+                col[sel] = v
+            elif isinstance(sel, slice):
+                _bilinear(s.texture, v, packed, out=col)
+            else:
+                col[sel] = _bilinear(s.texture, v, packed)
 
-    def _surface_tables(self, i: int) -> tuple[np.ndarray, np.ndarray | None]:
-        """Surface ``i``'s corner values per triangle, (T, 3, 3) float32 colours 0..255 or (T, 3, 2) float64
-        texture coordinates, and its :func:`_packed` texture (None: vertex colours); kept."""
+    def _surface_tables(self, i: int) -> tuple[list, np.ndarray | None]:
+        """Surface ``i``'s corner values per triangle, per component ``[(c0, c1, c2)]`` of (T,) arrays (float32
+        colours 0..255, or float64 texture coordinates), and its :func:`_packed` texture (None: vertex
+        colours); kept."""
         if i not in self._tables:
             s = self.surfaces[i]
             if s.texture is None:
-                self._tables[i] = ((np.asarray(s.vertex_colors, np.float32) * 255.0)[s.triangles], None)
+                table, packed = (np.asarray(s.vertex_colors, np.float32) * 255.0)[s.triangles], None
             else:
-                self._tables[i] = (np.asarray(s.uvs, np.float64)[s.triangles], _packed(s.texture))
+                table, packed = np.asarray(s.uvs, np.float64)[s.triangles], _packed(s.texture)
+            comps = [tuple(np.ascontiguousarray(table[:, j, k]) for j in range(3)) for k in range(table.shape[2])]
+            self._tables[i] = (comps, packed)
         return self._tables[i]
 
     def background_plate(self, camera: Camera, keep: bool = True) -> np.ndarray:
