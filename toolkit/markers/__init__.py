@@ -1,6 +1,7 @@
 """Joint centres from marker trajectories (source 004): marker sets, synthetic captures, labelling, centres."""
 
 from toolkit.markers.capture import MarkerCapture, load_marker_capture
+from toolkit.markers.functional import JointCentresConfig, JointCentresResult, joint_centres
 from toolkit.markers.marker_sets import MARKER_SETS, MarkerSet, Placement, get_marker_set
 from toolkit.markers.trajectories import (
     BRIDGED,
@@ -12,4 +13,5 @@ from toolkit.markers.trajectories import (
 )
 
 __all__ = ["MARKER_SETS", "MarkerSet", "Placement", "get_marker_set", "MarkerTrajectories", "MISSING",
-           "TRINOCULAR", "TWO_VIEW", "BRIDGED", "FROM_FILE", "MarkerCapture", "load_marker_capture"]
+           "TRINOCULAR", "TWO_VIEW", "BRIDGED", "FROM_FILE", "MarkerCapture", "load_marker_capture",
+           "JointCentresConfig", "JointCentresResult", "joint_centres"]
