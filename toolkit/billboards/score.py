@@ -33,6 +33,7 @@ corrected cameras.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Mapping
 
@@ -190,13 +191,21 @@ def _norm3(a: np.ndarray) -> np.ndarray:
     return np.sqrt(_dot3(a, a))
 
 
-#: Pixel codes of a camera pair in the batched score (bit 0: active in camera 1, bit 1: hidden by another
-#: part in camera 1, bits 2-3: the same for camera 2): which codes count as active in both, and as
-#: active in camera 1 (resp. 2) and not hidden in the other camera (eq. 3 with occlusion).
-_CODES = np.arange(16)
-_BOTH = (((_CODES & 1) > 0) & ((_CODES & 4) > 0)).astype(np.int64)
-_ACTIVE1 = (((_CODES & 1) > 0) & (((_CODES & 8) == 0) | ((_CODES & 4) > 0))).astype(np.int64)
-_ACTIVE2 = (((_CODES & 4) > 0) & (((_CODES & 2) == 0) | ((_CODES & 1) > 0))).astype(np.int64)
+@functools.lru_cache(maxsize=None)
+def _pair_masks(b1: int, b2: int) -> tuple:
+    """Which pixel codes of the batched score count for a camera pair (eq. 3 with occlusion).
+
+    A pixel code has 2 bits per camera: bit ``b`` set where the camera's warped part is
+    active, bit ``b + 1`` where another part hides the pixel in that camera; ``b1``, ``b2``
+    are the pair's.  Returns int64 masks over all codes (256 when ``b2 <= 6``): active in both;
+    active in camera 1 and not hidden in camera 2 (or active there too); the same for
+    camera 2; and the two active bits ``(1 << b1) | (1 << b2)``.
+    """
+    c = np.arange(256 if b2 <= 6 else 1 << (b2 + 2))
+    a1, h1, a2, h2 = ((c >> b1) & 1) > 0, ((c >> (b1 + 1)) & 1) > 0, ((c >> b2) & 1) > 0, ((c >> (b2 + 1)) & 1) > 0
+    both = a1 & a2
+    return (both.astype(np.int64), (a1 & (~h2 | a2)).astype(np.int64), (a2 & (~h1 | a1)).astype(np.int64),
+            (1 << b1) | (1 << b2))
 
 
 class PositionScorer:
@@ -279,15 +288,17 @@ class PositionScorer:
         # so this is the angle between their viewing directions of the subject)
         fw = np.array([c.forward for c in rig])
         self._pair_w = pair_weight(np.arccos(np.clip(fw @ fw.T, -1.0, 1.0)), config.sigma)
-        self._view_R = [v.camera.R.copy() for v in self.views]
-        self._view_t = [v.camera.t.copy() for v in self.views]
-        # per-pixel look-ups of the batched score: alpha -> active (bit 0), squared RGB distance -> min(ε, 1)
-        # (the same float32 operations as the per-pixel formula, so the same values)
-        self._active = (np.arange(256) >= self._thr).astype(np.uint8)
+        self._views_R = np.array([v.camera.R for v in self.views])  # (n_views, 3, 3)
+        self._views_t = np.array([v.camera.t for v in self.views])
+        self._views_K22 = np.array([v.camera.K[:2, :2] for v in self.views])
+        self._views_Kc = np.array([v.camera.K[:2, 2] for v in self.views])
+        # squared RGB distance -> min(ε, 1), looked up (the same float32 operations as the per-pixel formula,
+        # so the same values)
         self._eps = np.minimum(np.sqrt(np.arange(3 * 255 ** 2 + 1, dtype=np.int32).astype(np.float32))
                                * (config.eps_gain / RGB_DIAGONAL), 1.0)
         #: Part scores computed so far, by (part, ends, visibility): a position is scored once per frame.
         self._memo: dict = {}
+        self._vis_memo: dict = {}
         #: Joint-score evaluations so far (one per candidate position of a joint).
         self.n_evaluations = 0
 
@@ -342,6 +353,13 @@ class PositionScorer:
         """
         J = np.asarray(joints, float)
         ends = self._W[part] @ J
+        key = (part, ends.tobytes())
+        if key not in self._vis_memo:
+            self._vis_memo[key] = self._visibility(part, ends)
+        return self._vis_memo[key].copy()
+
+    def _visibility(self, part: int, ends: np.ndarray) -> np.ndarray:
+        """:meth:`visibility` of the bone with ends (2, 3)."""
         mid = ends.mean(axis=0)
         vis = np.zeros((len(self.views), len(self.rig)), bool)
         for ci in range(len(self.rig)):
@@ -457,6 +475,15 @@ class PositionScorer:
             ac = np.clip(a, a0[:, None], a1[:, None])
             sc = np.clip(s, s0[:, None], s1[:, None])
             quad = x[:, None] + ac[..., None] * e_u[:, None] + sc[..., None] * b[:, None]
+            # into every view at once: in front of it, and the bounding box of the projection
+            qc = np.einsum("nkd,ved->vnke", quad, self._views_R) + self._views_t[:, None, None, :]
+            hit &= ok[:, None]
+            front = ~np.any(hit[None] & (qc[..., 2] <= 1e-6), axis=2)  # (n_views, N)
+            px = np.einsum("vnkc,vdc->vnkd", qc[..., :2] / qc[..., 2:3], self._views_K22) \
+                + self._views_Kc[:, None, None, :]
+            m = hit[None, :, :, None]
+            lo = np.where(m, px, np.inf).min(axis=2)  # (n_views, N, 2)
+            hi = np.where(m, px, -np.inf).max(axis=2)
             # the plane rows feed the warps: _plane_row's operations, the matrix products stacked
             # (numpy calls the same BLAS product per item)
             cam = self.rig.cameras[ci]
@@ -464,7 +491,7 @@ class PositionScorer:
             n_s = (R @ n[:, :, None])[:, :, 0]
             d_s = _dot3(n_s, (R @ x[:, :, None])[:, :, 0] + cam.t)
             row = (n_s[:, None, :] @ self._Kinv[ci])[:, 0] / d_s[:, None]
-        return {"ok": ok, "normal": n, "quad": quad, "hit": hit & ok[:, None], "row": row}
+        return {"ok": ok, "normal": n, "front": front, "lo": lo, "hi": hi, "row": row}
 
     def _score_batch(self, part: int, E: np.ndarray, vis: np.ndarray) -> list[PartScore]:
         """:meth:`part_scores` without the memo: N positions (N, 2, 3) of one bone."""
@@ -493,7 +520,6 @@ class PositionScorer:
         """Fill view ``vi``'s entries of the batch's scores (eqs. 2-5) for the cameras ``cams``."""
         N = len(mid)
         vc = self.views[vi].camera
-        R, tv, K = self._view_R[vi], self._view_t[vi], vc.K
         with np.errstate(all="ignore"):
             to_v = self._view_centers[vi] - mid
             to_v = to_v / _norm3(to_v)[:, None]
@@ -503,13 +529,10 @@ class PositionScorer:
             if f is None:
                 continue
             with np.errstate(all="ignore"):
-                ok = f["ok"] & ~(np.abs(_dot3(f["normal"], to_v)) < self._sin_graze)
-                qc = f["quad"] @ R.T + tv  # (N, K, 3)
-                ok &= ~np.any(f["hit"] & (qc[..., 2] <= 1e-6), axis=1)
-                px = qc[..., :2] / qc[..., 2:3] @ K[:2, :2].T + K[:2, 2]
-            m = (f["hit"] & ok[:, None])[..., None]
-            lo = np.minimum(lo, np.where(m, px, np.inf).min(axis=1))
-            hi = np.maximum(hi, np.where(m, px, -np.inf).max(axis=1))
+                ok = f["ok"] & ~(np.abs(_dot3(f["normal"], to_v)) < self._sin_graze) & f["front"][vi]
+            m = ok[:, None]
+            lo = np.minimum(lo, np.where(m, f["lo"][vi], np.inf))
+            hi = np.maximum(hi, np.where(m, f["hi"][vi], -np.inf))
             alive[ci] = ok
         w, h = vc.size
         with np.errstate(invalid="ignore"):
@@ -540,11 +563,26 @@ class PositionScorer:
             for ci in warped:
                 rgba[ci], code[ci] = self._warp_batch(part, vi, ci, bbs[ci]["row"], sel, warped[ci][sel], X0, Y0,
                                                       ww, hh, offs, total)
-            seg16 = np.repeat(np.arange(0, 16 * sel.size, 16), sizes)
+            # one pixel code for the view: 2 bits per camera (active, hidden), one histogram per position
+            wc = [ci for ci in cams if ci in warped]
+            seg = np.repeat(np.arange(sel.size), sizes)
+            combined = None
+            if len(wc) <= 4:
+                combined = np.zeros(total, np.uint8)
+                for q, ci in enumerate(wc):
+                    combined |= code[ci] << np.uint8(2 * q)
+                hist = np.bincount((seg << 8) + combined, minlength=sel.size * 256).reshape(sel.size, 256)
             for c1, c2 in pairs:
                 if c1 not in warped or c2 not in warped:
                     continue
-                pp = self._pair_values(code[c1], code[c2], rgba[c1], rgba[c2], seg16, sel.size)
+                if combined is not None:
+                    q1, q2 = wc.index(c1), wc.index(c2)
+                    pc, h, masks = combined, hist, _pair_masks(2 * q1, 2 * q2)
+                else:  # more cameras than bits: the pair's own code
+                    pc = code[c1] | (code[c2] << np.uint8(2))
+                    h = np.bincount((seg << 4) + pc, minlength=sel.size * 16).reshape(sel.size, 16)
+                    masks = _pair_masks(0, 2)
+                pp = self._pair_values(pc, h, masks, rgba[c1], rgba[c2], sel.size)
                 both = warped[c1][sel] & warped[c2][sel]
                 v = np.where(both, pp, 0.0)
                 per_pair[sel, vi, c1, c2] = v
@@ -583,15 +621,20 @@ class PositionScorer:
             if occ:
                 cv2.warpPerspective(src.hidden, Ho[j], (w[j], h[j]), dst=hid[a:b].reshape(h[j], w[j]), flags=near,
                                     borderMode=const)
-        return buf, self._active[buf[:, 3]] | hid
+        code = (buf[:, 3] >= self._thr).view(np.uint8)
+        code |= hid
+        return buf, code
 
-    def _pair_values(self, code1, code2, rgba1, rgba2, seg16, n):
-        """Eq. 3 of one camera pair for each of n positions laid out in ``seg16`` (pixel -> 16 x position)."""
-        pc = code1 | (code2 << 2)  # bits: active 1, hidden 1, active 2, hidden 2
-        hist = np.bincount(seg16 + pc, minlength=n * 16).reshape(n, 16)
-        n_both = hist @ _BOTH
-        n_either = hist @ _ACTIVE1 + hist @ _ACTIVE2 - n_both
-        idx = np.flatnonzero((pc & 5) == 5)
+    def _pair_values(self, pc, hist, masks, rgba1, rgba2, n):
+        """Eq. 3 of one camera pair for each of n positions.
+
+        ``pc`` (total,) is the pixel code, ``hist`` (n, n_codes) its histogram per position and
+        ``masks`` the pair's :func:`_pair_masks`; ``rgba1``, ``rgba2`` (total, 4) the two warps.
+        """
+        both, act1, act2, bits = masks
+        n_both = hist @ both
+        n_either = hist @ act1 + hist @ act2 - n_both
+        idx = np.flatnonzero((pc & bits) == bits)
         out = np.zeros(n)
         if idx.size == 0:
             return out
