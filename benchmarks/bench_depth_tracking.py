@@ -6,6 +6,7 @@ Usage::
     python benchmarks/bench_depth_tracking.py                 # 4 motions x 3 seeds x 60 frames
     python benchmarks/bench_depth_tracking.py --quick         # 4 motions x 1 seed x 30 frames
     python benchmarks/bench_depth_tracking.py --cache out/bench_depth   # keep the renders
+    python -m benchmarks.bench_depth_tracking --workers 2    # the accuracy sequences in parallel
 
 Seeded synthetic sequences (``walk``, ``wave``, ``crouch``, ``turn``; a
 random person of 1.60-1.90 m; Kinect-like sensor noise, quantisation,
@@ -40,6 +41,7 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")   # one core (set before numpy loads)
 
 import argparse  # noqa: E402
+import functools  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -50,6 +52,7 @@ from toolkit.anthropometry.proportions import BodyProportions  # noqa: E402
 from toolkit.depth import DepthTracker, track_sequence  # noqa: E402
 from toolkit.depth.evaluate import summarise  # noqa: E402
 from toolkit.motion import generate_motion  # noqa: E402
+from toolkit.pipeline.parallel import map_scenes  # noqa: E402
 from toolkit.skeleton import JOINTS_13  # noqa: E402
 from toolkit.body.model import BodyModel  # noqa: E402
 from toolkit.synthetic.depth_sensor import DepthCameraSpec, render_depth_sequence  # noqa: E402
@@ -92,6 +95,14 @@ def track(cam, depth, background):
     return track_sequence(tracker, depth)
 
 
+def accuracy_sequence(scene: tuple[str, int], *, frames: int, cache: Path | None) -> tuple:
+    """One sequence of the accuracy table (a task): its tracked joints, truth, visibility and states."""
+    motion, seed = scene
+    cam, depth, bg, gt, visible = sequence(motion, seed, frames, (320, 240), cache)
+    res = track(cam, depth, bg)
+    return res.joints, gt, visible, res.states
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
@@ -104,6 +115,9 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=3, help="timing runs per sequence (the fastest counts)")
     ap.add_argument("--no-timing", action="store_true")
     ap.add_argument("--no-accuracy", action="store_true")
+    ap.add_argument("--workers", type=int, default=1,
+                    help="accuracy sequences in parallel on N local worker processes (the timings stay on one)")
+    ap.add_argument("--scheduler", default=None, help="accuracy sequences on a running Dask cluster")
     args = ap.parse_args(argv)
     if args.quick:
         args.seeds, args.frames, args.timing_frames = 1, 30, 20
@@ -122,15 +136,11 @@ def accuracy(args, motions) -> None:
           "Kinect-like noise")
     all_err, all_vis, all_states, per_motion = [], [], [], {}
     t0 = time.perf_counter()
+    scenes = [(motion, seed) for motion in motions for seed in range(args.seeds)]
+    tracked = dict(zip(scenes, map_scenes(functools.partial(accuracy_sequence, frames=args.frames, cache=args.cache),
+                                          scenes, workers=args.workers, scheduler=args.scheduler)))
     for motion in motions:
-        vis, states, joints, truth = [], [], [], []
-        for seed in range(args.seeds):
-            cam, depth, bg, gt, visible = sequence(motion, seed, args.frames, (320, 240), args.cache)
-            res = track(cam, depth, bg)
-            joints.append(res.joints)
-            truth.append(gt)
-            vis.append(visible)
-            states.append(res.states)
+        joints, truth, vis, states = zip(*(tracked[(motion, seed)] for seed in range(args.seeds)))
         J, G, V, S = (np.concatenate(x) for x in (joints, truth, vis, states))
         per_motion[motion] = summarise(J, G, S, V)
         all_err.append((J, G))

@@ -6,6 +6,7 @@ Usage::
     python benchmarks/bench_zoo.py --quick          # 6 scenes (one per camera count and layout), ~10-15 min
     python benchmarks/bench_zoo.py                  # 24 scenes
     python benchmarks/bench_zoo.py --scenes 36 --frames 3 --zoo-seed 7
+    python -m benchmarks.bench_zoo --workers 2     # scenes in parallel (or --scheduler tcp://HOST:PORT)
 
 Why: a figure measured on two seeds says little.  The zoo draws scene specs
 (``docs/scene_spec.md``) from ``--zoo-seed`` across what real captures vary:
@@ -50,6 +51,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from toolkit.pipeline.parallel import map_scenes
 
 REPO = Path(__file__).resolve().parents[1]
 #: Issue 13 targets.
@@ -338,6 +341,25 @@ def picture_worst(rows: list[dict], datasets: dict, runs: dict, out: Path, k: in
     return written
 
 
+def zoo_scene(spec: tuple[str, str], *, cache: Path, out: Path, frames: int, stage3_compare: bool,
+              reuse: bool) -> tuple[dict, Path, Path]:
+    """One scene of the zoo (a task: in this process or on a worker): generated, run, its figures."""
+    name, text = spec
+    t0 = time.perf_counter()
+    print(f"[{name}] generating ...", flush=True)
+    ds = scene(cache, name, text)
+    t1 = time.perf_counter()
+    run = out / "runs" / name
+    metrics = _fill_subject_psnr(run_pipeline(ds, run, frames, True, reuse), ds, run)
+    nos3 = None
+    if stage3_compare:
+        run0 = out / "runs_no_stage3" / name
+        nos3 = _fill_subject_psnr(run_pipeline(ds, run0, frames, False, reuse), ds, run0)
+    row = scene_figures(name, ds, metrics, nos3, part_miou(ds, run, frames))
+    row["seconds"] = {"scene": t1 - t0, "pipeline": time.perf_counter() - t1}
+    return row, ds, run
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
@@ -353,6 +375,8 @@ def main(argv=None) -> int:
     ap.add_argument("--reuse-runs", action="store_true",
                     help="keep finished pipeline runs (default: rerun, the code may have changed)")
     ap.add_argument("--pictures", type=int, default=3, help="worst scenes pictured")
+    ap.add_argument("--workers", type=int, default=1, help="scenes in parallel on N local worker processes")
+    ap.add_argument("--scheduler", default=None, help="scenes on a running Dask cluster (tcp://HOST:PORT)")
     args = ap.parse_args(argv)
     if args.frames < 1 or args.scenes < 1:
         ap.error("--frames and --scenes: expected integers >= 1")
@@ -363,26 +387,20 @@ def main(argv=None) -> int:
     args.cache.mkdir(parents=True, exist_ok=True)
     rows, datasets, runs = [], {}, {}
     t_all = time.perf_counter()
-    for name, text in specs:
-        t0 = time.perf_counter()
-        print(f"[{name}] generating ...", flush=True)
-        ds = scene(args.cache, name, text)
-        t1 = time.perf_counter()
-        run = args.out / "runs" / name
-        metrics = _fill_subject_psnr(run_pipeline(ds, run, args.frames, True, args.reuse_runs), ds, run)
-        nos3 = None
-        if not args.no_stage3_compare:
-            run0 = args.out / "runs_no_stage3" / name
-            nos3 = _fill_subject_psnr(run_pipeline(ds, run0, args.frames, False, args.reuse_runs), ds, run0)
-        row = scene_figures(name, ds, metrics, nos3, part_miou(ds, run, args.frames))
-        row["seconds"] = {"scene": t1 - t0, "pipeline": time.perf_counter() - t1}
+
+    def done(_i: int, got: tuple) -> None:
+        row, ds, run = got
         rows.append(row)
-        datasets[name], runs[name] = ds, run
-        print(f"[{name}] mIoU {row['part_miou']:.3f}  PSNR art/std/hull {row['psnr_articulated']:.2f}/"
+        datasets[row["scene"]], runs[row["scene"]] = ds, run
+        print(f"[{row['scene']}] mIoU {row['part_miou']:.3f}  PSNR art/std/hull {row['psnr_articulated']:.2f}/"
               f"{row['psnr_standard']:.2f}/{row['psnr_hull']:.2f}  MPJPE {row['mpjpe_stage1_mm']:.1f} -> "
-              f"{row['mpjpe_mm']:.1f} mm  coverage {row['coverage_min']:.3f}  ({time.perf_counter() - t0:.0f} s)",
+              f"{row['mpjpe_mm']:.1f} mm  coverage {row['coverage_min']:.3f}  ({sum(row['seconds'].values()):.0f} s)",
               flush=True)
         (args.out / "zoo_partial.json").write_text(json.dumps({"rows": rows}, indent=1, default=float))
+
+    job = functools.partial(zoo_scene, cache=args.cache, out=args.out, frames=args.frames,
+                            stage3_compare=not args.no_stage3_compare, reuse=args.reuse_runs)
+    map_scenes(job, specs, workers=args.workers, scheduler=args.scheduler, on_result=done)
     s = summary(rows)
     print_report(rows, s)
     pics = picture_worst(rows, datasets, runs, args.out, args.pictures, args.frames)

@@ -30,7 +30,9 @@ profile, energy terms per iteration and the skeleton, for the rerun viewer),
 ``OUT/metrics.json`` when there is ground truth, and with ``--images DIR`` one
 PNG per frame with the skeleton drawn over the depth.
 
-One run is one sequence.  ``OUT/run.json`` identifies it (the input's frames,
+Several inputs are several sequences, each tracked into ``OUT/<its folder's
+name>/`` (``--workers N``: N at a time on this machine; ``--scheduler
+tcp://HOST:PORT``: on a Dask cluster, docs/parallel.md).  One run is one sequence.  ``OUT/run.json`` identifies it (the input's frames,
 camera and background by content, and the options that change the results): a
 folder of another input or other options is refused (``--replace-stale`` moves
 it aside); the same run again tracks from the first frame and replaces the
@@ -48,7 +50,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from toolkit.errors import InputError
-from toolkit.pipeline.depth_tracking import READERS, DepthTrackingRunConfig, run, summary_lines
+from toolkit.pipeline.depth_tracking import READERS, DepthTrackingRunConfig, run, run_sequences, summary_lines
 from toolkit.pipeline.run import load_config
 
 
@@ -56,7 +58,9 @@ def parser() -> argparse.ArgumentParser:
     """The recipe's command line (defaults of valued options: None, so a --config file's values stand)."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
-    ap.add_argument("input", type=Path, help="dataset folder with depth_camera/, or a folder of depth frames")
+    ap.add_argument("input", type=Path, nargs="+",
+                    help="dataset folder with depth_camera/, or a folder of depth frames; several: each sequence "
+                         "into OUT/<its name>/")
     ap.add_argument("--out", type=Path, required=True, help="output folder")
     ap.add_argument("--config", type=Path, default=None, help="options from a TOML file (flags given here win)")
     ap.add_argument("--size", type=int, nargs=2, metavar=("W", "H"), default=None,
@@ -78,6 +82,10 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--replace-stale", action="store_true",
                     help="if OUT holds results of another input or other options, move it to OUT.stale-N "
                          "and start afresh (default: refuse)")
+    ap.add_argument("--workers", type=int, default=None,
+                    help="several sequences in parallel on N local worker processes (default 1)")
+    ap.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                    help="several sequences on a running Dask cluster (docs/parallel.md)")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
     return ap
 
@@ -86,7 +94,8 @@ def config_from_args(args: argparse.Namespace) -> DepthTrackingRunConfig:
     """The run's config: the --config file (or the defaults), then the flags given."""
     config = load_config(DepthTrackingRunConfig, args.config, size=tuple(args.size) if args.size else None,
                          focal=args.focal, intrinsics=args.intrinsics, reader=args.reader,
-                         background=args.background, max_frames=args.frames, images=args.images, seed=args.seed)
+                         background=args.background, max_frames=args.frames, images=args.images, seed=args.seed,
+                         workers=args.workers, scheduler=args.scheduler)
     tracker = config.tracker
     if args.bin_size is not None:
         tracker = replace(tracker, orus=replace(tracker.orus, bin_size_m=args.bin_size))
@@ -99,11 +108,14 @@ def config_from_args(args: argparse.Namespace) -> DepthTrackingRunConfig:
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
     try:
-        result = run(config_from_args(args), dataset=args.input, out=args.out)
+        config = config_from_args(args)
+        results = [run(config, dataset=args.input[0], out=args.out)] if len(args.input) == 1 else \
+            run_sequences(config, datasets=args.input, out=args.out)
     except InputError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    print("\n".join(summary_lines(result)))
+    for result in results:
+        print("\n".join(summary_lines(result)))
     return 0
 
 

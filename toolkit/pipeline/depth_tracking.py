@@ -28,6 +28,7 @@ import numpy as np
 
 from toolkit.depth.tracker_state import TrackerConfig
 from toolkit.errors import InputError
+from toolkit.pipeline.parallel import ParallelConfig, map_tasks
 from toolkit.pipeline.run import RunResult, open_run
 
 #: Depth file readers (``"auto"``: by suffix).
@@ -68,6 +69,11 @@ class DepthTrackingRunConfig:
         Move another run's results aside instead of refusing them.
     progress : bool
         Show a progress bar.
+    workers : int
+        Several sequences (:func:`run_sequences`) in parallel on a local Dask
+        cluster of this many worker processes (1: one after the other, here).
+    scheduler : str, optional
+        Several sequences on a running Dask cluster, ``tcp://HOST:PORT``.
     """
 
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
@@ -83,9 +89,11 @@ class DepthTrackingRunConfig:
     recording: bool = True
     replace_stale: bool = False
     progress: bool = True
+    workers: int = 1
+    scheduler: str | None = None
 
     #: Fields that do not change the results (left out of the run identity).
-    RUNTIME = ("max_frames", "images", "recording", "replace_stale", "progress")
+    RUNTIME = ("max_frames", "images", "recording", "replace_stale", "progress", "workers", "scheduler")
 
     def __post_init__(self):
         if self.reader not in READERS:
@@ -95,6 +103,7 @@ class DepthTrackingRunConfig:
         if self.max_frames is not None and int(self.max_frames) < 0:
             raise InputError("DepthTrackingRunConfig.max_frames (--frames)", "a number of frames >= 0",
                              repr(self.max_frames))
+        ParallelConfig(self.workers, self.scheduler)  # checked
 
 
 def input_identity(inp) -> dict:
@@ -258,6 +267,56 @@ def run(config: DepthTrackingRunConfig, *, dataset, out, observer=None, log=prin
                      {"input": str(dataset), "kind": inp.kind, "size": tuple(inp.camera.size),
                       "coordinates": res.coordinates, "skeleton": out / "skeleton.npz", "images": config.images,
                       "has_groundtruth": scores is not None})
+
+
+def _one_sequence(config: DepthTrackingRunConfig, dataset: Path, out: Path) -> RunResult:
+    """One sequence of :func:`run_sequences` (a task), without progress bar or notes."""
+    return run(replace(config, progress=False, workers=1, scheduler=None), dataset=dataset, out=out, log=None)
+
+
+def run_sequences(config: DepthTrackingRunConfig, *, datasets, out, log=print) -> list:
+    """Track several sequences, each into ``out/<its folder's name>/``, in parallel where asked.
+
+    Parameters
+    ----------
+    config : DepthTrackingRunConfig
+        ``workers`` / ``scheduler`` say where the sequences run
+        (:mod:`toolkit.pipeline.parallel`); each one is a :func:`run` of its own,
+        with its own ``run.json`` and recording.
+    datasets : sequence of path
+        Inputs of :func:`run`; their folder names must differ.
+    out : path
+        Parent folder of the sequences' output folders.
+    log : callable or None
+        Receives one line per sequence as it finishes (in the inputs' order).
+
+    Returns
+    -------
+    list of RunResult
+        In the inputs' order.
+
+    Raises
+    ------
+    InputError
+        Two inputs of the same name, or a sequence's own error (bad input, stale folder).
+    """
+    datasets = [Path(d) for d in datasets]
+    names = [d.resolve().name for d in datasets]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise InputError("inputs", "sequences in folders of different names (each gets OUT/<name>/)",
+                         f"{twice} given more than once")
+    results: list = []
+
+    def done(i: int, r: RunResult) -> None:
+        results.append(r)
+        if log is not None:
+            log(f"[{i + 1}/{len(datasets)}] {names[i]}: {r.frames} frames in {r.seconds:.1f} s -> {r.out}")
+
+    map_tasks(_one_sequence, ((config, d, Path(out) / n) for d, n in zip(datasets, names)),
+              parallel=ParallelConfig(config.workers, config.scheduler), on_result=done, total=len(datasets),
+              progress=config.progress, desc="sequences", unit="sequence")
+    return results
 
 
 def _open(config: DepthTrackingRunConfig, dataset):

@@ -34,9 +34,12 @@ RENDERERS = ("cpu", "open3d")
 KEYPOINT_FORMATS = ("body_25", "body_25b", "coco_17", "coco_18", "halpe_26", "coco_133", "blazepose_33")
 #: Where the silhouettes come from when stage 1 uses keypoints.
 SILHOUETTES = ("auto", "masks", "background", "seeded")
-#: Per-stage timings averaged into ``metrics.json`` ``seconds_per_frame``.
-TIMED = ("total", "foreground", "keypoints", "segmentation", "optimize", "billboards", "standard_billboards",
-         "visual_hull")
+#: Parts of a frame's ``total`` (its work after stage 1) in ``seconds_per_frame``: ``views`` the novel (and
+#: held-out) views rendered, scored and written, ``paths`` the camera paths' views, ``other`` the rest.
+WITHIN_TOTAL = ("segmentation", "optimize", "billboards", "standard_billboards", "visual_hull", "views", "paths")
+#: Per-stage timings averaged into ``metrics.json`` ``seconds_per_frame``; ``stage1`` is the frame's stage 1
+#: (outside ``total``; ``foreground`` and ``keypoints`` are parts of it).
+TIMED = ("total", "stage1", "foreground", "keypoints") + WITHIN_TOTAL + ("other",)
 
 
 @dataclass(frozen=True)
@@ -204,6 +207,19 @@ class _Stage1:
         return SilhouetteDatabase.load(db)
 
 
+class _Only:
+    """Passes on the reports made in the given frames (a report's ``frame`` holds for those after it)."""
+
+    def __init__(self, observer, frames: set):
+        self.observer, self.frames, self.frame = observer, frames, None
+
+    def report(self, kind: str, **data) -> None:
+        if data.get("frame") is not None:
+            self.frame = int(data["frame"])
+        if self.frame is None or self.frame in self.frames:
+            self.observer.report(kind, **data)
+
+
 def _recording_observer(folder, ds, novel: list, config: FreeViewpointRunConfig):
     """The rerun observer of this part of the run (None without a recording)."""
     if folder.recording is None:
@@ -285,20 +301,23 @@ class _Frames:
         res = self.processor.process(t, images, masks, est, plates=self.source_plates)
         for c in self.rig.names:
             atomic_write_png(self.out / "parts" / c / frame_filename(t), res.labels[c])
+        t1 = time.perf_counter()
         scores, heldout = {}, {}
         for v in self._views(t, res):
             for m, sc in render_evaluation(res, v, self.out, t, self.compositor, observer=self.observer).items():
                 (scores if v.kind == "novel" else heldout).setdefault(m, {})[v.camera.name] = sc
+        t2 = time.perf_counter()
         for p, cams in self.paths.items():
             bg = self.plates.plate(cams[t]) if self.plates is not None else np.zeros(cams[t].size[::-1] + (3,))
             img = render_methods(res, cams[t], bg, self.compositor, methods=("articulated",))["articulated"]
             atomic_write_png(self.out / "paths" / p / frame_filename(t), img)
+        timings = {**res.timings, **{k: v for k, v in est.timings.items()
+                                     if k in ("stage1", "foreground", "keypoints")},
+                   "views": t2 - t1, "paths": time.perf_counter() - t2, "total": time.perf_counter() - t0}
+        timings["other"] = timings["total"] - sum(timings.get(k, 0.0) for k in WITHIN_TOTAL)
         record = {"frame": t, "status": res.status, "joints": res.joints.tolist(),
                   "joints_stage1": res.joints_stage1.tolist(), "offsets": image_offsets(est.offsets).tolist(),
-                  "scores": scores, "timings": {**res.timings, **{k: v for k, v in est.timings.items()
-                                                                  if k in ("foreground", "keypoints")},
-                                                "total": time.perf_counter() - t0},
-                  "optimize": res.optimize}
+                  "scores": scores, "timings": timings, "optimize": res.optimize}
         if self.held is not None:
             record["heldout"] = heldout
             record["heldout_region"] = self.region_of.how.get(t, "")
@@ -424,16 +443,21 @@ def run(config: FreeViewpointRunConfig, *, dataset, out, observer=None, log=prin
         rig, held = (full_rig, None) if config.hold_out is None else split_rig(full_rig, config.hold_out)
         if obs is not None:
             obs.report("rig", rig=rig)
-        stage1 = _Stage1(ds, rig, config, kp_dir, masks_dir, out, obs)
+        # a resumed run's stage 1 goes through the finished frames again (not reported): its temporal state
+        # at the frames to do is then the one an uninterrupted run had
+        wanted = set(todo)
+        stage1 = _Stage1(ds, rig, config, kp_dir, masks_dir, out, None if obs is None else _Only(obs, wanted))
+        todo = list(range(todo[-1] + 1)) if todo else []
         task = _FrameTask(uuid.uuid4().hex, ds.root, out, config, rig, tuple(novel), held, n, kp_dir, masks_dir)
 
         def frames():  # stage 1 in frame order (its temporal term, tracking), here, ahead of the workers
             for est, masks in stage1.estimates(todo):
-                yield est, masks, {c: ds.frame(c, est.frame) for c in rig.names}  # decoded by stage 1 already
+                if est.frame in wanted:
+                    yield est, masks, {c: ds.frame(c, est.frame) for c in rig.names}  # decoded by stage 1 already
 
         try:
             processed, stopped, seconds = run_frames(
-                task, frames(), total=len(todo), parallel=ParallelConfig(config.workers, config.scheduler),
+                task, frames(), total=len(wanted), parallel=ParallelConfig(config.workers, config.scheduler),
                 observer=obs, progress=config.progress, desc="free viewpoint")
         finally:
             drop_cached(task.token)

@@ -30,7 +30,6 @@ own observer (one recording, in task order): :func:`replay`.
 from __future__ import annotations
 
 import contextlib
-import os
 import re
 from collections import OrderedDict
 from collections.abc import Callable, Iterable
@@ -302,7 +301,8 @@ def _map_dask(fn, tasks, parallel: ParallelConfig, give, bar) -> None:
 
 
 def map_scenes(fn: Callable, scenes: Iterable, *, workers: int = 1, scheduler: str | None = None,
-               progress: bool = False, desc: str = "scenes") -> list:
+               on_result: Callable[[int, Any], None] | None = None, progress: bool = False,
+               desc: str = "scenes") -> list:
     """``fn(scene)`` for every scene of a benchmark, in parallel; results in the scenes' order.
 
     Parameters
@@ -314,13 +314,17 @@ def map_scenes(fn: Callable, scenes: Iterable, *, workers: int = 1, scheduler: s
         Worker processes (1: in this process).
     scheduler : str, optional
         A Dask scheduler's address.
+    on_result : callable, optional
+        ``on_result(i, result)`` in the scenes' order as they finish (e.g. a
+        line printed per scene); the results are then not returned.
     progress : bool
     desc : str
 
     Returns
     -------
     list
+        The results in the scenes' order (empty with ``on_result``).
     """
     scenes = list(scenes)
     return map_tasks(fn, ((s,) for s in scenes), parallel=ParallelConfig(int(workers), scheduler),
-                     total=len(scenes), progress=progress, desc=desc, unit="scene")
+                     on_result=on_result, total=len(scenes), progress=progress, desc=desc, unit="scene")

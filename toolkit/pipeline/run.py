@@ -478,12 +478,39 @@ def _untimed(value):
     return value
 
 
+def _json_diff(a, b, atol: float, where: str = ""):
+    """Where two JSON values first differ (numbers to ``atol``, absolute or relative; NaN equals NaN), or None."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in sorted(set(a) | set(b)):
+            if k not in a or k not in b:
+                return f"{where}/{k}"
+            w = _json_diff(a[k], b[k], atol, f"{where}/{k}")
+            if w is not None:
+                return w
+        return None
+    if isinstance(a, list) and isinstance(b, list):
+        if len(a) != len(b):
+            return f"{where} (length)"
+        for i, (x, y) in enumerate(zip(a, b)):
+            w = _json_diff(x, y, atol, f"{where}[{i}]")
+            if w is not None:
+                return w
+        return None
+    numbers = (int, float)
+    if isinstance(a, numbers) and isinstance(b, numbers) and not isinstance(a, bool) and not isinstance(b, bool):
+        fa, fb = float(a), float(b)
+        same = (fa != fa and fb != fb) or fa == fb or abs(fa - fb) <= atol * max(1.0, abs(fa), abs(fb))
+        return None if same else where
+    return None if a == b else where
+
+
 def compare_runs(a: str | os.PathLike, b: str | os.PathLike, *, atol_m: float = 1e-9) -> list:
     """Where two run folders of the same system and inputs differ (e.g. one worker against several).
 
     Images and every other file byte for byte; JSON records and metrics less
-    their wall times; ``.npz`` arrays to ``atol_m`` (poses, metres) where
-    float, exactly otherwise.  ``run.json`` (its recording id) and the
+    their wall times, numbers to ``atol_m`` (absolute, or relative above 1);
+    ``.npz`` arrays to ``atol_m`` (poses, metres) where float, exactly
+    otherwise.  ``run.json`` (its recording id) and the
     recordings are not compared.
 
     Parameters
@@ -512,10 +539,10 @@ def compare_runs(a: str | os.PathLike, b: str | os.PathLike, *, atol_m: float = 
     for f in sorted(fa & fb):
         pa, pb = a / f, b / f
         if f.endswith(".json"):
-            ja, jb = (json.dumps(_untimed(json.loads(p.read_text(encoding="utf-8"))), sort_keys=True)
-                      for p in (pa, pb))  # as text: NaN equals NaN
-            if ja != jb:
-                diffs.append(f"{f}: records differ")
+            ja, jb = (_untimed(json.loads(p.read_text(encoding="utf-8"))) for p in (pa, pb))
+            where = _json_diff(ja, jb, atol_m)
+            if where is not None:
+                diffs.append(f"{f}: differs at {where or 'the top'}")
         elif f.endswith(".npz"):
             za, zb = np.load(pa), np.load(pb)
             for k in sorted(set(za.files) | set(zb.files)):
