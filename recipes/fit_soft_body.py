@@ -6,6 +6,8 @@ Usage::
     python recipes/make_scene.py datasets_synthetic/softbody_depth.toml --out out/softbody_depth
     python recipes/fit_soft_body.py out/softbody_depth --out out/softbody_depth_fit --meshes
     python recipes/fit_soft_body.py out/softbody_trinocular --out out/softbody_tri_fit --init-joints joints.npz
+    python recipes/fit_soft_body.py ../shared/realdata/kinect_depth --out out/kinect_softbody --independent \
+        --images docs/images
 
 DATASET is a dataset folder with a depth camera (``depth_camera/``, the depth
 tracker's skeleton initialises the model), a folder of depth frames (the same),
@@ -17,20 +19,25 @@ found by the dataset's masks or its clean plates; the model is initialised from
 
 Per frame the cloud is reduced to robust surface patches, the pose is tracked
 from frame to frame, then all postures, the bone lengths and the metaball
-widths are fitted together (``--no-global-fit`` skips that).
+widths are fitted together (``--no-global-fit`` skips that).  ``--independent``
+fits unrelated depth frames (e.g. the real Kinect stills) each on its own, from
+the depth tracker's skeleton of that frame.
 
 Writes ``OUT/joints.npz`` (``joints`` (T, 14, 3) metres, world; ``names``;
-``joints_tracking`` before the global fit; ``state`` per frame),
-``OUT/body_model.json`` (segment and bone lengths, widths, metaball centres,
-radii and weights), ``OUT/meshes/NNNNNN.ply`` with ``--meshes``,
+``joints_tracking`` before the global fit; ``state`` per frame; ``params`` and
+``params_tracking`` (T, 47) the model's parameter vectors),
+``OUT/body_model.json`` (stature and girth of the reference model, segment and
+bone lengths, widths, metaball centres, radii and weights), ``OUT/meshes/NNNNNN.ply`` with ``--meshes``,
 ``OUT/metrics.json`` (frame states; with ground truth, MPJPE and bone-length
 error after tracking and after the global fit) and ``OUT/recording.rrd`` (the
 clouds, patches, the model surface per frame, residuals coloured on the
-patches, joints, the fitted lengths over the iterations).
+patches, joints, the fitted lengths over the iterations); with ``--images DIR``
+one PNG per frame, ``DIR/softbody_NNN.png``: the fitted surface with the points
+over it (coloured by their distance to it), from the camera and from the side.
 
 Options may also come from a TOML file (--config; the keys of
-toolkit.pipeline.soft_body.SoftBodyRunConfig, nested [stereo], [patches] and
-[track] tables; flags given on the command line win).
+toolkit.pipeline.soft_body.SoftBodyRunConfig, nested [stereo], [patches],
+[track] and [fit] tables; flags given on the command line win).
 """
 
 from __future__ import annotations
@@ -62,6 +69,10 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--init-frame", type=int, default=None, help="frame of the initial joints (default 0)")
     ap.add_argument("--frames", type=int, default=None, help="use at most this many frames")
     ap.add_argument("--meshes", action="store_true", help="write OUT/meshes/NNNNNN.ply")
+    ap.add_argument("--images", type=Path, default=None,
+                    help="write the fitted surface with the points over it (camera and side views) here")
+    ap.add_argument("--independent", action="store_true",
+                    help="unrelated depth frames: each initialised from its own depth-tracker skeleton")
     ap.add_argument("--no-global-fit", action="store_true", help="track only (no lengths/widths fit)")
     ap.add_argument("--no-recording", action="store_true", help="do not write recording.rrd")
     ap.add_argument("--replace-stale", action="store_true",
@@ -74,8 +85,8 @@ def config_from_args(args: argparse.Namespace) -> SoftBodyRunConfig:
     """The run's config: the --config file (or the defaults), then the flags given."""
     config = load_config(SoftBodyRunConfig, args.config, source=args.source, foreground=args.foreground,
                          init=args.init, init_joints=args.init_joints, clicks=args.clicks,
-                         init_frame=args.init_frame, max_frames=args.frames)
-    return replace(config, meshes=config.meshes or args.meshes, global_fit=config.global_fit and not args.no_global_fit,
+                         init_frame=args.init_frame, max_frames=args.frames, images=args.images)
+    return replace(config, meshes=config.meshes or args.meshes, independent=config.independent or args.independent, global_fit=config.global_fit and not args.no_global_fit,
                    recording=config.recording and not args.no_recording,
                    replace_stale=config.replace_stale or args.replace_stale, progress=config.progress and not args.quiet)
 

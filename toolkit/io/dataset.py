@@ -372,8 +372,9 @@ class Dataset:
             self._need(self.layout.joints2d)
         return {k: v.copy() for k, v in self._joints2d.items()}
 
-    def _read(self, path: Path, cam: Camera, channels: int, dtype) -> np.ndarray:
-        self._need(path)
+    def _read(self, path: Path, cam: Camera, channels: int, dtype, need: bool = True) -> np.ndarray:
+        if need:  # a ground-truth file (the clean plates are inputs)
+            self._need(path)
         img = read_png(path, channels=channels, dtype=dtype)
         w, h = cam.size
         if img.shape[:2] != (h, w):
@@ -488,7 +489,7 @@ class Dataset:
         path = self.layout.background_dir / f"{camera}.png"
         if not path.is_file():
             return None
-        return self._read(path, cam, 3, np.uint8)
+        return self._read(path, cam, 3, np.uint8, need=False)
 
     def field_model(self):
         """The ground's painted lines (``field_model.json``) as a :class:`~toolkit.io.field_model.FieldModel`, or None."""

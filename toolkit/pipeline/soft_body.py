@@ -33,7 +33,7 @@ from toolkit.errors import InputError
 from toolkit.pipeline.run import RunResult, open_run
 from toolkit.pointcloud.patches import PatchConfig
 from toolkit.pointcloud.stereo import StereoConfig
-from toolkit.softbody.track import TrackConfig
+from toolkit.softbody import GlobalFitConfig, TrackConfig
 
 #: Cloud sources.
 SOURCES = ("auto", "depth", "stereo")
@@ -66,12 +66,19 @@ class SoftBodyRunConfig:
     patches : PatchConfig
     track : TrackConfig
         Frame-to-frame tracking (``viewpoints`` default to the source's camera centres).
+    fit : GlobalFitConfig
+        The global fit (``[fit]`` table in TOML).
     global_fit : bool
         Run the global fit after tracking.
+    independent : bool
+        Unrelated still frames (depth input): each frame's model is initialised from the
+        depth tracker's skeleton of that frame and fitted alone (no global fit).
     mesh_voxel_m : float
         Grid step of the surface meshes (recording, ``meshes``), metres.
     meshes : bool
         Write ``OUT/meshes/NNNNNN.ply``.
+    images : Path, optional
+        Write the fitted surface with the cloud over it, from the camera and the side, per frame here.
     max_frames : int, optional
         Use at most this many frames (the first ones).
     recording : bool
@@ -91,16 +98,19 @@ class SoftBodyRunConfig:
     stereo: StereoConfig = field(default_factory=StereoConfig)
     patches: PatchConfig = field(default_factory=PatchConfig)
     track: TrackConfig = field(default_factory=TrackConfig)
+    fit: GlobalFitConfig = field(default_factory=GlobalFitConfig)
     global_fit: bool = True
+    independent: bool = False
     mesh_voxel_m: float = 0.015
     meshes: bool = False
+    images: Path | None = None
     max_frames: int | None = None
     recording: bool = True
     replace_stale: bool = False
     progress: bool = True
 
     #: Fields that do not change the joints and the model (left out of the run identity).
-    RUNTIME = ("meshes", "max_frames", "recording", "replace_stale", "progress", "mesh_voxel_m")
+    RUNTIME = ("meshes", "max_frames", "recording", "replace_stale", "progress", "mesh_voxel_m", "images")
 
     def __post_init__(self):
         if self.source not in SOURCES:
@@ -124,6 +134,8 @@ def build_clouds(source, n: int, patches: PatchConfig, observer=None, progress: 
     -------
     centres : list of ndarray of shape (P_t, 3)
         Patch centres per frame, metres, world (empty arrays allowed).
+    raw : list of ndarray of shape (<= 4000, 3)
+        An even subsample of each raw cloud (for pictures).
     stats : dict
         ``raw_points`` and ``patches`` per frame (lists of int), ``seconds`` per frame (list).
     """
@@ -131,12 +143,13 @@ def build_clouds(source, n: int, patches: PatchConfig, observer=None, progress: 
 
     from toolkit.pointcloud.patches import surface_patches
 
-    centres, stats = [], {"raw_points": [], "patches": [], "seconds": []}
+    centres, raws, stats = [], [], {"raw_points": [], "patches": [], "seconds": []}
     for t in tqdm(range(n), desc="clouds", unit="frame", disable=not progress):
         t0 = time.perf_counter()
         raw = source.cloud(t)
         p = surface_patches(raw, patches)
         centres.append(p.centres)
+        raws.append(raw[::max(1, len(raw) // 4000)])
         stats["raw_points"].append(len(raw))
         stats["patches"].append(len(p))
         stats["seconds"].append(time.perf_counter() - t0)
@@ -145,24 +158,33 @@ def build_clouds(source, n: int, patches: PatchConfig, observer=None, progress: 
                             colors=np.array([150, 150, 150], np.uint8))
             observer.report("points3d", frame=t, points=p.centres, name="softbody/patches", radii=0.008,
                             colors=np.array([60, 160, 255], np.uint8))
-    return centres, stats
+    return centres, raws, stats
 
 
-def _tracker_joints(source, n: int, frame: int) -> np.ndarray:
-    """14 joints of the depth tracker at ``frame`` (or the first later frame where it is tracking)."""
+def tracker_joints(source, n: int, independent: bool = False) -> np.ndarray:
+    """The depth tracker's skeleton as 14 joints, (n, 14, 3) metres in the run's world (NaN where lost)."""
     from toolkit.depth import DepthTracker, track_sequence
     from toolkit.depth.tracker_state import TrackerConfig
     from toolkit.pipeline.soft_body_sources import joints14_from_control13
 
     inp = source.input
     tracker = DepthTracker(inp.camera, inp.pose_known, TrackerConfig(), background=inp.background, rng=0)
-    res = track_sequence(tracker, (inp.read(i) for i in range(n)))
-    world = res.coordinates == "world"
-    for t in range(frame, n):
+    res = track_sequence(tracker, (inp.read(i) for i in range(n)), independent=independent)
+    out = np.full((n, 14, 3), np.nan)
+    for t in range(n):
         j13 = np.asarray(res.joints[t], float)
         if np.isfinite(j13).all():
-            j13 = j13 if world else source.to_world(j13)
-            return joints14_from_control13(j13)
+            out[t] = joints14_from_control13(j13 if res.coordinates == "world" else source.to_world(j13))
+    return out
+
+
+def _tracker_joints(source, n: int, frame: int) -> np.ndarray:
+    """14 joints of the depth tracker at ``frame`` (or the first later frame where it has all of them)."""
+    j = tracker_joints(source, n)
+    for t in range(frame, n):
+        if np.isfinite(j[t]).all():
+            return j[t]
+    inp = source.input
     raise InputError(f"{inp.frames[0].parent}", f"a frame from {frame} on where the depth tracker finds the user",
                      "none")
 
@@ -205,7 +227,8 @@ def body_model_json(model, params) -> dict:
     names = SKELETON_14.joint_names
     bones = {f"{names[a]}-{names[b]}": float(v) for (a, b), v in zip(SKELETON_14.bones, model.bone_lengths(params))}
     groups = np.asarray(model.prim_group)
-    return {"units": "metres", "lengths": dict(zip(LENGTH_NAMES, map(float, params.lengths))),
+    return {"units": "metres", "stature_m": float(model.proportions.height), "girth": float(model.girth),
+            "lengths": dict(zip(LENGTH_NAMES, map(float, params.lengths))),
             "bone_lengths": bones, "widths": dict(zip(WIDTH_GROUPS, map(float, params.widths))),
             "metaballs": [{"centre": np.round(c, 5).tolist(), "radii": np.round(r, 5).tolist(),
                            "group": WIDTH_GROUPS[g], "weight": float(params.widths[g])}
@@ -236,44 +259,80 @@ def _truth(dataset, n: int):
     return j[:n] if j.ndim == 3 and j.shape[1:] == (14, 3) and len(j) >= n else None
 
 
-def _write(out: Path, model, track, fit, n: int, config: SoftBodyRunConfig, observer, dataset) -> dict:
-    """``joints.npz``, ``body_model.json``, the meshes and ``metrics.json`` (returned)."""
+@dataclass
+class Fitted:
+    """What the fit gives per frame (one model per frame: the same one for a sequence).
+
+    Attributes
+    ----------
+    models : list of SoftBodyModel
+    params, params_tracking : ndarray of shape (T, 47)
+        Final (after the global fit when there is one) and tracked parameter vectors.
+    joints, joints_tracking : ndarray of shape (T, 14, 3)
+    states : list of str
+        The tracker's state per frame.
+    global_fit : bool
+        Whether ``params`` come from the global fit.
+    """
+
+    models: list
+    params: np.ndarray
+    params_tracking: np.ndarray
+    joints: np.ndarray
+    joints_tracking: np.ndarray
+    states: list
+    global_fit: bool
+
+
+def _write(out: Path, fitted: Fitted, n: int, dataset) -> dict:
+    """``joints.npz``, ``body_model.json`` and ``metrics.json`` (returned)."""
     from toolkit.io import atomic_save_npz, atomic_write_text
     from toolkit.skeleton import SKELETON_14
     from toolkit.softbody import SoftBodyParams
 
-    final = fit if fit is not None else track
-    atomic_save_npz(out / "joints.npz", joints=final.joints, names=np.array(SKELETON_14.joint_names),
-                    joints_tracking=track.joints, state=np.array(track.states, dtype=str))
-    atomic_write_text(out / "body_model.json", json.dumps(body_model_json(model, SoftBodyParams(final.params[0])), indent=1) + "\n")
-    _meshes(out, model, final.params, config, observer)
-    metrics = {"frames": n, "states": {s: int(np.sum(np.array(track.states) == s)) for s in set(track.states)}}
+    f = fitted
+    atomic_save_npz(out / "joints.npz", joints=f.joints, names=np.array(SKELETON_14.joint_names),
+                    joints_tracking=f.joints_tracking, state=np.array(f.states, dtype=str),
+                    params=f.params, params_tracking=f.params_tracking)
+    first = next((t for t, s in enumerate(f.states) if s == "ok"), 0)
+    info = body_model_json(f.models[first], SoftBodyParams(f.params[first]))
+    atomic_write_text(out / "body_model.json", json.dumps(info, indent=1) + "\n")
+    metrics = {"frames": n, "states": {s: int(np.sum(np.array(f.states) == s)) for s in sorted(set(f.states))}}
     truth = _truth(dataset, n)
     if truth is not None:
-        metrics["tracking"] = _scores(track.joints, truth)
-        if fit is not None:
-            metrics["global_fit"] = _scores(fit.joints, truth)
+        metrics["tracking"] = _scores(f.joints_tracking, truth)
+        if f.global_fit:
+            metrics["global_fit"] = _scores(f.joints, truth)
     atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
     return metrics
 
 
-def _meshes(out: Path, model, params_list, config: SoftBodyRunConfig, observer) -> None:
-    """The model surface per frame: to the recording and, with ``config.meshes``, ``OUT/meshes/NNNNNN.ply``."""
-    if observer is None and not config.meshes:
+def _surfaces(out: Path, fitted: Fitted, clouds, raws, config: SoftBodyRunConfig, forward, observer) -> None:
+    """Per frame: the model surface, joints and residual-coloured patches to the recording;
+    ``OUT/meshes/NNNNNN.ply`` (``config.meshes``); pictures (``config.images``)."""
+    if observer is None and not config.meshes and config.images is None:
         return
-    from toolkit.io import frame_filename
-    from toolkit.softbody import SoftBodyParams
+    from toolkit.io import atomic_write_png, frame_filename
+    from toolkit.pipeline.soft_body_images import draw_fit
+    from toolkit.softbody import SoftBodyParams, distance
     from toolkit.softbody.mesh import surface_mesh
 
-    for t, vector in enumerate(params_list):
+    for t, (model, vector) in enumerate(zip(fitted.models, fitted.params)):
         params = SoftBodyParams(vector)
         v, f = surface_mesh(model, params, voxel=config.mesh_voxel_m)
         if observer is not None:
             observer.report("mesh", frame=t, vertices=v, triangles=f, name="softbody/surface",
                             vertex_colors=np.tile(np.array([230, 170, 120], np.uint8), (len(v), 1)))
             observer.report("joints3d", frame=t, joints=model.joints(params), name="softbody/joints")
+            if len(clouds[t]):
+                _residuals(t, clouds[t], np.abs(distance(model, params, clouds[t])), observer)
         if config.meshes:
             _write_ply(out / "meshes" / frame_filename(t, ".ply"), v, f)
+        if config.images is not None:
+            raw = raws[t]
+            d = np.abs(distance(model, params, raw)) if len(raw) else np.zeros(0)
+            img = draw_fit(raw, d, v, f, forward, caption=f"frame {t} {fitted.states[t]}")
+            atomic_write_png(Path(config.images) / f"softbody_{t:03d}.png", img)
 
 
 def _write_ply(path: Path, vertices: np.ndarray, triangles: np.ndarray) -> None:
@@ -288,39 +347,72 @@ def _write_ply(path: Path, vertices: np.ndarray, triangles: np.ndarray) -> None:
     tmp.replace(path)
 
 
-def _residuals(model, params_list, clouds, observer) -> None:
-    """The patch centres coloured by their distance to the fitted surface (blue 0, red >= 3 cm)."""
-    from toolkit.softbody import SoftBodyParams, distance
-
-    for t, (vector, pts) in enumerate(zip(params_list, clouds)):
-        if not len(pts):
-            continue
-        d = np.abs(distance(model, SoftBodyParams(vector), pts))
-        c = np.clip(d / 0.03, 0, 1)[:, None]
-        colors = np.round(255 * ((1 - c) * [0.1, 0.3, 1.0] + c * [1.0, 0.15, 0.1])).astype(np.uint8)
-        observer.report("points3d", frame=t, points=pts, name="softbody/residuals", colors=colors, radii=0.01)
-        observer.report("scalar", frame=t, name="softbody/median_residual_mm", value=1000 * float(np.median(d)))
+def _residuals(t: int, pts: np.ndarray, d: np.ndarray, observer) -> None:
+    """The patch centres coloured by their distance ``d`` to the fitted surface (blue 0, red >= 3 cm)."""
+    c = np.clip(d / 0.03, 0, 1)[:, None]
+    colors = np.round(255 * ((1 - c) * [0.1, 0.3, 1.0] + c * [1.0, 0.15, 0.1])).astype(np.uint8)
+    observer.report("points3d", frame=t, points=pts, name="softbody/residuals", colors=colors, radii=0.01)
+    observer.report("scalar", frame=t, name="softbody/median_residual_mm", value=1000 * float(np.median(d)))
 
 
-def fit_clouds(model, params0, clouds, config: SoftBodyRunConfig, viewpoints=None, observer=None):
-    """Track, then (with ``config.global_fit``) fit globally: ``(track, fit or None)`` of :mod:`toolkit.softbody`.
-
-    ``viewpoints`` (V, 3): the cameras' centres, so that the tracker expects data only
-    on the model's side facing them.
-    """
+def _track_config(config: SoftBodyRunConfig, viewpoints):
+    """The tracker's config, its viewpoints the source's cameras unless the config names some."""
     from dataclasses import replace
-
-    from toolkit.softbody.track import track_sequence
 
     tcfg = config.track
     if viewpoints is not None and tcfg.viewpoints is None:
         tcfg = replace(tcfg, viewpoints=tuple(tuple(map(float, v)) for v in viewpoints))
-    track = track_sequence(model, params0, clouds, config=tcfg, observer=observer)
-    if not config.global_fit:
-        return track, None
-    from toolkit.softbody import global_fit
+    return tcfg
 
-    return track, global_fit(model, track, clouds, observer=observer)
+
+def fit_clouds(model, params0, clouds, config: SoftBodyRunConfig, viewpoints=None, observer=None) -> Fitted:
+    """Track, then (with ``config.global_fit``) fit globally (:mod:`toolkit.softbody`).
+
+    ``viewpoints`` (V, 3): the cameras' centres, so that the tracker expects data only
+    on the model's side facing them.
+    """
+    from toolkit.softbody import global_fit, track_sequence
+
+    track = track_sequence(model, params0, clouds, config=_track_config(config, viewpoints), observer=observer)
+    final = global_fit(model, track, clouds, config=config.fit, observer=observer) if config.global_fit else track
+    return Fitted([model] * len(clouds), np.asarray(final.params), np.asarray(track.params), final.joints,
+                  track.joints, list(track.states), config.global_fit)
+
+
+def fit_independent(source, clouds, config: SoftBodyRunConfig, observer=None) -> Fitted:
+    """Unrelated depth frames: each initialised from the depth tracker's skeleton of that frame, fitted alone."""
+    from toolkit.softbody import model_from_joints, track_sequence
+
+    n = len(clouds)
+    joints = tracker_joints(source, n, independent=True)
+    tcfg = _track_config(config, source.viewpoints)
+    models, params, states = [], [], []
+    for t in range(n):
+        if not np.isfinite(joints[t]).all():
+            models.append(models[-1] if models else None)
+            params.append(params[-1] if params else None)
+            states.append("lost")
+            continue
+        model, p0 = model_from_joints(joints[t])
+        tr = track_sequence(model, p0, [clouds[t]], config=tcfg)
+        models.append(model)
+        params.append(np.asarray(tr.params[0]))
+        states.append(tr.states[0])
+        if observer is not None:
+            observer.report("joints3d", frame=t, joints=joints[t], name="softbody/init_joints")
+    if all(m is None for m in models):
+        raise InputError(f"{source.input.frames[0].parent}", "frames where the depth tracker finds the user", "none")
+    k = next(t for t, m in enumerate(models) if m is not None)
+    models[:k], params[:k] = [models[k]] * k, [params[k]] * k  # lost frames before the first found one
+    P = np.stack(params)
+    J = np.stack([m.joints(_params(v)) for m, v in zip(models, P)])
+    return Fitted(models, P, P, J, J, states, False)
+
+
+def _params(vector):
+    from toolkit.softbody import SoftBodyParams
+
+    return SoftBodyParams(vector)
 
 
 def run(config: SoftBodyRunConfig, *, dataset, out, observer=None, log=print) -> RunResult:
@@ -340,8 +432,8 @@ def run(config: SoftBodyRunConfig, *, dataset, out, observer=None, log=print) ->
     Returns
     -------
     RunResult
-        ``metrics``: ``metrics.json``'s content plus ``seconds`` (clouds, tracking, fit) per frame;
-        ``extra``: ``source``, ``joints``, ``body_model``.
+        ``metrics``: ``metrics.json``'s content plus ``seconds_per_frame`` (clouds, fit) and
+        ``patches_median``; ``extra``: ``source``, ``joints``, ``body_model``, ``meshes``, ``images``.
 
     Raises
     ------
@@ -356,32 +448,35 @@ def run(config: SoftBodyRunConfig, *, dataset, out, observer=None, log=print) ->
     n = len(source) if config.max_frames is None else min(len(source), int(config.max_frames))
     if n < 1:
         raise InputError(str(dataset), "at least one frame", "none")
+    if config.independent and source.kind != "depth":
+        raise InputError("independent (--independent)", "depth input (unrelated depth frames)", source.kind)
     open_run(out, "fit_soft_body", dataset, config, n, exclude=SoftBodyRunConfig.RUNTIME,
              extra={"source": source.kind}, replace_stale=config.replace_stale, recording=False, log=log)
     own = observer is None and config.recording
     obs = _recording(out, run_recording(out, False)[1]) if own else observer
     t0 = time.perf_counter()
     try:
-        clouds, stats = build_clouds(source, n, config.patches, obs, config.progress)
+        clouds, raws, stats = build_clouds(source, n, config.patches, obs, config.progress)
         t1 = time.perf_counter()
-        model, params0, joints0 = initial_model(config, source, n)
-        if obs is not None:
-            obs.report("joints3d", frame=min(config.init_frame, n - 1), joints=joints0, name="softbody/init_joints")
-        track, fit = fit_clouds(model, params0, clouds, config, source.viewpoints, observer=obs)
+        if config.independent:
+            fitted = fit_independent(source, clouds, config, obs)
+        else:
+            model, params0, joints0 = initial_model(config, source, n)
+            if obs is not None:
+                obs.report("joints3d", frame=min(config.init_frame, n - 1), joints=joints0,
+                           name="softbody/init_joints")
+            fitted = fit_clouds(model, params0, clouds, config, source.viewpoints, observer=obs)
         t2 = time.perf_counter()
-        final = fit if fit is not None else track
-        if obs is not None:
-            _residuals(model, final.params, clouds, obs)
-        metrics = _write(out, model, track, fit, n, config, obs, dataset)
+        metrics = _write(out, fitted, n, dataset)
+        _surfaces(out, fitted, clouds, raws, config, source.forward, obs)
     finally:
         if own:
             obs.close()
-    wall = time.perf_counter() - t0
     metrics["seconds_per_frame"] = {"clouds": (t1 - t0) / n, "fit": (t2 - t1) / n}
     metrics["patches_median"] = float(np.median(stats["patches"]))
-    return RunResult(out, n, n, n, 0, "", wall, metrics, out / "recording.rrd" if own else None,
+    return RunResult(out, n, n, n, 0, "", time.perf_counter() - t0, metrics, out / "recording.rrd" if own else None,
                      {"source": source.kind, "joints": out / "joints.npz", "body_model": out / "body_model.json",
-                      "meshes": out / "meshes" if config.meshes else None})
+                      "meshes": out / "meshes" if config.meshes else None, "images": config.images})
 
 
 def _recording(out: Path, recording_id: str):
@@ -399,6 +494,8 @@ def summary_lines(result: RunResult) -> list:
              f"  joints:      {x['joints']}", f"  body model:  {x['body_model']}"]
     if x["meshes"] is not None:
         lines.append(f"  meshes:      {x['meshes']}/")
+    if x["images"] is not None:
+        lines.append(f"  images:      {x['images']}/")
     if result.recording is not None:
         lines.append(f"  recording:   {result.recording}  (open with: rerun {result.recording})")
     for stage in ("tracking", "global_fit"):

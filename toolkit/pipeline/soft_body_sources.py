@@ -56,6 +56,11 @@ class DepthClouds:
         return len(self.input)
 
     @property
+    def forward(self) -> np.ndarray:
+        """The depth camera's viewing direction in the run's world frame, (3,)."""
+        return self.to_world(np.array([[0.0, 0.0, 1.0]]))[0] - self.to_world(np.zeros((1, 3)))[0]
+
+    @property
     def viewpoints(self) -> np.ndarray:
         """The depth camera's centre in the run's world frame, (1, 3)."""
         return self.input.camera.center[None] if self.input.pose_known else np.zeros((1, 3))
@@ -118,6 +123,11 @@ class StereoClouds:
 
     def __len__(self) -> int:
         return self.data.n_frames
+
+    @property
+    def forward(self) -> np.ndarray:
+        """The first head's viewing direction, (3,)."""
+        return self.heads[0][0].forward
 
     @property
     def viewpoints(self) -> np.ndarray:

@@ -1,0 +1,245 @@
+#!/usr/bin/env python3
+"""Soft-body benchmark (issue 18): joints, bone lengths and surface after tracking and after the global fit.
+
+Usage::
+
+    python -m benchmarks.bench_softbody                    # 3 depth + 3 trinocular scenes x 20 frames
+    python -m benchmarks.bench_softbody --quick            # 1 + 1 scenes x 12 frames
+    python -m benchmarks.bench_softbody --scenes 4 --frames 30 --cache out/bench_softbody
+
+Seeded synthetic sequences, each a random person (1.60-1.90 m, random
+outfit with a checked shirt for the stereo scenes) doing one of several
+motions (``wave``, ``kick``, ``crouch``, ``turn``, in turn), seen by
+
+* ``depth``: one Kinect-like depth camera 3 m away, 320 x 240, with the
+  sensor's noise, quantisation, shadows and dropouts; the model is initialised
+  from the project's depth tracker's skeleton (no ground truth);
+* ``trinocular``: two stereo heads of three cameras (0.25-0.35 m baselines,
+  2-4 m away, 320 x 240, rendered and MPEG-4 encoded); the subject is found by
+  background subtraction against the clean plates; the model is initialised
+  from **"clicked joints"**: the ground-truth joints projected into two
+  cameras (one per head, the heads 80-110 degrees apart) with 3 px of Gaussian noise, triangulated -- this
+  stands for a user's clicks and is the only ground truth the run sees.
+
+Each scene goes through ``toolkit.pipeline.soft_body.run`` (clouds -> patches
+-> initial model -> tracking -> global fit).  Printed per scene and as the
+median and worst decile over scenes:
+
+* MPJPE (mm) of the 14 joints after tracking and after the global fit;
+* bone-length error (mm): mean over the 13 bones of |fitted - true| (the
+  lengths averaged over the frames), after tracking (= the initial model's)
+  and after the global fit;
+* surface distance (mm): mean distance from points spread uniformly over the
+  true body mesh (:class:`toolkit.body.BodyModel`, the mesh the scene was
+  rendered from) to the fitted model's surface mesh, every 4th frame;
+* time per frame (s) of the clouds and of the fit (tracking + global fit).
+
+Targets (issue 18): after the global fit MPJPE <= 35 mm and bone lengths within
+15 mm on average; the global fit better than tracking alone.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+MOTIONS = ("wave", "kick", "crouch", "turn")
+TARGET_MPJPE_MM = 35.0
+TARGET_BONE_MM = 15.0
+CLICK_NOISE_PX = 3.0
+
+DEPTH_SPEC = """seed = {seed}
+frames = {frames}
+fps = 30
+[subject]
+height_m = {height:.3f}
+motion = "{motion}"
+[cameras]
+count = 1
+layout = "studio"
+resolution = [160, 120]
+[depth_camera]
+resolution = [320, 240]
+noise = true
+environment = "studio"
+distance_m = 3.0
+"""
+
+TRINOCULAR_SPEC = """seed = {seed}
+frames = {frames}
+fps = 25
+[subject]
+height_m = {height:.3f}
+motion = "{motion}"
+pattern = "checks"
+[cameras]
+count = 6
+layout = "trinocular"
+heads = 2
+baseline_m = [0.25, 0.35]
+spacing_deg = [80, 110]
+resolution = [320, 240]
+"""
+
+
+def scene_specs(n_scenes: int, frames: int, seed0: int = 1800):
+    """``(name, kind, spec text)`` of ``n_scenes`` depth and ``n_scenes`` trinocular scenes."""
+    out = []
+    for kind, template in (("depth", DEPTH_SPEC), ("trinocular", TRINOCULAR_SPEC)):
+        for i in range(n_scenes):
+            seed = seed0 + 17 * i + (0 if kind == "depth" else 500)
+            height = float(np.random.default_rng(seed).uniform(1.60, 1.90))
+            motion = MOTIONS[i % len(MOTIONS)]
+            out.append((f"{kind}_{motion}_s{seed}", kind,
+                        template.format(seed=seed, frames=frames, height=height, motion=motion)))
+    return out
+
+
+def make_dataset(name: str, kind: str, text: str, root: Path) -> Path:
+    """Render one scene (kept when already there)."""
+    from toolkit.synthetic.generator import generate_scene, render_depth_dataset
+    from toolkit.synthetic.spec import parse_spec
+
+    out = root / name
+    if (out / "done").is_file():
+        return out
+    spec = parse_spec(text, name)
+    if kind == "depth":
+        render_depth_dataset(spec, out)
+    else:
+        generate_scene(spec, out, progress=False)
+    (out / "done").write_text("ok\n")
+    return out
+
+
+def write_clicks(dataset: Path, scene, path: Path, rng: np.random.Generator) -> Path:
+    """The benchmark's "clicked joints": true joints of frame 0 projected into cam00 and cam03, + noise."""
+    a, b = scene.rig[0], scene.rig[3]
+    j = scene.joints[0]
+    np.savez(path, camera_a=a.name, camera_b=b.name, frame=0,
+             points2d_a=a.project(j) + rng.normal(0, CLICK_NOISE_PX, (14, 2)),
+             points2d_b=b.project(j) + rng.normal(0, CLICK_NOISE_PX, (14, 2)))
+    return path
+
+
+def surface_distance_mm(true_mesh, model, params, rng, n: int = 4000) -> float:
+    """Mean distance (mm) from ``n`` points spread over the true mesh to the fitted model's surface."""
+    import open3d as o3d
+
+    from toolkit.softbody.mesh import surface_mesh
+
+    tm = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(true_mesh.vertices),
+                                   o3d.utility.Vector3iVector(true_mesh.triangles))
+    o3d.utility.random.seed(int(rng.integers(1 << 30)))
+    pts = np.asarray(tm.sample_points_uniformly(n).points, np.float32)
+    v, f = surface_mesh(model, params, voxel=0.012)
+    sc = o3d.t.geometry.RaycastingScene()
+    sc.add_triangles(o3d.core.Tensor(v.astype(np.float32)), o3d.core.Tensor(np.asarray(f, np.uint32)))
+    return 1000 * float(sc.compute_distance(o3d.core.Tensor(pts)).numpy().mean())
+
+
+def bone_error_mm(joints: np.ndarray, truth: np.ndarray) -> float:
+    from toolkit.skeleton import SKELETON_14
+
+    lf = np.nanmean(SKELETON_14.bone_lengths(joints), axis=0)
+    lt = np.nanmean(SKELETON_14.bone_lengths(truth), axis=0)
+    return 1000 * float(np.mean(np.abs(lf - lt)))
+
+
+def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool = True) -> dict:
+    """Run one scene through the pipeline and score it."""
+    from toolkit.anthropometry import BodyProportions
+    from toolkit.pipeline.soft_body import SoftBodyRunConfig, run
+    from toolkit.softbody import SoftBodyModel, SoftBodyParams
+    from toolkit.synthetic.generator import build_scene
+    from toolkit.synthetic.spec import parse_spec
+
+    data = make_dataset(name, kind, text, root / "data")
+    scene = build_scene(parse_spec(text, name))
+    cfg = SoftBodyRunConfig(recording=False, progress=False, replace_stale=True, global_fit=global_fit)
+    if kind == "trinocular":
+        cfg = replace(cfg, foreground="plate", clicks=write_clicks(data, scene, root / f"{name}_clicks.npz", rng))
+    res = run(cfg, dataset=data, out=root / "runs" / name, log=None)
+    z = np.load(res.extra["joints"])
+    info = json.loads(Path(res.extra["body_model"]).read_text())
+    model = SoftBodyModel(BodyProportions.from_height(info["stature_m"]), girth=info["girth"])
+    truth = scene.joints[:len(z["joints"])]
+    out = {"scene": name, "kind": kind, "states": res.metrics["states"],
+           "clouds_s": res.metrics["seconds_per_frame"]["clouds"], "fit_s": res.metrics["seconds_per_frame"]["fit"]}
+    for stage, jk, pk in (("track", "joints_tracking", "params_tracking"), ("global", "joints", "params")):
+        j = z[jk]
+        out[f"mpjpe_{stage}"] = 1000 * float(np.nanmean(np.linalg.norm(j - truth, axis=-1)))
+        out[f"bone_{stage}"] = bone_error_mm(j, truth)
+        out[f"surface_{stage}"] = float(np.mean([surface_distance_mm(scene.body_mesh(t), model,
+                                                                     SoftBodyParams(z[pk][t]), rng)
+                                                 for t in range(0, len(j), 4)]))
+    return out
+
+
+COLUMNS = ("mpjpe_track", "mpjpe_global", "bone_track", "bone_global", "surface_track", "surface_global",
+           "clouds_s", "fit_s")
+
+
+def report(rows: list) -> bool:
+    """Print the table, the medians and worst deciles; True when the targets are met."""
+    head = f"{'scene':<28}" + "".join(f"{c:>15}" for c in COLUMNS)
+    print(head)
+    for r in rows:
+        print(f"{r['scene']:<28}" + "".join(f"{r[c]:>15.1f}" if not c.endswith("_s") else f"{r[c]:>15.2f}"
+                                          for c in COLUMNS))
+    ok = True
+    for kind in sorted({r["kind"] for r in rows}) + ["all"]:
+        sel = [r for r in rows if kind in ("all", r["kind"])]
+        med = {c: float(np.median([r[c] for r in sel])) for c in COLUMNS}
+        worst = {c: float(np.percentile([r[c] for r in sel], 90)) for c in COLUMNS}
+        print(f"{'median ' + kind:<28}" + "".join(f"{med[c]:>15.2f}" for c in COLUMNS))
+        print(f"{'worst decile ' + kind:<28}" + "".join(f"{worst[c]:>15.2f}" for c in COLUMNS))
+        if kind == "all":
+            ok = (med["mpjpe_global"] <= TARGET_MPJPE_MM and med["bone_global"] <= TARGET_BONE_MM
+                  and med["mpjpe_global"] < med["mpjpe_track"])
+            print(f"targets (median over scenes): MPJPE after the global fit {med['mpjpe_global']:.1f} <= "
+                  f"{TARGET_MPJPE_MM:.0f} mm, bone lengths {med['bone_global']:.1f} <= {TARGET_BONE_MM:.0f} mm, "
+                  f"global fit better than tracking ({med['mpjpe_global']:.1f} < {med['mpjpe_track']:.1f} mm): "
+                  + ("met" if ok else "NOT met"))
+    return ok
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
+    ap.add_argument("--scenes", type=int, default=3, help="scenes per source (depth, trinocular)")
+    ap.add_argument("--frames", type=int, default=20, help="frames per scene")
+    ap.add_argument("--quick", action="store_true", help="1 scene per source x 12 frames")
+    ap.add_argument("--sources", default="depth,trinocular", help="comma-separated: depth, trinocular")
+    ap.add_argument("--cache", type=Path, default=Path("/tmp/bench_softbody"),
+                    help="folder for the rendered scenes and the runs (scenes are reused)")
+    ap.add_argument("--tracking-only", action="store_true", help="no global fit (its columns repeat tracking)")
+    ap.add_argument("--json", type=Path, default=None, help="also write the per-scene rows here")
+    args = ap.parse_args(argv)
+    n, frames = (1, 12) if args.quick else (args.scenes, args.frames)
+    kinds = set(args.sources.split(","))
+    rng = np.random.default_rng(18)
+    rows = []
+    t0 = time.perf_counter()
+    for name, kind, text in scene_specs(n, frames):
+        if kind not in kinds:
+            continue
+        rows.append(evaluate(name, kind, text, args.cache, rng, not args.tracking_only))
+        print(f"{name}: MPJPE {rows[-1]['mpjpe_track']:.1f} -> {rows[-1]['mpjpe_global']:.1f} mm, bones "
+              f"{rows[-1]['bone_track']:.1f} -> {rows[-1]['bone_global']:.1f} mm ({time.perf_counter() - t0:.0f} s)",
+              flush=True)
+    if args.json is not None:
+        args.json.write_text(json.dumps(rows, indent=1))
+    ok = report(rows)
+    print(f"total {time.perf_counter() - t0:.0f} s")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
