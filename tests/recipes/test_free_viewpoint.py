@@ -135,6 +135,12 @@ def test_free_viewpoint_end_to_end_and_resume(dataset, tmp_path, capsys):
     assert {"psnr", "ssim", "psnr_subject", "coverage"} <= set(frame0["scores"]["articulated"]["novel_0"])
     assert m["pose"]["mpjpe_m"] < MPJPE_BOUND_M
     assert sum(m["optimize"].values()) == 14 * N_FRAMES  # how stage 3 ended for every joint of every frame
+    # every second of a frame has a key: its parts add up to its total (issue 20); stage 1 is outside it
+    from toolkit.pipeline.free_viewpoint import WITHIN_TOTAL
+
+    spf = m["seconds_per_frame"]
+    assert spf["stage1"] > spf["foreground"] > 0 and spf["views"] > 0 and spf["paths"] > 0 and spf["other"] >= 0
+    assert sum(spf[k] for k in WITHIN_TOTAL) + spf["other"] == pytest.approx(spf["total"])
     assert "stage 3 joints:" in capsys.readouterr().out
     capsys.readouterr()
 

@@ -371,7 +371,8 @@ def estimate_from_keypoints(dataset, keypoints: str | os.PathLike, rig: Rig | No
     ------
     estimate : toolkit.silhouettes.estimate.FrameEstimate
         With ``timings["foreground"]`` and ``timings["keypoints"]`` (this frame's share of
-        the sequence triangulation).
+        the sequence triangulation), and ``timings["stage1"]`` (all of this frame's stage 1: those two
+        and its share of building the silhouette models).
     masks : list of (ndarray (H, W) bool or None)
         Rig order.
     """
@@ -395,6 +396,7 @@ def estimate_from_keypoints(dataset, keypoints: str | os.PathLike, rig: Rig | No
     # themselves are read through the dataset, whose reader keeps the last one (the caller's
     # dataset.frame(c, t) after this yields frame t decodes nothing again)
     shared = getattr(dataset, "frame", None)  # a Dataset; any object with video_path() works too
+    t_setup = time.perf_counter()
     readers = {c: VideoReader(dataset.video_path(c)) for c in names
                if (source == "background" and c not in plates) or shared is None}
     try:
@@ -407,6 +409,7 @@ def estimate_from_keypoints(dataset, keypoints: str | os.PathLike, rig: Rig | No
         elif source == "seeded":
             seeded = SeededSilhouettes(rig, observer=observer)
         previous: dict = {c: None for c in names}
+        setup = (time.perf_counter() - t_setup) / max(len(todo), 1)  # each frame's share of the silhouette models
         for t in todo:
             t1 = time.perf_counter()
             est = stage1.estimate(t)
@@ -438,6 +441,7 @@ def estimate_from_keypoints(dataset, keypoints: str | os.PathLike, rig: Rig | No
                             obs.report("mask", camera=c, mask=m, name="stage1/silhouette", frame=t)
             est.timings["foreground"] = time.perf_counter() - t1
             est.timings["keypoints"] = t_kp
+            est.timings["stage1"] = time.perf_counter() - t1 + t_kp + setup
             yield est, masks
     finally:
         for r in readers.values():

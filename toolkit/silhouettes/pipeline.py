@@ -434,7 +434,9 @@ def estimate_dataset(dataset, database: SilhouetteDatabase, config: Stage1Config
     Yields
     ------
     estimate : FrameEstimate
-        With ``timings["foreground"]`` (seconds for all cameras).
+        With ``timings["foreground"]`` (seconds for all cameras) and ``timings["stage1"]`` (all of this
+        frame's stage 1: the foreground, the query and the multi-view step, and its share of learning the
+        background models).
     masks : list of (ndarray of shape (H, W), bool, or None)
         The silhouettes given to the estimator (None: no frame).
 
@@ -470,10 +472,12 @@ def estimate_dataset(dataset, database: SilhouetteDatabase, config: Stage1Config
     # themselves are read through the dataset, whose reader keeps the last one: the caller's
     # dataset.frame(c, t) after this generator yields frame t decodes nothing again
     shared = getattr(dataset, "frame", None)  # a Dataset; any object with video_path() works too
+    t_setup = time.perf_counter()
     readers = {c: VideoReader(dataset.video_path(c)) for c in names if c not in backgrounds or shared is None}
     try:
         extractors = {c: ForegroundExtractor(foreground).fit(backgrounds[c] if c in backgrounds else readers[c])
                       for c in names}
+        setup = (time.perf_counter() - t_setup) / max(len(todo), 1)  # each frame's share of the background models
         ended: dict[str, bool] = {c: False for c in names}
         previous: dict[str, tuple | None] = {c: None for c in names}
         last: dict[str, tuple[int, np.ndarray] | None] = {c: None for c in names}
@@ -510,6 +514,7 @@ def estimate_dataset(dataset, database: SilhouetteDatabase, config: Stage1Config
             t_fg = time.perf_counter() - t0
             est = estimator.step(masks, t, None if edits is None else edits.for_frame(t), flows if use_flow else None)
             est.timings["foreground"] = t_fg
+            est.timings["stage1"] = time.perf_counter() - t0 + setup
             yield est, masks
     finally:
         for r in readers.values():
