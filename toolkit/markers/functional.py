@@ -99,7 +99,7 @@ class JointCentresConfig:
     planar_ratio: float = 0.25
     rigid_tolerance_m: float = 0.010
     segment_tolerance_m: float = 0.02
-    subset_threshold_m: float = 0.01
+    subset_threshold_m: float = 0.015
     max_joint_residual_m: float = 0.03
     max_residual_m: float = 0.015
     max_hinge_conditioning: float = 0.2
@@ -313,6 +313,11 @@ def _labelled(traj, groups, mset, config, obs) -> JointCentresResult:
     # generic skeleton: the marker set's template scaled to the performer, else anatomical rules
     height = float(config.height_m) if config.height_m > 0 else 0.0
     generic = np.full((t, 14, 3), np.nan)
+    # trajectories labelled against the marker set's own template (a synthetic capture, traj.segments
+    # given) trust the template first; a file from elsewhere trusts the anatomical landmark rules first
+    template_first = traj.segments is not None
+    if height <= 0 and not template_first:
+        height = _s.stature_from_legs(_s.anatomical_joints(traj.labels, pos))
     if mset is not None:
         labels = traj.labels
         if height <= 0:
@@ -323,9 +328,6 @@ def _labelled(traj, groups, mset, config, obs) -> JointCentresResult:
     anat = _s.anatomical_joints(traj.labels, pos, height_m=height if height > 0 else 1.75)
     has_t = np.isfinite(generic).all(axis=-1).any(axis=0)
     has_a = np.isfinite(anat).all(axis=-1).any(axis=0)
-    # trajectories labelled against the marker set's own template (a synthetic capture, traj.segments
-    # given) trust the template first; a file from elsewhere trusts the anatomical landmark rules first
-    template_first = traj.segments is not None
     use_t = has_t & (template_first | ~has_a)
     source = np.where(use_t, "template", "anatomical")
     first, second = np.where(use_t[None, :, None], generic, anat), np.where(use_t[None, :, None], anat, generic)
@@ -404,6 +406,27 @@ def _unlabelled(traj, config, obs) -> JointCentresResult:
                     anchor = 0.5 * (cents[names[a]] + cents[names[b]])
                     fit = _c.sara(ma[0], ma[1], mb[0], mb[1], anchor=anchor)
                 cands.append((fit.residual_m, names[a], names[b], fit))
+    # markers in no subset (a segment with one or two markers, e.g. a forearm): grouped by the same
+    # clustering, each group's centre of rotation in a subset's frame by a sphere fit
+    small = _small_groups(pos, rs, config.subset_threshold_m)
+    for g, idx in small.items():
+        subsets[g] = idx
+        with _r._quiet():
+            gc = np.nanmean(pos[:, list(idx)], axis=1)
+        for a in names:
+            if motions[a] is None:
+                continue
+            try:
+                fit = _c.sphere_centre(motions[a][0], motions[a][1], pos[:, list(idx)])
+            except InputError:
+                continue
+            with _r._quiet():
+                da = np.nanmedian(np.linalg.norm(fit.centre - cents[a], axis=1))
+                dg = np.nanmedian(np.linalg.norm(fit.centre - gc, axis=1))
+            if fit.residual_m <= 0.5 * config.max_joint_residual_m and max(da, dg) < 0.4 \
+                    and fit.rom_deg[0] >= config.min_rom_deg and dg > 0.02:
+                cands.append((fit.residual_m, a, g, fit))
+    names = list(subsets)
     # a spanning forest of the best joints (a body's subsets form a tree)
     parent = {n: n for n in names}
 
@@ -420,14 +443,31 @@ def _unlabelled(traj, config, obs) -> JointCentresResult:
             fits[f"{a}-{b}"] = fit
             obs.report("text", text=f"{a}-{b}: {fit.method}, residual {1e3 * fit.residual_m:.1f} mm, "
                        f"range of motion {fit.rom_deg[0]:.0f} deg", name="markers/joints")
-    messages = [f"no labels: {len(subsets)} rigid subsets and {len(fits)} centres of rotation between them; "
+    messages = [f"no labels: {len(rs.subsets)} rigid subsets and {len(fits)} centres of rotation; "
                 "the 14-joint skeleton needs labelled markers"]
-    if rs.leftover:
-        messages.append(f"markers in no rigid subset: {[traj.labels[i] for i in rs.leftover]}")
+    if small:
+        messages.append("markers in groups too small for a rigid motion (centres by sphere fits): "
+                        + "; ".join(f"{g}: {[traj.labels[i] for i in idx]}" for g, idx in small.items()))
     return JointCentresResult(names=SKELETON_14.joint_names, joints=np.full((t, 14, 3), np.nan),
                               method=("none",) * 14, residual_m=np.full(14, np.nan), rom_deg=np.full(14, np.nan),
                               fits=fits, subsets=subsets, height_m=float("nan"), lengths={},
                               messages=messages, labelled=False, marker_set="none")
+
+
+def _small_groups(pos, rs, threshold_m) -> dict:
+    """The markers no rigid subset holds, clustered by their distance std into groups of one or two."""
+    left = list(rs.leftover)
+    if not left:
+        return {}
+    if len(left) == 1:
+        return {"G0": (left[0],)}
+    from sklearn.cluster import AgglomerativeClustering
+
+    std = rs.std[np.ix_(left, left)]
+    d = np.where(np.isfinite(std), std, 1e3)
+    lab = AgglomerativeClustering(n_clusters=None, metric="precomputed", linkage="average",
+                                  distance_threshold=threshold_m).fit(d).labels_
+    return {f"G{k}": tuple(left[i] for i in np.flatnonzero(lab == u)) for k, u in enumerate(np.unique(lab))}
 
 
 def trajectories_from_c3d(path, *, require_labels: bool = False):

@@ -310,6 +310,31 @@ def fit_stature(positions: np.ndarray, groups: dict, marker_set, labels, *,
     return float(res.x)
 
 
+def stature_from_legs(joints: np.ndarray) -> float:
+    """Stature from the leg length of 14 joints (thigh + shank = 0.471 x stature, ANSUR II medians).
+
+    Parameters
+    ----------
+    joints : ndarray of shape (T, 14, 3)
+
+    Returns
+    -------
+    float
+        Metres, clipped to 1.4-2.1; 0.0 when no leg is seen.
+    """
+    from toolkit.anthropometry.proportions import STATURE_RATIOS as r
+
+    legs = []
+    for s in "lr":
+        h, k, a = (joints[:, J14[f"{s}_{n}"]] for n in ("hip", "knee", "ankle"))
+        v = np.linalg.norm(h - k, axis=-1) + np.linalg.norm(k - a, axis=-1)
+        legs.append(v[np.isfinite(v)])
+    v = np.concatenate(legs)
+    if not v.size:
+        return 0.0
+    return float(np.clip(np.median(v) / (r["hip_height"] - r["ankle_height"]), 1.4, 2.1))
+
+
 def bone_lengths(joints: np.ndarray) -> dict:
     """Median length of every bone of :data:`SKELETON_14` over frames, metres (NaN if never seen)."""
     lengths = SKELETON_14.bone_lengths(np.nan_to_num(joints, nan=np.nan))
