@@ -207,6 +207,19 @@ class _Stage1:
         return SilhouetteDatabase.load(db)
 
 
+class _Only:
+    """Passes on the reports made in the given frames (a report's ``frame`` holds for those after it)."""
+
+    def __init__(self, observer, frames: set):
+        self.observer, self.frames, self.frame = observer, frames, None
+
+    def report(self, kind: str, **data) -> None:
+        if data.get("frame") is not None:
+            self.frame = int(data["frame"])
+        if self.frame is None or self.frame in self.frames:
+            self.observer.report(kind, **data)
+
+
 def _recording_observer(folder, ds, novel: list, config: FreeViewpointRunConfig):
     """The rerun observer of this part of the run (None without a recording)."""
     if folder.recording is None:
@@ -430,16 +443,21 @@ def run(config: FreeViewpointRunConfig, *, dataset, out, observer=None, log=prin
         rig, held = (full_rig, None) if config.hold_out is None else split_rig(full_rig, config.hold_out)
         if obs is not None:
             obs.report("rig", rig=rig)
-        stage1 = _Stage1(ds, rig, config, kp_dir, masks_dir, out, obs)
+        # a resumed run's stage 1 goes through the finished frames again (not reported): its temporal state
+        # at the frames to do is then the one an uninterrupted run had
+        wanted = set(todo)
+        stage1 = _Stage1(ds, rig, config, kp_dir, masks_dir, out, None if obs is None else _Only(obs, wanted))
+        todo = list(range(todo[-1] + 1)) if todo else []
         task = _FrameTask(uuid.uuid4().hex, ds.root, out, config, rig, tuple(novel), held, n, kp_dir, masks_dir)
 
         def frames():  # stage 1 in frame order (its temporal term, tracking), here, ahead of the workers
             for est, masks in stage1.estimates(todo):
-                yield est, masks, {c: ds.frame(c, est.frame) for c in rig.names}  # decoded by stage 1 already
+                if est.frame in wanted:
+                    yield est, masks, {c: ds.frame(c, est.frame) for c in rig.names}  # decoded by stage 1 already
 
         try:
             processed, stopped, seconds = run_frames(
-                task, frames(), total=len(todo), parallel=ParallelConfig(config.workers, config.scheduler),
+                task, frames(), total=len(wanted), parallel=ParallelConfig(config.workers, config.scheduler),
                 observer=obs, progress=config.progress, desc="free viewpoint")
         finally:
             drop_cached(task.token)
