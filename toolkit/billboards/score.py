@@ -191,21 +191,23 @@ def _norm3(a: np.ndarray) -> np.ndarray:
     return np.sqrt(_dot3(a, a))
 
 
+#: The float32 sum of ``ndarray.sum`` (the same reduction, without the method's Python wrapper).
+_add_reduce = np.add.reduce
+
+
 @functools.lru_cache(maxsize=None)
 def _pair_masks(b1: int, b2: int) -> tuple:
     """Which pixel codes of the batched score count for a camera pair (eq. 3 with occlusion).
 
     A pixel code has 2 bits per camera: bit ``b`` set where the camera's warped part is
     active, bit ``b + 1`` where another part hides the pixel in that camera; ``b1``, ``b2``
-    are the pair's.  Returns int64 masks over all codes (256 when ``b2 <= 6``): active in both;
-    active in camera 1 and not hidden in camera 2 (or active there too); the same for
-    camera 2; and the two active bits ``(1 << b1) | (1 << b2)``.
+    are the pair's.  Returns an int64 matrix (n_codes, 3) over all codes (256 when ``b2 <= 6``),
+    its columns: active in both; active in camera 1 and not hidden in camera 2 (or active
+    there too); the same for camera 2; and the two active bits ``(1 << b1) | (1 << b2)``.
     """
     c = np.arange(256 if b2 <= 6 else 1 << (b2 + 2))
     a1, h1, a2, h2 = ((c >> b1) & 1) > 0, ((c >> (b1 + 1)) & 1) > 0, ((c >> b2) & 1) > 0, ((c >> (b2 + 1)) & 1) > 0
-    both = a1 & a2
-    return (both.astype(np.int64), (a1 & (~h2 | a2)).astype(np.int64), (a2 & (~h1 | a1)).astype(np.int64),
-            (1 << b1) | (1 << b2))
+    return np.stack([a1 & a2, a1 & (~h2 | a2), a2 & (~h1 | a1)], axis=1).astype(np.int64), (1 << b1) | (1 << b2)
 
 
 class PositionScorer:
@@ -249,22 +251,30 @@ class PositionScorer:
         for ci, cam in enumerate(rig):
             per = {}
             img = np.asarray(images[cam.name])
+            M = members[cam.name]
+            rows, cols = np.flatnonzero(M.any(axis=1)), np.flatnonzero(M.any(axis=0))
+            # the parts' pixels are looked for in the box of the labelled pixels only
+            r0, c0 = (int(rows[0]), int(cols[0])) if rows.size else (0, 0)
+            Mc = M[r0:int(rows[-1]) + 1, c0:int(cols[-1]) + 1] if rows.size else M[:0, :0]
             for p in range(skeleton.n_parts):
-                m = (members[cam.name] & np.uint16(1 << (p + 1))) != 0
+                bit = np.uint16(1 << (p + 1))
+                m = (Mc & bit) != 0
                 n = int(np.count_nonzero(m))
                 if n < billboard_config.min_pixels:
                     continue
                 ys, xs = np.nonzero(m)
-                x0, x1, y0, y1 = xs.min(), xs.max() + 1, ys.min(), ys.max() + 1
+                x0, x1, y0, y1 = xs.min() + c0, xs.max() + 1 + c0, ys.min() + r0, ys.max() + 1 + r0
+                mm = m[y0 - r0:y1 - r0, x0 - c0:x1 - c0]
                 patch = np.zeros((y1 - y0, x1 - x0, 4), np.uint8)
                 patch[..., :3] = img[y0:y1, x0:x1]
-                patch[..., 3] = np.where(m[y0:y1, x0:x1], 255, 0)
-                outline = segment_outline(m[y0:y1, x0:x1]) + [x0, y0]
+                patch[..., 3] = np.where(mm, 255, 0)
+                outline = segment_outline(mm) + [x0, y0]
                 _, d = cam.rays(outline)
                 # occluders may lie outside the part's bounding box: keep a border around it
                 bx0, by0 = max(x0 - self._border, 0), max(y0 - self._border, 0)
                 bx1, by1 = min(x1 + self._border, cam.width), min(y1 + self._border, cam.height)
-                occ = ((members[cam.name][by0:by1, bx0:bx1] != 0) & ~m[by0:by1, bx0:bx1]).astype(np.uint8)
+                region = M[by0:by1, bx0:bx1]
+                occ = ((region != 0) & ((region & bit) == 0)).astype(np.uint8)
                 per[p] = _Source(patch, occ, np.array([x0, y0], float), np.array([bx0, by0], float), d, n,
                                  bool(occ.any()), occ * np.uint8(2))
             self.sources.append(per)
@@ -600,8 +610,8 @@ class PositionScorer:
         """
         src = self.sources[ci][part]
         buf = np.zeros((total, 4), np.uint8)
-        hid = np.zeros(total, np.uint8)
         occ = self.config.occlusion and src.has_occluder
+        hid = np.zeros(total, np.uint8) if occ else None
         M, kt = self._M[vi][ci], self._kt[vi][ci]
         # H = M + kt row^T, then into the region of the view
         H = M + kt[None, :, None] * rows[sel][:, None, :]
@@ -622,7 +632,8 @@ class PositionScorer:
                 cv2.warpPerspective(src.hidden, Ho[j], (w[j], h[j]), dst=hid[a:b].reshape(h[j], w[j]), flags=near,
                                     borderMode=const)
         code = (buf[:, 3] >= self._thr).view(np.uint8)
-        code |= hid
+        if occ:
+            code |= hid
         return buf, code
 
     def _pair_values(self, pc, hist, masks, rgba1, rgba2, n):
@@ -631,9 +642,9 @@ class PositionScorer:
         ``pc`` (total,) is the pixel code, ``hist`` (n, n_codes) its histogram per position and
         ``masks`` the pair's :func:`_pair_masks`; ``rgba1``, ``rgba2`` (total, 4) the two warps.
         """
-        both, act1, act2, bits = masks
-        n_both = hist @ both
-        n_either = hist @ act1 + hist @ act2 - n_both
+        counts, bits = masks
+        n_both, n_a1, n_a2 = (hist @ counts).T
+        n_either = n_a1 + n_a2 - n_both
         idx = np.flatnonzero((pc & bits) == bits)
         out = np.zeros(n)
         if idx.size == 0:
@@ -646,7 +657,7 @@ class PositionScorer:
         nb, ne = n_both.tolist(), n_either.tolist()
         for j in range(n):
             if nb[j] > 0 and ne[j] > 0:  # Σ s(p) / #active, with part_score's float32 sum of the same values
-                out[j] = float(nb[j] - e[ends[j] - nb[j]:ends[j]].sum()) / ne[j]
+                out[j] = float(nb[j] - _add_reduce(e[ends[j] - nb[j]:ends[j]])) / ne[j]
         return out
 
     def move_evidence(self, joints: np.ndarray, joint: int, position: np.ndarray,
