@@ -1,0 +1,42 @@
+"""Joint centres on the real C3D captures (skipped when ../shared/realdata is absent)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from toolkit.markers.functional import joint_centres, trajectories_from_c3d
+from toolkit.markers.skeleton_fit import J14, harrington_hips
+
+pytestmark = pytest.mark.realdata
+
+
+def _file(*parts) -> Path:
+    env = os.environ.get("TOOLKIT_REALDATA")
+    root = Path(env) if env else Path(__file__).resolve().parents[3] / "shared" / "realdata"
+    path = root.joinpath(*parts)
+    if not path.is_file():
+        pytest.skip(f"real data not found at {path}")
+    return path
+
+
+def test_right_hip_functional_centre_near_harrington():
+    tr = trajectories_from_c3d(_file("c3d_functional", "right_hip.c3d"))
+    res = joint_centres(tr)
+    assert res.method[J14["r_hip"]] == "score" and res.rom_deg[J14["r_hip"]] > 40
+    P = {lab: tr.positions[:, i] for i, lab in enumerate(tr.labels)}
+    _, rh = harrington_hips(P["LASIS"], P["RASIS"], P["LPSIS"], P["RPSIS"])
+    d = np.nanmedian(np.linalg.norm(res.joints[:, J14["r_hip"]] - rh, axis=1))
+    assert d < 0.025, d
+    assert any("functional centres need movement" in m for m in res.messages)  # the left side stood still
+
+
+def test_unlabelled_arm_subsets_and_centres():
+    tr = trajectories_from_c3d(_file("c3d_functional", "arm-4-2-3_clean_120fps.c3d"))
+    res = joint_centres(tr)
+    assert not res.labelled
+    assert sorted(len(s) for s in res.subsets.values()) == [2, 3, 4]
+    assert len(res.fits) == 2 and all(f.residual_m < 0.015 for f in res.fits.values())
