@@ -117,20 +117,24 @@ def _identify(points, marker_set, config, labelling, frame) -> Identification:
     file_frame, given = labelling
     from_file = identify_from_labelling(points, marker_set.labels, given, config.labelling_tolerance_m)
     idx = [marker_set.index(k) for k in given]
-    missed = [k for k, i in zip(given, idx) if from_file[i] < 0]
-    if missed:
+    found = [k for k, i in zip(given, idx) if from_file[i] >= 0]
+    if len(found) < 0.5 * len(given):
+        missed = [k for k in given if k not in found]
         raise InputError(f"labelling file: {', '.join(missed[:5])}",
-                         f"a reconstructed marker within {config.labelling_tolerance_m} m in frame {frame}",
-                         "none")
-    agree = np.mean(ident.point_of_marker[idx] == from_file[idx])
+                         f"a reconstructed marker within {config.labelling_tolerance_m} m in frame {frame} "
+                         f"(for at least half the labels)", f"none for {len(missed)} of {len(given)}")
+    fitted = ident.fitted.copy()
+    fitted[idx] = np.array([given[k] for k in given])  # where the user saw them: the tracker's hint
+    sure = [i for i in idx if from_file[i] >= 0]
+    agree = np.mean(ident.point_of_marker[sure] == from_file[sure])
     match = from_file.copy()
     if agree >= 0.9:  # the template fit agrees with the user: keep its labels for the others
         taken = set(from_file[from_file >= 0].tolist())
         for i in np.flatnonzero(match < 0):
             p = ident.point_of_marker[i]
-            if p >= 0 and p not in taken:
+            if p >= 0 and p not in taken and marker_set.labels[i] not in given:
                 match[i] = p
-    return Identification(match, ident.fitted, ident.residual_m, ident.scale, ident.heading_deg, ident.rejected)
+    return Identification(match, fitted, ident.residual_m, ident.scale, ident.heading_deg, ident.rejected)
 
 
 def label_capture(capture, marker_set: MarkerSet, *, config: LabelConfig = LabelConfig(), labelling=None,

@@ -69,6 +69,9 @@ class TrackConfig:
         2D gate around a projected prediction, pixels.
     match_px : float
         Largest reprojection error of a 2D-tracked marker, pixels.
+    two_view_gate_m : float
+        Largest distance between a prediction and a marker seen in two views
+        only (two views always agree along the epipolar line), metres.
     bridge_min_mates : int
         Segment mates seen both now and when the marker was last measured
         needed to bridge it (3 fix a rigid motion).
@@ -85,6 +88,7 @@ class TrackConfig:
     continuation_cap_m: float = 0.03
     track_px: float = 6.0
     match_px: float = 3.5
+    two_view_gate_m: float = 0.02
     bridge_min_mates: int = 3
     bridge_rms_m: float = 0.012
     bridge_max_frames: int = 300
@@ -270,7 +274,9 @@ class Tracker:
                 if dist[j] < c.track_px:
                     views[cam] = j
             X, views = self._triangulate_views(blobs, views)
-            if X is None or np.linalg.norm(X - pred[i]) > gate[i]:
+            if X is None:
+                continue
+            if np.linalg.norm(X - pred[i]) > (gate[i] if (views >= 0).sum() >= 3 else c.two_view_gate_m):
                 continue
             for cam in np.flatnonzero(views >= 0):
                 used[cam][views[cam]] = True
@@ -332,7 +338,9 @@ class Tracker:
         t.positions[f, ok] = rec.points[point[ok]]
         t.state[f, ok] = rec.state[point[ok]]
         blobs = self.blobs(f)
-        used = used_blob_masks(rec.views[point[ok]], [b.shape[0] for b in blobs])
+        # blobs of any trinocular reconstruction belong to some marker: not for 2D tracking
+        used = used_blob_masks(rec.views[(rec.state == TRINOCULAR) | np.isin(np.arange(len(rec)), point)],
+                               [b.shape[0] for b in blobs])
         for i, X, n_views in self.track_2d(f, pred, gate, ~ok, used):
             t.positions[f, i] = X
             t.state[f, i] = TRINOCULAR if n_views >= 3 else TWO_VIEW
