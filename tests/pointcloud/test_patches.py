@@ -33,7 +33,7 @@ def test_without_outlier_removal_the_flatness_test_rejects_a_volume_of_points():
     rng = np.random.default_rng(1)
     surface = _sphere(rng, 20000)
     thick = rng.normal([0.6, 0.0, 1.0], 0.05, (3000, 3))  # a volume of points, not a surface
-    p = surface_patches(np.concatenate([surface, thick]), PatchConfig(sor_neighbours=0, max_residual_m=0.008))
+    p = surface_patches(np.concatenate([surface, thick]), PatchConfig(patch_m=0.05, min_points=6, sor_neighbours=0, max_residual_m=0.008))
     far = np.linalg.norm(p.centres - [0.6, 0.0, 1.0], axis=1) < 0.12
     assert far.sum() <= 2
     assert len(p) > 150

@@ -61,8 +61,8 @@ class PatchConfig:
         blob, e.g. a small cluster of false matches, is not a piece of the body's surface).
     """
 
-    patch_m: float = 0.05
-    min_points: int = 6
+    patch_m: float = 0.025
+    min_points: int = 4
     max_residual_m: float = 0.012
     trim_sigma: float = 2.0
     sor_neighbours: int = 12
