@@ -33,7 +33,6 @@ corrected cameras.
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 from typing import Mapping
 
@@ -195,19 +194,21 @@ def _norm3(a: np.ndarray) -> np.ndarray:
 _add_reduce = np.add.reduce
 
 
-@functools.lru_cache(maxsize=None)
-def _pair_masks(b1: int, b2: int) -> tuple:
-    """Which pixel codes of the batched score count for a camera pair (eq. 3 with occlusion).
+def _pair_counts() -> np.ndarray:
+    """Which pixel codes of a camera pair count for eq. 3 with occlusion, (16, 3) int64.
 
-    A pixel code has 2 bits per camera: bit ``b`` set where the camera's warped part is
-    active, bit ``b + 1`` where another part hides the pixel in that camera; ``b1``, ``b2``
-    are the pair's.  Returns an int64 matrix (n_codes, 3) over all codes (256 when ``b2 <= 6``),
-    its columns: active in both; active in camera 1 and not hidden in camera 2 (or active
-    there too); the same for camera 2; and the two active bits ``(1 << b1) | (1 << b2)``.
+    A pair's pixel code has bit 0 set where camera 1's warped part is active, bit 1 where
+    another part hides the pixel in camera 1, bits 2 and 3 the same for camera 2.  The
+    columns: active in both; active in camera 1 and not hidden in camera 2 (or active there
+    too); the same for camera 2.  (Part_score's masks: both = a1 & a2 since an active
+    pixel is never occluded in its own camera; a1 & ~(occluded 1 | occluded 2) = a1 & ~occluded 2.)
     """
-    c = np.arange(256 if b2 <= 6 else 1 << (b2 + 2))
-    a1, h1, a2, h2 = ((c >> b1) & 1) > 0, ((c >> (b1 + 1)) & 1) > 0, ((c >> b2) & 1) > 0, ((c >> (b2 + 1)) & 1) > 0
-    return np.stack([a1 & a2, a1 & (~h2 | a2), a2 & (~h1 | a1)], axis=1).astype(np.int64), (1 << b1) | (1 << b2)
+    c = np.arange(16)
+    a1, h1, a2, h2 = (c & 1) > 0, (c & 2) > 0, (c & 4) > 0, (c & 8) > 0
+    return np.stack([a1 & a2, a1 & (~h2 | a2), a2 & (~h1 | a1)], axis=1).astype(np.int64)
+
+
+_PAIR_COUNTS = _pair_counts()
 
 
 class PositionScorer:
@@ -298,6 +299,8 @@ class PositionScorer:
         # so this is the angle between their viewing directions of the subject)
         fw = np.array([c.forward for c in rig])
         self._pair_w = pair_weight(np.arccos(np.clip(fw @ fw.T, -1.0, 1.0)), config.sigma)
+        self._Ms = np.array(self._M)  # (n_views, n_cams, 3, 3)
+        self._kts = np.array(self._kt)  # (n_views, n_cams, 3)
         self._views_R = np.array([v.camera.R for v in self.views])  # (n_views, 3, 3)
         self._views_t = np.array([v.camera.t for v in self.views])
         self._views_K22 = np.array([v.camera.K[:2, :2] for v in self.views])
@@ -514,10 +517,17 @@ class PositionScorer:
         if len(used) >= 2:
             mid = (E[:, 0] + E[:, 1]) / 2.0
             bbs = {ci: f for ci in used if (f := self._footprints(ci, part, E)) is not None}
+            segs, dens = [], {}
             for vi in range(nv):
                 cams = [ci for ci in used if vis[vi, ci]]
                 if len(cams) >= 2:
-                    self._score_view(part, vi, cams, bbs, mid, per_view, per_pair, counts)
+                    dens[vi] = self._view_regions(vi, cams, bbs, mid, per_pair, counts, segs)
+            num = np.zeros((N, nv))
+            if segs:
+                self._score_segments(part, used, bbs, vis, segs, per_pair, num)
+            for vi, den in dens.items():
+                if den > 0:
+                    per_view[:, vi] = num[:, vi] / den
         out = []
         for n in range(N):
             pv = per_view[n]
@@ -525,9 +535,14 @@ class PositionScorer:
             out.append(PartScore(float(pv[ok].mean()) if ok.any() else float("nan"), pv, counts[n], per_pair[n]))
         return out
 
-    def _score_view(self, part: int, vi: int, cams: list, bbs: dict, mid: np.ndarray, per_view, per_pair,
-                    counts) -> None:
-        """Fill view ``vi``'s entries of the batch's scores (eqs. 2-5) for the cameras ``cams``."""
+    def _view_regions(self, vi: int, cams: list, bbs: dict, mid: np.ndarray, per_pair, counts, segs: list) -> float:
+        """The billboards of ``cams`` drawn into view ``vi`` per position, and the region each position's warps cover.
+
+        Appends ``(vi, positions, x0, y0, width, height, {camera: drawn})`` to ``segs`` for the
+        positions with a non-empty region, counts the drawn billboards, sets the view's counted
+        pairs to 0 (their value until scored) and returns the sum of their weights ω (eq. 4's
+        denominator).
+        """
         N = len(mid)
         vc = self.views[vi].camera
         with np.errstate(all="ignore"):
@@ -550,58 +565,60 @@ class PositionScorer:
             y0 = np.maximum(np.floor(lo[:, 1]), 0)
             x1 = np.minimum(np.ceil(hi[:, 0]) + 1, w)
             y1 = np.minimum(np.ceil(hi[:, 1]) + 1, h)
-        anyalive = np.any([a for a in alive.values()], axis=0) if alive else np.zeros(N, bool)
-        has = anyalive & (x1 > x0) & (y1 > y0)
-        sel = np.flatnonzero(has)
-        warped = {ci: a & has for ci, a in alive.items()}
-        for ci in warped:
-            counts[:, vi] += warped[ci]
-        # pair weights and the denominator are those of every pair the view counts
-        pairs = [(cams[i], cams[k]) for i in range(len(cams)) for k in range(i + 1, len(cams))]
+        has = (x1 > x0) & (y1 > y0)
+        if alive:
+            has &= np.logical_or.reduce(list(alive.values()))
+        else:
+            has[:] = False
         den = 0.0
-        for c1, c2 in pairs:
-            den += self._pair_w[c1, c2]
-            per_pair[:, vi, c1, c2] = 0.0
-        num = np.zeros(N)
+        for i in range(len(cams)):
+            for k in range(i + 1, len(cams)):
+                den += self._pair_w[cams[i], cams[k]]
+                per_pair[:, vi, cams[i], cams[k]] = 0.0
+        sel = np.flatnonzero(has)
         if sel.size:
+            drawn = {ci: a[sel] for ci, a in alive.items()}
+            for ci, d in drawn.items():
+                counts[sel, vi] += d
             X0, Y0 = x0[sel].astype(int), y0[sel].astype(int)
-            ww, hh = x1[sel].astype(int) - X0, y1[sel].astype(int) - Y0
-            sizes = ww * hh
-            offs = np.concatenate([[0], np.cumsum(sizes)])
-            total = int(offs[-1])
-            rgba, code = {}, {}
-            for ci in warped:
-                rgba[ci], code[ci] = self._warp_batch(part, vi, ci, bbs[ci]["row"], sel, warped[ci][sel], X0, Y0,
-                                                      ww, hh, offs, total)
-            # one pixel code for the view: 2 bits per camera (active, hidden), one histogram per position
-            wc = [ci for ci in cams if ci in warped]
-            seg = np.repeat(np.arange(sel.size), sizes)
-            combined = None
-            if len(wc) <= 4:
-                combined = np.zeros(total, np.uint8)
-                for q, ci in enumerate(wc):
-                    combined |= code[ci] << np.uint8(2 * q)
-                hist = np.bincount((seg << 8) + combined, minlength=sel.size * 256).reshape(sel.size, 256)
-            for c1, c2 in pairs:
-                if c1 not in warped or c2 not in warped:
-                    continue
-                if combined is not None:
-                    q1, q2 = wc.index(c1), wc.index(c2)
-                    pc, h, masks = combined, hist, _pair_masks(2 * q1, 2 * q2)
-                else:  # more cameras than bits: the pair's own code
-                    pc = code[c1] | (code[c2] << np.uint8(2))
-                    h = np.bincount((seg << 4) + pc, minlength=sel.size * 16).reshape(sel.size, 16)
-                    masks = _pair_masks(0, 2)
-                pp = self._pair_values(pc, h, masks, rgba[c1], rgba[c2], sel.size)
-                both = warped[c1][sel] & warped[c2][sel]
-                v = np.where(both, pp, 0.0)
-                per_pair[sel, vi, c1, c2] = v
-                num[sel] += self._pair_w[c1, c2] * v
-        if den > 0:
-            per_view[:, vi] = num / den
+            segs.append((vi, sel, X0, Y0, x1[sel].astype(int) - X0, y1[sel].astype(int) - Y0, drawn))
+        return den
 
-    def _warp_batch(self, part, vi, ci, rows, sel, do, X0, Y0, ww, hh, offs, total):
-        """Warp camera ci's patch (and occluders) of the part into each selected position's region of view vi.
+    def _score_segments(self, part: int, used: list, bbs: dict, vis, segs: list, per_pair, num) -> None:
+        """Warp every (view, position) region of ``segs`` into one buffer per camera and score the pairs there.
+
+        Adds ``ω(β) * pair value`` to ``num`` (N, n_views) pair by pair in part_score's order
+        (pairs ``i < k``), so the sums are the same.
+        """
+        sv = np.concatenate([np.full(len(s[1]), s[0]) for s in segs])
+        sn = np.concatenate([s[1] for s in segs])
+        X0, Y0, ww, hh = (np.concatenate([s[i] for s in segs]) for i in (2, 3, 4, 5))
+        nseg = len(sv)
+        sizes = ww * hh
+        offs = np.concatenate([[0], np.cumsum(sizes)])
+        total = int(offs[-1])
+        drawn = {ci: np.concatenate([s[6].get(ci, np.zeros(len(s[1]), bool)) for s in segs]) for ci in used}
+        rgba, code = {}, {}
+        for ci in used:
+            if ci in bbs and drawn[ci].any():
+                rgba[ci], code[ci] = self._warp_segments(part, ci, bbs[ci]["row"], sv, sn, drawn[ci], X0, Y0, ww, hh,
+                                                         offs, total)
+        seg16 = np.repeat(np.arange(0, 16 * nseg, 16), sizes)
+        for i in range(len(used)):
+            for k in range(i + 1, len(used)):
+                c1, c2 = used[i], used[k]
+                if c1 not in code or c2 not in code:
+                    continue  # a camera without a billboard here: the pair scores 0 where counted
+                pc = code[c1] | (code[c2] << np.uint8(2))
+                hist = np.bincount(seg16 + pc, minlength=nseg * 16).reshape(nseg, 16)
+                pp = self._pair_values(pc, hist, rgba[c1], rgba[c2], nseg)
+                counted = vis[sv, c1] & vis[sv, c2]
+                v = np.where(counted & drawn[c1] & drawn[c2], pp, 0.0)
+                per_pair[sn[counted], sv[counted], c1, c2] = v[counted]
+                num[sn, sv] += self._pair_w[c1, c2] * v
+
+    def _warp_segments(self, part, ci, rows, sv, sn, do, X0, Y0, ww, hh, offs, total):
+        """Warp camera ci's patch (and occluders) of the part into each (view ``sv``, position ``sn``) region.
 
         Returns the RGBA buffer (total, 4) uint8 and the per-pixel code (total,) uint8:
         bit 0 the pixel is active (alpha >= the threshold), bit 1 another part hides it.
@@ -612,9 +629,8 @@ class PositionScorer:
         buf = np.zeros((total, 4), np.uint8)
         occ = self.config.occlusion and src.has_occluder
         hid = np.zeros(total, np.uint8) if occ else None
-        M, kt = self._M[vi][ci], self._kt[vi][ci]
         # H = M + kt row^T, then into the region of the view
-        H = M + kt[None, :, None] * rows[sel][:, None, :]
+        H = self._Ms[sv, ci] + self._kts[sv, ci][:, :, None] * rows[sn][:, None, :]
         H[:, 0] += -X0[:, None] * H[:, 2]
         H[:, 1] += -Y0[:, None] * H[:, 2]
         Hp = H.copy()
@@ -636,16 +652,15 @@ class PositionScorer:
             code |= hid
         return buf, code
 
-    def _pair_values(self, pc, hist, masks, rgba1, rgba2, n):
-        """Eq. 3 of one camera pair for each of n positions.
+    def _pair_values(self, pc, hist, rgba1, rgba2, n):
+        """Eq. 3 of one camera pair for each of n regions.
 
-        ``pc`` (total,) is the pixel code, ``hist`` (n, n_codes) its histogram per position and
-        ``masks`` the pair's :func:`_pair_masks`; ``rgba1``, ``rgba2`` (total, 4) the two warps.
+        ``pc`` (total,) is the pair's pixel code (:data:`_PAIR_COUNTS`), ``hist`` (n, 16) its
+        histogram per region; ``rgba1``, ``rgba2`` (total, 4) the two warps.
         """
-        counts, bits = masks
-        n_both, n_a1, n_a2 = (hist @ counts).T
+        n_both, n_a1, n_a2 = (hist @ _PAIR_COUNTS).T
         n_either = n_a1 + n_a2 - n_both
-        idx = np.flatnonzero((pc & bits) == bits)
+        idx = np.flatnonzero((pc & 5) == 5)
         out = np.zeros(n)
         if idx.size == 0:
             return out
