@@ -90,6 +90,10 @@ class JointCentresConfig:
         A SARA fit whose two smallest singular values are closer than this
         ratio did not see a clean hinge (the axis is not determined); it is
         not used either.
+    max_generic_distance_m : float
+        A functional centre farther than this (median over frames, metres)
+        from the generic skeleton's joint is not used (mislabelled markers
+        that still move rigidly); 0 = no such check.
     height_m : float
         Performer's stature, metres; 0 = fitted from the markers.
     """
@@ -103,6 +107,7 @@ class JointCentresConfig:
     max_joint_residual_m: float = 0.03
     max_residual_m: float = 0.015
     max_hinge_conditioning: float = 0.2
+    max_generic_distance_m: float = 0.06
     height_m: float = 0.0
 
 
@@ -220,6 +225,10 @@ def _extend(groups: dict, std: np.ndarray, tol: float) -> dict:
     return out
 
 
+#: A frame whose subset fit leaves this RMS (metres) after the outlier pass has no motion (mislabels).
+FRAME_RMS_M = 0.01
+
+
 def _motion(pos: np.ndarray):
     if pos.shape[1] < 3:
         return None
@@ -227,7 +236,9 @@ def _motion(pos: np.ndarray):
         ref = _r.reference_shape(pos)
     except InputError:
         return None
-    rot, trans, _ = _r.rigid_motions(ref, pos)
+    rot, trans, rms = _r.rigid_motions(ref, pos)
+    bad = ~(rms <= FRAME_RMS_M)
+    rot[bad], trans[bad] = np.nan, np.nan
     if np.isfinite(trans).all(axis=1).sum() < 3:
         return None
     return rot, trans
@@ -262,6 +273,12 @@ def _fit_joint(kind, parent_pos, child_pos, anchor, config):
     if fit.method == "sara" and not fit.conditioning <= config.max_hinge_conditioning:
         return fit, (f"no clean hinge axis (singular value ratio {fit.conditioning:.2f} > "
                      f"{config.max_hinge_conditioning:.2f})")
+    if config.max_generic_distance_m > 0 and anchor is not None:
+        with _r._quiet():
+            d = float(np.nanmedian(np.linalg.norm(fit.centre - anchor, axis=1)))
+        if d > config.max_generic_distance_m:
+            return fit, (f"the {fit.method} centre lies {1e3 * d:.0f} mm from the generic skeleton's joint "
+                         f"(over {1e3 * config.max_generic_distance_m:.0f} mm: mislabelled markers?)")
     return fit, ""
 
 

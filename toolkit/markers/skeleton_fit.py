@@ -228,7 +228,7 @@ SEGMENT_JOINTS = {
 
 
 def template_joints(positions: np.ndarray, groups: dict, template_markers: np.ndarray,
-                    template_joints14: np.ndarray) -> tuple[np.ndarray, dict]:
+                    template_joints14: np.ndarray, *, max_rms_m: float = 0.02) -> tuple[np.ndarray, dict]:
     """Joints carried into each frame by rigid fits of each segment's template markers.
 
     Parameters
@@ -240,6 +240,8 @@ def template_joints(positions: np.ndarray, groups: dict, template_markers: np.nd
     template_markers : ndarray of shape (M, 3)
         The template's markers (world, neutral pose).
     template_joints14 : ndarray of shape (14, 3)
+    max_rms_m : float
+        A segment's frame whose fit leaves a larger RMS carries no joint (mislabelled markers).
 
     Returns
     -------
@@ -258,6 +260,7 @@ def template_joints(positions: np.ndarray, groups: dict, template_markers: np.nd
             continue
         ref = template_markers[idx]
         rot, trans, r = rigid_motions(ref, positions[:, idx])
+        rot[~(r <= max_rms_m)] = np.nan  # a frame the template does not fit (mislabels): no joint from it
         with _quiet():
             rms[seg] = float(np.nanmedian(r)) if np.isfinite(r).any() else float("nan")
         for name in SEGMENT_JOINTS[seg]:
