@@ -33,6 +33,8 @@ from toolkit.pipeline.run import RunResult, open_run
 
 #: Depth file readers (``"auto"``: by suffix).
 READERS = ("auto", "png", "raw", "open3d", "npy")
+#: Frames per part of the recording (a killed run's finished parts open: docs/parallel.md).
+RECORDING_PART_FRAMES = 30
 
 
 @dataclass(frozen=True)
@@ -175,8 +177,12 @@ def _track(config: DepthTrackingRunConfig, inp, n: int, observer):
             images.keep(i, d)
             yield d
 
+    checkpoint = getattr(observer, "checkpoint", None)
+
     def step(r):
         bar.update(1)
+        if callable(checkpoint) and (r.index + 1) % RECORDING_PART_FRAMES == 0:
+            checkpoint()
         bar.set_postfix(state=STATE_NAMES[r.state])
         images.draw(r)
 
@@ -212,7 +218,8 @@ def _write(out: Path, res, inp, n: int) -> dict | None:
 def _recording(out: Path, recording_id: str):
     from toolkit.viz import RerunObserver
 
-    return RerunObserver(application_id="depth_tracking", path=out / "recording.rrd", recording_id=recording_id)
+    return RerunObserver(application_id="depth_tracking", path=out / "recording.rrd", recording_id=recording_id,
+                         parts=True)
 
 
 def run(config: DepthTrackingRunConfig, *, dataset, out, observer=None, log=print) -> RunResult:

@@ -30,6 +30,7 @@ own observer (one recording, in task order): :func:`replay`.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import re
 from collections import OrderedDict
 from collections.abc import Callable, Iterable
@@ -194,7 +195,7 @@ def _client(config: ParallelConfig):
             raise InputError("scheduler (--scheduler)", "the address of a running Dask scheduler",
                              f"{config.scheduler!r}: {e}") from None
     cluster = LocalCluster(n_workers=int(config.workers), threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=40)
+                           dashboard_address=":0", silence_logs=40)  # a free port: never "8787 in use"
     client = Client(cluster)
     client._toolkit_cluster = cluster  # closed with the client (_close)
     return client
@@ -261,9 +262,21 @@ def map_tasks(fn: Callable, tasks: Iterable[tuple], *, parallel: ParallelConfig 
 
 def _map_dask(fn, tasks, parallel: ParallelConfig, give, bar) -> None:
     """:func:`map_tasks` on a Dask cluster: submit ahead, collect as completed, hand on in order."""
+    from concurrent.futures import ThreadPoolExecutor
+
     from dask.distributed import as_completed
 
-    client = _client(parallel)
+    tasks = iter(tasks)
+    with ThreadPoolExecutor(1) as starter:  # the cluster starts while the first task's arguments are made
+        starting = starter.submit(_client, parallel)
+        try:
+            first = next(tasks, None)
+        except BaseException:
+            _close(starting.result())
+            raise
+        client = starting.result()
+    if first is not None:
+        tasks = itertools.chain([first], tasks)
     futures: dict = {}
     try:
         slots = max(1, sum(client.nthreads().values())) if parallel.scheduler is not None else int(parallel.workers)
