@@ -109,3 +109,17 @@ def test_recipe_bad_inputs(tmp_path, capsys):
     (tmp_path / "empty").mkdir()
     assert recipe.main([str(tmp_path / "empty"), "--out", str(tmp_path / "o3")]) == 2
     assert "calibration" in capsys.readouterr().err
+
+
+def test_recording_reports_are_declared():
+    from toolkit.markers.functional import joint_centres
+    from toolkit.observe import RecordingObserver
+    from toolkit.pipeline.joint_centres import report_centres
+
+    traj, _ = rom_trial("plug-in-gait", n_frames=50)
+    obs = RecordingObserver()  # strict: an undeclared kind or field fails
+    report_centres(obs, traj, joint_centres(traj, observer=obs), max_frames=20)
+    assert {"joints3d", "lines3d", "points3d", "skeleton", "text"} <= obs.kinds
+    assert len(obs.of_kind("joints3d")) == 20
+    assert any(d.get("name") == "markers/spheres" for d in obs.of_kind("points3d"))
+    assert any(d.get("name") == "markers/axes" for d in obs.of_kind("lines3d"))
