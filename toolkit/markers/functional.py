@@ -107,7 +107,7 @@ class JointCentresConfig:
     max_joint_residual_m: float = 0.03
     max_residual_m: float = 0.015
     max_hinge_conditioning: float = 0.2
-    max_generic_distance_m: float = 0.06
+    max_generic_distance_m: float = 0.04
     height_m: float = 0.0
 
 
