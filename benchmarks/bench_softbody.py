@@ -96,7 +96,7 @@ def scene_specs(n_scenes: int, frames: int, seed0: int = 1800):
             seed = seed0 + 17 * i + (0 if kind == "depth" else 500)
             height = float(np.random.default_rng(seed).uniform(1.60, 1.90))
             motion = MOTIONS[i % len(MOTIONS)]
-            out.append((f"{kind}_{motion}_s{seed}", kind,
+            out.append((f"{kind}_{motion}_s{seed}_f{frames}", kind,
                         template.format(seed=seed, frames=frames, height=height, motion=motion)))
     return out
 
@@ -188,18 +188,18 @@ COLUMNS = ("mpjpe_track", "mpjpe_global", "bone_track", "bone_global", "surface_
 
 def report(rows: list) -> bool:
     """Print the table, the medians and worst deciles; True when the targets are met."""
-    head = f"{'scene':<28}" + "".join(f"{c:>15}" for c in COLUMNS)
+    head = f"{'scene':<34}" + "".join(f"{c:>15}" for c in COLUMNS)
     print(head)
     for r in rows:
-        print(f"{r['scene']:<28}" + "".join(f"{r[c]:>15.1f}" if not c.endswith("_s") else f"{r[c]:>15.2f}"
+        print(f"{r['scene']:<34}" + "".join(f"{r[c]:>15.1f}" if not c.endswith("_s") else f"{r[c]:>15.2f}"
                                           for c in COLUMNS))
     ok = True
     for kind in sorted({r["kind"] for r in rows}) + ["all"]:
         sel = [r for r in rows if kind in ("all", r["kind"])]
         med = {c: float(np.median([r[c] for r in sel])) for c in COLUMNS}
         worst = {c: float(np.percentile([r[c] for r in sel], 90)) for c in COLUMNS}
-        print(f"{'median ' + kind:<28}" + "".join(f"{med[c]:>15.2f}" for c in COLUMNS))
-        print(f"{'worst decile ' + kind:<28}" + "".join(f"{worst[c]:>15.2f}" for c in COLUMNS))
+        print(f"{'median ' + kind:<34}" + "".join(f"{med[c]:>15.2f}" for c in COLUMNS))
+        print(f"{'worst decile ' + kind:<34}" + "".join(f"{worst[c]:>15.2f}" for c in COLUMNS))
         if kind == "all":
             ok = (med["mpjpe_global"] <= TARGET_MPJPE_MM and med["bone_global"] <= TARGET_BONE_MM
                   and med["mpjpe_global"] < med["mpjpe_track"])

@@ -91,3 +91,22 @@ def test_control_points_back_to_joints():
     j13, _ = control_points(j14, 1.74)
     back = joints14_from_control13(j13, 1.74)
     assert np.abs(back - j14).max() < 0.03  # the neck comes back from a median shoulder drop
+
+
+@pytest.mark.realdata
+@pytest.mark.slow
+def test_real_kinect_stills_are_fitted(tmp_path):
+    """Two real Kinect v1 stills, each from its own depth-tracker skeleton: the surface lies on the user's points."""
+    from tests.depth.conftest import realdata_root
+
+    root = realdata_root() / "kinect_depth"
+    if not root.is_dir():
+        pytest.skip(f"real Kinect frames not found at {root}")
+    out = tmp_path / "kinect"
+    assert fit_soft_body.main([str(root), "--out", str(out), "--independent", "--frames", "2", "--quiet",
+                               "--no-recording", "--images", str(out / "img")]) == 0
+    z = np.load(out / "joints.npz")
+    assert list(z["state"]) == ["ok", "ok"] and np.isfinite(z["joints"]).all()
+    head, neck = z["joints"][:, 0], z["joints"][:, 1]
+    assert (head[:, 2] > neck[:, 2]).all()  # upright in the level frame
+    assert len(list((out / "img").glob("softbody_*.png"))) == 2

@@ -67,7 +67,7 @@ class SoftBodyRunConfig:
     track : TrackConfig
         Frame-to-frame tracking (``viewpoints`` default to the source's camera centres).
     fit : GlobalFitConfig
-        The global fit (``[fit]`` table in TOML).
+        The global fit (``[fit]`` table in TOML; ``viewpoints`` default to the source's camera centres).
     global_fit : bool
         Run the global fit after tracking.
     independent : bool
@@ -355,14 +355,14 @@ def _residuals(t: int, pts: np.ndarray, d: np.ndarray, observer) -> None:
     observer.report("scalar", frame=t, name="softbody/median_residual_mm", value=1000 * float(np.median(d)))
 
 
-def _track_config(config: SoftBodyRunConfig, viewpoints):
-    """The tracker's config, its viewpoints the source's cameras unless the config names some."""
+def _with_viewpoints(cfg, viewpoints):
+    """A tracking or global-fit config whose ``viewpoints`` are the source's cameras unless it names some
+    (the coverage blocks then expect data only on the model's side facing a camera)."""
     from dataclasses import replace
 
-    tcfg = config.track
-    if viewpoints is not None and tcfg.viewpoints is None:
-        tcfg = replace(tcfg, viewpoints=tuple(tuple(map(float, v)) for v in viewpoints))
-    return tcfg
+    if viewpoints is not None and cfg.viewpoints is None:
+        cfg = replace(cfg, viewpoints=tuple(tuple(map(float, v)) for v in viewpoints))
+    return cfg
 
 
 def fit_clouds(model, params0, clouds, config: SoftBodyRunConfig, viewpoints=None, observer=None) -> Fitted:
@@ -373,8 +373,11 @@ def fit_clouds(model, params0, clouds, config: SoftBodyRunConfig, viewpoints=Non
     """
     from toolkit.softbody import global_fit, track_sequence
 
-    track = track_sequence(model, params0, clouds, config=_track_config(config, viewpoints), observer=observer)
-    final = global_fit(model, track, clouds, config=config.fit, observer=observer) if config.global_fit else track
+    track = track_sequence(model, params0, clouds, config=_with_viewpoints(config.track, viewpoints),
+                           observer=observer)
+    final = track
+    if config.global_fit:
+        final = global_fit(model, track, clouds, config=_with_viewpoints(config.fit, viewpoints), observer=observer)
     return Fitted([model] * len(clouds), np.asarray(final.params), np.asarray(track.params), final.joints,
                   track.joints, list(track.states), config.global_fit)
 
@@ -385,7 +388,7 @@ def fit_independent(source, clouds, config: SoftBodyRunConfig, observer=None) ->
 
     n = len(clouds)
     joints = tracker_joints(source, n, independent=True)
-    tcfg = _track_config(config, source.viewpoints)
+    tcfg = _with_viewpoints(config.track, source.viewpoints)
     models, params, states = [], [], []
     for t in range(n):
         if not np.isfinite(joints[t]).all():
