@@ -22,11 +22,22 @@ MAX_TEXTURE_SIDE = 1024
 
 
 def segment_outline(member: np.ndarray) -> np.ndarray:
-    """Convex-hull outline (K, 2) of a boolean segment, as pixel-corner coordinates; (0, 2) if empty."""
-    ys, xs = np.nonzero(member)
-    if xs.size == 0:
+    """Convex-hull outline (K, 2) of a boolean segment, as pixel-corner coordinates; (0, 2) if empty.
+
+    The hull of every pixel's four corners is the hull of the corners of each
+    row's first and last pixel (the others lie between them on the same two
+    lines), so only those are handed to ``cv2.convexHull`` (same outline;
+    ``tests/billboards/test_outline.py``).
+    """
+    m = np.asarray(member, bool)
+    rows = np.flatnonzero(m.any(axis=1))
+    if rows.size == 0:
         return np.zeros((0, 2))
-    pts = np.concatenate([np.stack([xs + dx, ys + dy], -1) for dx in (-0.5, 0.5) for dy in (-0.5, 0.5)])
+    sub = m[rows]
+    first = sub.argmax(axis=1)
+    last = m.shape[1] - 1 - sub[:, ::-1].argmax(axis=1)
+    pts = np.concatenate([np.stack([x + dx, rows + dy], -1) for x, dx in ((first, -0.5), (last, 0.5))
+                          for dy in (-0.5, 0.5)])
     hull = cv2.convexHull(pts.astype(np.float32)).reshape(-1, 2)
     return hull.astype(np.float64)
 

@@ -206,13 +206,14 @@ class Camera:
         pc = self.to_cam(p.reshape(-1, 3))
         out = np.full((pc.shape[0], 2), np.nan)
         ok = np.isfinite(pc).all(axis=1) & (pc[:, 2] > 1e-9)
+        sel = slice(None) if ok.all() else ok  # all in front of the camera: the same values without the gathers
         if ok.any():
             if self.has_distortion:
-                uv, _ = cv2.projectPoints(pc[ok].reshape(-1, 1, 3), np.zeros(3), np.zeros(3), self.K, self.dist)
-                out[ok] = uv.reshape(-1, 2)
+                uv, _ = cv2.projectPoints(pc[sel].reshape(-1, 1, 3), np.zeros(3), np.zeros(3), self.K, self.dist)
+                out[sel] = uv.reshape(-1, 2)
             else:
-                q = pc[ok] @ self.K.T
-                out[ok] = q[:, :2] / q[:, 2:3]
+                q = pc[sel] @ self.K.T
+                out[sel] = q[:, :2] / q[:, 2:3]
         return out.reshape(*shape, 2)
 
     def undistort_points(self, pixels: np.ndarray) -> np.ndarray:

@@ -193,19 +193,22 @@ def visual_hull(images: dict, masks: dict, joints: np.ndarray, rig: Rig, voxel_m
     axes = [np.arange(lo[k], hi[k], voxel_m) + voxel_m / 2 for k in range(3)]
     shape = tuple(len(a) for a in axes)
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
-    inside = np.ones(len(grid), bool)
+    alive = np.arange(len(grid))  # voxels no camera has carved yet: only these are projected by the next one
     uvs = []
     for ci, cam in enumerate(rig):
         m = np.asarray(masks[cam.name]).astype(bool)
-        uv = cam.project(grid)
+        uv = np.full((len(grid), 2), np.nan)
+        uv[alive] = cam.project(grid[alive])
         uvs.append(uv)
         W, H = cam.size
-        x = np.rint(uv[:, 0])
-        y = np.rint(uv[:, 1])
+        x = np.rint(uv[alive, 0])
+        y = np.rint(uv[alive, 1])
         seen = np.isfinite(x) & (x >= 0) & (x < W) & (y >= 0) & (y < H)
         xi = np.where(seen, x, 0).astype(np.int64)
         yi = np.where(seen, y, 0).astype(np.int64)
-        inside &= ~seen | m[yi, xi]
+        alive = alive[~seen | m[yi, xi]]
+    inside = np.zeros(len(grid), bool)
+    inside[alive] = True
     occ = inside.reshape(shape)
     if not occ.any():
         return VisualHull(np.zeros((0, 3)), np.zeros((0, 3), np.float32), voxel_m)
