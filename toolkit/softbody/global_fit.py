@@ -6,7 +6,7 @@ blocks, per frame: the robust point-to-surface distances and the coverage
 block of :mod:`toolkit.softbody.residuals`; over frames: a small term
 favouring constant angular speed (second differences of the joint angles and
 of the root rotation over consecutive frames, as in the source); and weak
-priors keeping the widths near the reference.  Each frame's residuals depend
+priors keeping the widths near the start and left and right limbs alike.  Each frame's residuals depend
 on its own pose and the shared shape only, so the Jacobian is assembled as a
 ``scipy.sparse`` matrix and ``least_squares(method="trf", tr_solver="lsmr")``
 solves it without forming a dense matrix: hundreds of frames stay tractable.
@@ -33,7 +33,10 @@ from toolkit.softbody.track import SoftBodyTrack, subsample
 __all__ = ["GlobalFitConfig", "SoftBodyFit", "global_fit"]
 
 _N_SHAPE = N_PARAMS - N_POSE  # 20 shared values: lengths then widths
-_ANGLES = np.r_[0:3, 6:N_POSE]  # root rotation and joint angles: the constant-angular-speed term
+_ANGLES = np.r_[0:3, 6:N_POSE]
+#: Left and right limb lengths (indices into LENGTH_NAMES) tied by the symmetry prior.
+_SYM = np.array([[LENGTH_NAMES.index(f"l_{n}"), LENGTH_NAMES.index(f"r_{n}")]
+                 for n in ("upper_arm", "forearm", "thigh", "shank")])  # root rotation and joint angles: the constant-angular-speed term
 
 
 @dataclass(frozen=True)
@@ -55,6 +58,9 @@ class GlobalFitConfig:
         frame squared: small, so that it does not degrade the fit (source 002).
     width_prior_weight : float
         Pull of the widths towards the start values (metres per unit multiplier).
+    symmetry_weight : float
+        Pull of each left limb length towards the right one (metres per metre;
+        0: independent sides).
     fit_lengths, fit_widths : bool
         Which shape blocks are free.
     max_nfev : int
@@ -72,6 +78,7 @@ class GlobalFitConfig:
     max_points: int = 300
     smooth_weight: float = 0.02
     width_prior_weight: float = 0.02
+    symmetry_weight: float = 2.0
     fit_lengths: bool = True
     fit_widths: bool = True
     max_nfev: int = 40
@@ -190,6 +197,10 @@ class _Problem:
         res.append(wp * (shape[13:] - self.shape0[13:]))
         prior_rows = rows + np.arange(7)
         rows += 7
+        ws = c.symmetry_weight if c.fit_lengths else 0.0
+        res.append(ws * (shape[_SYM[:, 0]] - shape[_SYM[:, 1]]))
+        sym_rows = rows + np.arange(len(_SYM))
+        rows += len(_SYM)
         r = np.concatenate(res)
         if not with_jac:
             return r, None
@@ -206,6 +217,11 @@ class _Problem:
             ri.append(prior_rows)
             ci.append(self.T * N_POSE + 13 + np.arange(7))
             vals.append(np.full(7, wp))
+        if ws > 0:
+            for side, sign in ((0, 1.0), (1, -1.0)):
+                ri.append(sym_rows)
+                ci.append(self.T * N_POSE + _SYM[:, side])
+                vals.append(np.full(len(_SYM), sign * ws))
         J = sp.csr_matrix((np.concatenate(vals), (np.concatenate(ri), np.concatenate(ci))), shape=(rows, self.n))
         return r, J
 

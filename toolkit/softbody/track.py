@@ -92,7 +92,7 @@ class TrackConfig:
     coverage_dirs: int = 24
     viewpoints: tuple | None = None
     gate: float = 0.25
-    max_points: int = 1500
+    max_points: int = 1000
     min_points: int = 30
     inlier_distance: float = 0.05
     min_inlier_fraction: float = 0.3
