@@ -116,18 +116,25 @@ def subject_scores(image: np.ndarray, reference: np.ndarray, gt_mask: np.ndarray
     >>> subject_scores(ref + 10, ref, m, a)["coverage"]
     0.75
     """
-    _pair(image, reference, "subject_scores: image, reference")
+    image, reference = np.asarray(image), np.asarray(reference)
+    if image.shape != reference.shape or image.ndim != 3 or image.shape[2] != 3:
+        raise InputError("subject_scores: image, reference", "two (H, W, 3) images of the same shape",
+                         f"{image.shape} and {reference.shape}")
     m = np.asarray(gt_mask)
     a = np.asarray(alpha)
-    if m.shape != np.asarray(image).shape[:2]:
-        raise InputError("subject_scores: gt_mask", f"shape {np.asarray(image).shape[:2]} (the image's)",
-                         f"shape {m.shape}")
+    if m.shape != image.shape[:2]:
+        raise InputError("subject_scores: gt_mask", f"shape {image.shape[:2]} (the image's)", f"shape {m.shape}")
     if a.shape != m.shape:
         raise InputError("subject_scores: alpha", f"shape {m.shape} (the mask's)", f"shape {a.shape}")
     m = m.astype(bool)
-    if not m.any():
+    # everything below happens within the dilated mask's box: the same pixels, in the same order
+    box = mask_bbox(m, SUBJECT_DILATION_PX)
+    if box is None:
         return {"psnr_subject": float("nan"), "coverage": float("nan")}
+    x0, y0, x1, y1 = box
+    m, a = m[y0:y1, x0:x1], a[y0:y1, x0:x1]
     a = a.astype(np.float64) / 255.0 if a.dtype == np.uint8 else a.astype(np.float64)
     k = 2 * SUBJECT_DILATION_PX + 1
     region = cv2.dilate(m.astype(np.uint8), np.ones((k, k), np.uint8)) > 0
-    return {"psnr_subject": psnr(image, reference, region), "coverage": float(np.mean(a[m] > COVERAGE_ALPHA))}
+    return {"psnr_subject": psnr(image[y0:y1, x0:x1], reference[y0:y1, x0:x1], region),
+            "coverage": float(np.mean(a[m] > COVERAGE_ALPHA))}
