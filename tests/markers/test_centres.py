@@ -191,3 +191,10 @@ def test_joint_centres_bad_input():
     with pytest.raises(InputError):
         joint_centres(rom_trial("cluster", n_frames=20)[0], config=JointCentresConfig(marker_set="nope"))
     assert MISSING == 0
+
+
+def test_config_checked():
+    with pytest.raises(InputError, match="height_m"):
+        JointCentresConfig(height_m=17.0)
+    with pytest.raises(InputError, match="subset_threshold_m"):
+        JointCentresConfig(subset_threshold_m=-0.01)

@@ -110,6 +110,23 @@ class JointCentresConfig:
     max_generic_distance_m: float = 0.04
     height_m: float = 0.0
 
+    def __post_init__(self):
+        for name in ("rigid_tolerance_m", "segment_tolerance_m", "subset_threshold_m", "max_joint_residual_m",
+                     "max_residual_m", "max_hinge_conditioning", "planar_ratio"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+                raise InputError(f"JointCentresConfig.{name}", "a positive number", repr(v))
+        for name in ("min_rom_deg", "max_generic_distance_m", "height_m"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and np.isfinite(v) and v >= 0):
+                raise InputError(f"JointCentresConfig.{name}", "a number >= 0", repr(v))
+        if self.height_m and not 1.0 <= self.height_m <= 2.5:
+            raise InputError("JointCentresConfig.height_m (--height)", "0 (fitted) or a stature of 1.0-2.5 m",
+                             repr(self.height_m))
+        if not isinstance(self.marker_set, str) or not self.marker_set:
+            raise InputError("JointCentresConfig.marker_set", "'auto', 'none' or a marker set's name",
+                             repr(self.marker_set))
+
 
 @dataclass
 class JointCentresResult:
