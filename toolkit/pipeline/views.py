@@ -104,6 +104,24 @@ def blanked_background(frame: np.ndarray, region: np.ndarray, margin_px: int = B
     return bg
 
 
+#: The last background written per camera and its PNG: (the array, the bytes).
+_PLATE_PNGS: dict = {}
+
+
+def _plate_png(camera: str, background: np.ndarray) -> bytes:
+    """PNG of a view's background (rounded to uint8), encoded once while the camera's plate is the same
+    read-only array (a novel camera's, drawn once per run); other backgrounds every time."""
+    from toolkit.io import encode_png
+
+    last = _PLATE_PNGS.get(camera)
+    if last is not None and last[0] is background:
+        return last[1]
+    data = encode_png(np.clip(np.asarray(background, np.float32) + 0.5, 0, 255).astype(np.uint8))
+    if isinstance(background, np.ndarray) and not background.flags.writeable:
+        _PLATE_PNGS[camera] = (background, data)
+    return data
+
+
 def render_evaluation(result, view: EvaluationView, out: Path, frame: int, compositor=None,
                       observer=None) -> dict:
     """Render ``result`` with every method into ``view``, write the images, and score them.
@@ -118,7 +136,7 @@ def render_evaluation(result, view: EvaluationView, out: Path, frame: int, compo
         Per method its scores (``psnr``, ``ssim``, ``psnr_subject``, ``coverage``); empty
         without a reference and region.
     """
-    from toolkit.io import atomic_write_png
+    from toolkit.io import atomic_write_bytes, atomic_write_png
     from toolkit.io.frames import frame_filename
     from toolkit.rendering import bbox_scores, subject_scores
     from toolkit.rendering.freeviewpoint import render_views
@@ -126,8 +144,7 @@ def render_evaluation(result, view: EvaluationView, out: Path, frame: int, compo
     out = Path(out)
     name = frame_filename(frame)
     cam = view.camera.name
-    atomic_write_png(out / "baselines" / "plate" / cam / name,
-                     np.clip(np.asarray(view.background, np.float32) + 0.5, 0, 255).astype(np.uint8))
+    atomic_write_bytes(out / "baselines" / "plate" / cam / name, _plate_png(cam, view.background))
     views = render_views(result, view.camera, view.background, compositor, observer=observer)
     scores: dict = {}
     for m, v in views.items():
