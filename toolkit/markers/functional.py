@@ -30,10 +30,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+import toolkit.markers.centres as _c
+import toolkit.markers.rigid as _r
+import toolkit.markers.skeleton_fit as _s
 from toolkit.errors import InputError
-from toolkit.markers import centres as _c
-from toolkit.markers import rigid as _r
-from toolkit.markers import skeleton_fit as _s
 from toolkit.observe import as_observer
 from toolkit.skeleton import SKELETON_14
 
