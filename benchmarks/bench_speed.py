@@ -139,6 +139,16 @@ def compare_outputs(a: Path, b: Path) -> dict:
                 diffs.append(f"poses3d.npz: {k} differs (max {d:.3g} m)")
         elif not np.array_equal(x, y):
             diffs.append(f"poses3d.npz: {k} differs")
+    # where the differences start: frames whose stage-1 joints differ, frames whose final joints differ
+    frames = {}
+    for k in ("joints_stage1", "joints"):
+        if k in pa.files and k in pb.files and pa[k].shape == pb[k].shape:
+            d = np.abs(np.nan_to_num(pa[k], nan=0.0) - np.nan_to_num(pb[k], nan=0.0)).reshape(len(pa[k]), -1).max(axis=1)
+            frames[k] = [int(t) for t in np.flatnonzero((d > POSE_TOL_M) | np.any(np.isnan(pa[k]) != np.isnan(pb[k]),
+                                                                                  axis=(1, 2)))]
+    for k, ts in frames.items():
+        if ts:
+            diffs.append(f"poses3d.npz: {k} differ in frames {ts}")
     ia = {p.relative_to(a) for p in a.rglob("*.png")}
     ib = {p.relative_to(b) for p in b.rglob("*.png")}
     for p in sorted(ia ^ ib):
@@ -154,7 +164,7 @@ def compare_outputs(a: Path, b: Path) -> dict:
             diffs.append(f"{p}: {int(np.count_nonzero(d))} values differ, by up to {int(d.max())}")
         else:
             diffs.append(f"{p}: differs")
-    return {"identical": not diffs, "pose_max_diff_m": pose_max, "images": len(ia | ib),
+    return {"identical": not diffs, "pose_max_diff_m": pose_max, "frames_differing": frames, "images": len(ia | ib),
             "images_identical": n_same, "differences": diffs}
 
 

@@ -344,17 +344,6 @@ class PositionScorer:
         outline = np.stack([np.clip(a, a0, a1), np.clip(s, s0, s1)], axis=1)
         return fr, fr.origin + outline @ np.stack([fr.e_u, fr.e_v])
 
-    def _plane_row(self, ci: int, normal: np.ndarray, point: np.ndarray) -> np.ndarray:
-        """``n_s^T K_s^-1 / d_s`` (3,) of a world plane for source camera ci."""
-        cam = self.rig.cameras[ci]
-        n_s = cam.R @ normal
-        d_s = float(n_s @ (cam.R @ point + cam.t))
-        return (n_s @ self._Kinv[ci]) / d_s
-
-    def _view_from_source(self, vi: int, ci: int, normal: np.ndarray, point: np.ndarray) -> np.ndarray:
-        """Homography (3, 3) from camera ci's measured pixels to view vi's, through a world plane."""
-        return self._M[vi][ci] + np.outer(self._kt[vi][ci], self._plane_row(ci, normal, point))
-
     # ------------------------------------------------------------------- scores
     def visibility(self, joints: np.ndarray, part: int) -> np.ndarray:
         """Which billboards of a bone take part in which evaluated view, (n_views, n_cams) bool.
@@ -406,10 +395,10 @@ class PositionScorer:
 
         The batched form of :meth:`part_score` (same values, bit for bit): the
         geometry of all positions is computed at once, each billboard is warped
-        into its view's region of the output buffers, and the pixel counts and
-        colour distances of every position come from a few array operations
-        over those buffers.  A position scored before (same ends, same
-        visibility) is not recomputed.
+        into its (view, position) region of one buffer per camera, and the pixel
+        counts and colour distances of every view and position come from a few
+        array operations per camera pair over those buffers.  A position scored
+        before (same ends, same visibility) is not recomputed.
 
         Parameters
         ----------
@@ -444,9 +433,11 @@ class PositionScorer:
         """The billboards of part ``part`` from camera ``ci`` at N bone positions (vectorised :meth:`_billboard`).
 
         Returns None when the camera has no segment of the part, else a dict of
-        ``ok`` (N,) bool (a billboard exists), ``normal``, ``origin`` (N, 3),
-        ``quad`` (N, K, 3) footprint points and ``hit`` (N, K) bool (which of them exist),
-        ``row`` (N, 3) the plane row of :meth:`_plane_row` (NaN where not ``ok``).
+        ``ok`` (N,) bool (a billboard exists), ``normal`` (N, 3), ``front`` (n_views, N) bool
+        (no footprint point behind the view), ``lo``, ``hi`` (n_views, N, 2) the bounding box of
+        the footprint's projection into each view, pixels, and ``row`` (N, 3) the plane's
+        ``n_s^T K_s^-1 / d_s`` in the camera (NaN where not ``ok``), with which
+        ``view_from_source = M + (K_V t) row``.
         The frame arithmetic is :func:`billboard_frame`'s, element by element (its norms and
         dot products of 3-vectors are left-to-right sums, as BLAS ``ddot`` does them).
         """
@@ -497,8 +488,8 @@ class PositionScorer:
             m = hit[None, :, :, None]
             lo = np.where(m, px, np.inf).min(axis=2)  # (n_views, N, 2)
             hi = np.where(m, px, -np.inf).max(axis=2)
-            # the plane rows feed the warps: _plane_row's operations, the matrix products stacked
-            # (numpy calls the same BLAS product per item)
+            # the plane rows feed the warps: n_s = R n, d_s = n_s . (R x + t), row = n_s^T K^-1 / d_s, with
+            # the matrix products stacked (numpy calls the same BLAS product per item as one at a time)
             cam = self.rig.cameras[ci]
             R = cam.R
             n_s = (R @ n[:, :, None])[:, :, 0]
