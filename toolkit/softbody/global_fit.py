@@ -58,6 +58,10 @@ class GlobalFitConfig:
         frame squared: small, so that it does not degrade the fit (source 002).
     width_prior_weight : float
         Pull of the widths towards the start values (metres per unit multiplier).
+    length_prior_weight : float
+        Pull of the lengths towards the start (metres per metre): the joints
+        buried in the torso (shoulders, hips) are weakly observable from the
+        surface alone.
     symmetry_weight : float
         Pull of each left limb length towards the right one (metres per metre;
         0: independent sides).
@@ -78,6 +82,7 @@ class GlobalFitConfig:
     max_points: int = 300
     smooth_weight: float = 0.02
     width_prior_weight: float = 0.02
+    length_prior_weight: float = 0.5
     symmetry_weight: float = 2.0
     fit_lengths: bool = True
     fit_widths: bool = True
@@ -197,6 +202,10 @@ class _Problem:
         res.append(wp * (shape[13:] - self.shape0[13:]))
         prior_rows = rows + np.arange(7)
         rows += 7
+        wl = c.length_prior_weight if c.fit_lengths else 0.0
+        res.append(wl * (shape[:13] - self.shape0[:13]))
+        len_rows = rows + np.arange(13)
+        rows += 13
         ws = c.symmetry_weight if c.fit_lengths else 0.0
         res.append(ws * (shape[_SYM[:, 0]] - shape[_SYM[:, 1]]))
         sym_rows = rows + np.arange(len(_SYM))
@@ -217,6 +226,10 @@ class _Problem:
             ri.append(prior_rows)
             ci.append(self.T * N_POSE + 13 + np.arange(7))
             vals.append(np.full(7, wp))
+        if wl > 0:
+            ri.append(len_rows)
+            ci.append(self.T * N_POSE + np.arange(13))
+            vals.append(np.full(13, wl))
         if ws > 0:
             for side, sign in ((0, 1.0), (1, -1.0)):
                 ri.append(sym_rows)
