@@ -408,26 +408,29 @@ class RaycastRenderer:
             if key not in self._plates:
                 self._plates[key] = self._plate(cam)
 
-    def _plate(self, cam: Camera) -> tuple[np.ndarray, np.ndarray]:
-        """The surroundings seen by ``cam``: (H, W, 3) float32 colour and the sub-pixel rays' depth."""
+    def _plate(self, cam: Camera, depth: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+        """The surroundings seen by ``cam``: (H, W, 3) float32 colour and the sub-pixel rays' depth (None
+        unless ``depth``)."""
         scene = o3d.t.geometry.RaycastingScene()
         for s in self.surfaces:
             scene.add_triangles(o3d.core.Tensor(s.vertices.astype(np.float32)),
                                 o3d.core.Tensor(s.triangles.astype(np.uint32)))
         w, h = self.size
         rays = np.empty((h * self.ss, w * self.ss, 6), np.float32)
-        rays[..., :3] = cam.center
+        for k in range(3):  # one component at a time (long loops instead of rows of three)
+            rays[..., k] = cam.center[k]
         self._subpixel_dirs(cam, out=rays[..., 3:])
         ans = scene.cast_rays(o3d.core.Tensor(rays))
         del rays
         t = ans["t_hit"].numpy()
         col = np.empty(t.shape + (3,), np.float32)
-        col[:] = self.background
+        for k in range(3):
+            col[..., k] = self.background[k]
         flat = (t.reshape(-1), ans["geometry_ids"].numpy().reshape(-1), ans["primitive_ids"].numpy().reshape(-1),
                 ans["primitive_uvs"].numpy().reshape(-1, 2), col.reshape(-1, 3))
         for a in range(0, t.size, SHADE_BLOCK):
             self._shade(*(f[a:a + SHADE_BLOCK] for f in flat))
-        return self._downsample(col, self.ss), np.where(np.isfinite(t), t, np.inf)
+        return self._downsample(col, self.ss), np.where(np.isfinite(t), t, np.inf) if depth else None
 
     def _shade(self, t: np.ndarray, gid: np.ndarray, pid: np.ndarray, bary: np.ndarray, col: np.ndarray) -> None:
         """Colour a block of rays (N,) where they hit a surface; ``col`` (N, 3) float32 is written in place.
@@ -476,7 +479,7 @@ class RaycastRenderer:
         False: a camera seen once, e.g. a view of a camera path)."""
         key = (camera.K.tobytes(), camera.cam_from_world.tobytes())
         if key not in self._plates and not keep:
-            return self._plate(camera)[0]
+            return self._plate(camera, depth=False)[0]
         self.prepare([camera])
         return self._plates[key][0]
 
