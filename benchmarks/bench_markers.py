@@ -27,6 +27,8 @@ Printed, per scene and then as the median and the worst decile over scenes
   trials: hips, knees, ankles, shoulders and elbows within 15 mm), and the
   method each joint got (score / sara / sphere: functional; template /
   anatomical: the scaled generic skeleton);
+* the share of joint-frames placed (the rest NaN: no markers, or segments
+  that disagree on their common joint);
 * the time per frame of the labelling and of the centres (wall clock).
 """
 
@@ -119,6 +121,7 @@ def run_scene(motion: str, marker_set: str, seed: int, frames: int, folder: Path
             "share_correct": float(score["share_correct"]), "share_wrong": float(score["share_wrong"]),
             "error_mm": _errors(res.joints, truth).tolist(), "method": list(res.method),
             "error_true_labels_mm": _errors(res_gt.joints, truth).tolist(), "method_true_labels": list(res_gt.method),
+            "placed_share": float(np.isfinite(res.joints).all(axis=-1).mean()),
             "label_ms_per_frame": 1e3 * (t1 - t0) / frames, "centres_ms_per_frame": 1e3 * (t2 - t1) / frames}
 
 
@@ -149,6 +152,8 @@ def summarise(rows: list) -> list:
                 tm, tw = _stats([np.nanmean([r[key][JOINTS_14.index(n)] for n in TARGET_JOINTS]) for r in sub])
                 lines.append(f"  target joints (mean of the 10): median {tm:.1f} mm, worst decile {tw:.1f} mm "
                              f"(target {TARGET_MM:.0f} mm; * = a joint's median over)")
+    med, worst = _stats([r["placed_share"] for r in rows], worst_high=False)
+    lines.append(f"joint-frames placed (full chain): median {100 * med:.1f} %, worst decile {100 * worst:.1f} %")
     for key in ("label_ms_per_frame", "centres_ms_per_frame"):
         m, w = _stats([r[key] for r in rows])
         lines.append(f"{key.replace('_', ' ')}: median {m:.1f}, worst decile {w:.1f}")

@@ -92,8 +92,9 @@ class JointCentresConfig:
         not used either.
     max_generic_distance_m : float
         A functional centre farther than this (median over frames, metres)
-        from the generic skeleton's joint is not used (mislabelled markers
-        that still move rigidly); 0 = no such check.
+        from the marker set template's joint is not used (mislabelled markers
+        that still move rigidly); 0 = no such check.  Not applied to the
+        anatomical rules' joints (files from elsewhere), which are cruder.
     height_m : float
         Performer's stature, metres; 0 = fitted from the markers.
     """
@@ -261,8 +262,13 @@ def _motion(pos: np.ndarray):
     return rot, trans
 
 
-def _fit_joint(kind, parent_pos, child_pos, anchor, config):
-    """One functional joint: (CentreFit or None, why-not message)."""
+def _fit_joint(kind, parent_pos, child_pos, anchor, config, *, trusted: bool = True):
+    """One functional joint: (CentreFit or None, why-not message).
+
+    ``trusted``: the anchor is the marker set's template (a synthetic capture), close enough to the
+    joint that a functional centre far from it means mislabelled markers; an anatomical rule's anchor
+    (a file from elsewhere) is not used for that check.
+    """
     pm = _motion(parent_pos)
     if pm is None:
         return None, "its parent segment has fewer than three markers seen together"
@@ -290,7 +296,7 @@ def _fit_joint(kind, parent_pos, child_pos, anchor, config):
     if fit.method == "sara" and not fit.conditioning <= config.max_hinge_conditioning:
         return fit, (f"no clean hinge axis (singular value ratio {fit.conditioning:.2f} > "
                      f"{config.max_hinge_conditioning:.2f})")
-    if config.max_generic_distance_m > 0 and anchor is not None:
+    if config.max_generic_distance_m > 0 and anchor is not None and trusted:
         with _r._quiet():
             d = float(np.nanmedian(np.linalg.norm(fit.centre - anchor, axis=1)))
         if d > config.max_generic_distance_m:
@@ -381,7 +387,7 @@ def _labelled(traj, groups, mset, config, obs) -> JointCentresResult:
         ppos = pos[:, p_idx]
         if len(p_idx) < 3 and PROXIMAL.get(parent) in functional:
             ppos = np.concatenate([ppos, functional[PROXIMAL[parent]][:, None]], axis=1)
-        fit, why = _fit_joint(kind, ppos, pos[:, c_idx], generic[:, j], config)
+        fit, why = _fit_joint(kind, ppos, pos[:, c_idx], generic[:, j], config, trusted=source[j] == "template")
         if fit is not None:
             rom[j] = fit.rom_deg[0]
         if fit is None or why:

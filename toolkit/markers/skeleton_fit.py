@@ -228,7 +228,8 @@ SEGMENT_JOINTS = {
 
 
 def template_joints(positions: np.ndarray, groups: dict, template_markers: np.ndarray,
-                    template_joints14: np.ndarray, *, max_rms_m: float = 0.02) -> tuple[np.ndarray, dict]:
+                    template_joints14: np.ndarray, *, max_rms_m: float = 0.02,
+                    max_disagreement_m: float = 0.03) -> tuple[np.ndarray, dict]:
     """Joints carried into each frame by rigid fits of each segment's template markers.
 
     Parameters
@@ -242,17 +243,20 @@ def template_joints(positions: np.ndarray, groups: dict, template_markers: np.nd
     template_joints14 : ndarray of shape (14, 3)
     max_rms_m : float
         A segment's frame whose fit leaves a larger RMS carries no joint (mislabelled markers).
+    max_disagreement_m : float
+        Where two segments place their common joint farther than this from
+        their mean (a segment whose labels are swapped with another's still
+        fits rigidly), the joint is NaN in that frame rather than wrong.
 
     Returns
     -------
     joints : ndarray of shape (T, 14, 3)
-        Mean over the segments carrying each joint; NaN where none is seen.
+        Mean over the segments carrying each joint; NaN where none is seen or they disagree.
     rms : dict of str to float
         Median fit RMS of each segment, metres.
     """
     t = positions.shape[0]
-    acc = np.zeros((t, 14, 3))
-    cnt = np.zeros((t, 14))
+    est = [[] for _ in range(14)]  # per joint, the (T, 3) estimates of the segments carrying it
     rms = {}
     for seg, idx in groups.items():
         idx = [i for i in idx if np.isfinite(template_markers[i]).all()]
@@ -264,14 +268,17 @@ def template_joints(positions: np.ndarray, groups: dict, template_markers: np.nd
         with _quiet():
             rms[seg] = float(np.nanmedian(r)) if np.isfinite(r).any() else float("nan")
         for name in SEGMENT_JOINTS[seg]:
-            j = J14[name]
-            g = np.einsum("tij,j->ti", rot, template_joints14[j]) + trans
-            ok = np.isfinite(g).all(axis=1)
-            acc[ok, j] += g[ok]
-            cnt[ok, j] += 1
-    with np.errstate(invalid="ignore", divide="ignore"):
-        joints = acc / cnt[..., None]
-    joints[cnt == 0] = np.nan
+            est[J14[name]].append(np.einsum("tij,j->ti", rot, template_joints14[J14[name]]) + trans)
+    joints = np.full((t, 14, 3), np.nan)
+    for j, e in enumerate(est):
+        if not e:
+            continue
+        e = np.stack(e)  # (S, T, 3)
+        with _quiet():
+            joints[:, j] = np.nanmean(e, axis=0)
+            if len(e) > 1:  # segments that disagree on their common joint: mislabelled markers, no joint
+                spread = np.nanmax(np.linalg.norm(e - joints[None, :, j], axis=-1), axis=0)
+                joints[spread > max_disagreement_m, j] = np.nan
     return joints, rms
 
 
