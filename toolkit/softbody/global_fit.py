@@ -33,10 +33,10 @@ from toolkit.softbody.track import SoftBodyTrack, subsample
 __all__ = ["GlobalFitConfig", "SoftBodyFit", "global_fit"]
 
 _N_SHAPE = N_PARAMS - N_POSE  # 20 shared values: lengths then widths
-_ANGLES = np.r_[0:3, 6:N_POSE]
+_ANGLES = np.r_[0:3, 6:N_POSE]  # root rotation and joint angles: the constant-angular-speed term
 #: Left and right limb lengths (indices into LENGTH_NAMES) tied by the symmetry prior.
 _SYM = np.array([[LENGTH_NAMES.index(f"l_{n}"), LENGTH_NAMES.index(f"r_{n}")]
-                 for n in ("upper_arm", "forearm", "thigh", "shank")])  # root rotation and joint angles: the constant-angular-speed term
+                 for n in ("upper_arm", "forearm", "thigh", "shank")])
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ from toolkit.cameras.triangulation import triangulate_linear
 from toolkit.errors import InputError
 from toolkit.motion.kinematics import Pose14, inverse_kinematics
 from toolkit.skeleton import SKELETON_14
-from toolkit.softbody.model import (LENGTH_NAMES, LENGTHS, N_POSE, POSE, WIDTH_GROUPS, SoftBodyModel,
+from toolkit.softbody.model import (LENGTH_NAMES, LENGTHS, N_POSE, WIDTH_GROUPS, SoftBodyModel,
                                     SoftBodyParams, pose_bounds)
 from toolkit.softbody.residuals import one_blas_thread
 
@@ -75,7 +75,8 @@ def _lengths_from_joints(j: np.ndarray, pose: Pose14) -> np.ndarray:
          "shoulder_drop": max(float(np.mean(drop)), 0.005), "torso": float(np.linalg.norm(g["neck"] - mid_hip)),
          "hip_half_width": 0.5 * dist("l_hip", "r_hip")}
     for s in "lr":
-        v.update({f"{s}_upper_arm": dist(f"{s}_shoulder", f"{s}_elbow"), f"{s}_forearm": dist(f"{s}_elbow", f"{s}_wrist"),
+        v.update({f"{s}_upper_arm": dist(f"{s}_shoulder", f"{s}_elbow"),
+                  f"{s}_forearm": dist(f"{s}_elbow", f"{s}_wrist"),
                   f"{s}_thigh": dist(f"{s}_hip", f"{s}_knee"), f"{s}_shank": dist(f"{s}_knee", f"{s}_ankle")})
     return np.maximum(np.array([v[n] for n in LENGTH_NAMES]), 1e-3)
 

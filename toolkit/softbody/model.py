@@ -46,7 +46,7 @@ Default radii follow the synthetic bodies of :class:`toolkit.body.BodyModel`
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
