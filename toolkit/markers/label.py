@@ -31,8 +31,8 @@ from toolkit.markers.identify import (IdentifyConfig, Identification, fit_templa
 from toolkit.markers.marker_sets import MarkerSet
 from toolkit.markers.reconstruct import (FrameMarkers, ReconstructionConfig, RigGeometry, normalise_blobs,
                                          reconstruct_frame)
-from toolkit.markers.track import TrackConfig, Tracker, TrackState
-from toolkit.markers.trajectories import STATE_NAMES, MarkerTrajectories
+from toolkit.markers.track import TrackConfig, Tracker, TrackState, repair_swaps
+from toolkit.markers.trajectories import STATE_NAMES, TRINOCULAR, MarkerTrajectories
 from toolkit.observe import as_observer
 
 #: Stature of the generic person the template is built on, metres (scaled by the fit).
@@ -211,6 +211,13 @@ def label_capture(capture, marker_set: MarkerSet, *, config: LabelConfig = Label
     tracker.run(list(range(f0, T)))
     track.hint, track.hint_frame = hint, hint_frame
     tracker.run(list(range(f0, -1, -1)))
+    reference = np.where(found[:, None], track.positions[f0], ident.fitted)
+    def spare(f):  # trinocular reconstructions that carry no label
+        rec = recon[f]
+        free = (rec.state == TRINOCULAR) & ~np.isin(np.arange(len(rec)), track.point[f])
+        return rec.points[free]
+
+    repair_swaps(track, reference, spare=spare)
     traj = MarkerTrajectories(marker_set.labels, track.positions, track.state, float(capture.fps),
                               marker_set.segments, getattr(capture, "source", "<capture>"))
     if observer is not None:

@@ -62,6 +62,9 @@ class TrackConfig:
         Gate added per frame without velocity (after a gap), metres ...
     max_gate_m : float
         ... up to this.
+    speed_gate : float
+        Gate added per metre of the marker's last displacement (a fast limb
+        accelerates more between frames), up to ``max_gate_m``.
     continuation_cap_m : float
         Cap on each continuation error at ``f+1``, ``f+2`` (a missing
         continuation costs this much, not more), metres.
@@ -72,6 +75,11 @@ class TrackConfig:
     two_view_gate_m : float
         Largest distance between a prediction and a marker seen in two views
         only (two views always agree along the epipolar line), metres.
+    segment_tolerance : float
+        A marker found again after a gap must keep its distances to its
+        labelled segment mates within this relative tolerance ...
+    segment_floor_m : float
+        ... plus this much, metres.
     bridge_min_mates : int
         Segment mates seen both now and when the marker was last measured
         needed to bridge it (3 fix a rigid motion).
@@ -79,19 +87,26 @@ class TrackConfig:
         Largest residual of the mates' rigid fit for a bridge, metres.
     bridge_max_frames : int
         Longest gap bridged, frames.
+    carry_rms_m : float
+        A lost marker is searched for where its segment and the adjacent
+        ones carried it, when their markers moved rigidly within this residual, metres.
     """
 
     window: int = 4
     gate_m: float = 0.04
     gap_gate_growth_m: float = 0.02
-    max_gate_m: float = 0.12
+    max_gate_m: float = 0.15
+    speed_gate: float = 0.5
     continuation_cap_m: float = 0.03
     track_px: float = 6.0
     match_px: float = 3.5
     two_view_gate_m: float = 0.02
+    segment_tolerance: float = 0.15
+    segment_floor_m: float = 0.015
     bridge_min_mates: int = 3
     bridge_rms_m: float = 0.012
     bridge_max_frames: int = 300
+    carry_rms_m: float = 0.04
 
     def __post_init__(self):
         if self.window not in (2, 3, 4):
@@ -147,6 +162,20 @@ def _segment_mates(segments) -> list[np.ndarray]:
     return out
 
 
+def reference_distances(track: TrackState) -> np.ndarray:
+    """Distances (M, M) between markers of one segment where both are measured, median over the labelled
+    frames so far (NaN for other pairs or never seen together)."""
+    P = track.positions[track.state.max(axis=1) > 0]
+    seg = np.asarray(track.segments)
+    d = np.linalg.norm(P[:, :, None] - P[:, None], axis=3)
+    with np.errstate(all="ignore"):
+        import warnings
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            ref = np.nanmedian(d, axis=0) if len(P) else np.full((seg.size, seg.size), np.nan)
+    return np.where(seg[:, None] == seg[None, :], ref, np.nan)
+
+
 class Tracker:
     """Labels frames one after the other (forwards or backwards) from already labelled ones.
 
@@ -165,6 +194,9 @@ class Tracker:
     def __init__(self, geom: RigGeometry, blobs, recon, track: TrackState, config: TrackConfig = TrackConfig()):
         self.geom, self.blobs, self.recon, self.t, self.config = geom, blobs, recon, track, config
         self.mates = _segment_mates(track.segments)
+        seg = np.asarray(track.segments)
+        self.same = [np.flatnonzero((seg == s) & (np.arange(seg.size) != i)) for i, s in enumerate(seg)]
+        self.ref_dist = reference_distances(track)
 
     # ------------------------------------------------------------ prediction
     def predict(self, order: list[int], k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -179,14 +211,36 @@ class Tracker:
             vel[:] = 0.0
         pred = prev + vel
         gate = np.where(have2 | (c.window == 2), c.gate_m, c.gate_m + c.gap_gate_growth_m)
+        gate = np.minimum(gate + c.speed_gate * np.linalg.norm(vel, axis=1), c.max_gate_m)
         for i in np.flatnonzero(~have1):  # lost: the last position (or the template hint), a growing gate
             last, gap = self._last_known(order, k, i)
             if last is not None:
                 pred[i] = last
                 gate[i] = min(c.gate_m + c.gap_gate_growth_m * gap, c.max_gate_m)
+                carried = self._carried(order, k, i, gap, last)
+                if carried is not None:  # moved with its neighbours since: a better guess, same gate
+                    pred[i] = carried
             else:
                 pred[i] = np.nan
         return pred, gate, vel
+
+    def _carried(self, order, k, i, gap, last):
+        """``last`` (seen ``gap`` frames before ``order[k]``) moved by the rigid motion of marker ``i``'s
+        segment and adjacent segments' markers from then to ``order[k-1]``; None if too few or too bent."""
+        t, c = self.t, self.config
+        r, p = order[k - gap], order[k - 1]
+        if r == p:
+            return None
+        mates = self.mates[i]
+        ok = np.isfinite(t.positions[r, mates]).all(axis=1) & np.isfinite(t.positions[p, mates]).all(axis=1)
+        if ok.sum() < c.bridge_min_mates:
+            return None
+        a, b = t.positions[r, mates[ok]], t.positions[p, mates[ok]]
+        R = kabsch(a, b)
+        moved = (a - a.mean(axis=0)) @ R.T + b.mean(axis=0)
+        if np.sqrt(np.mean(np.sum((moved - b) ** 2, axis=1))) > c.carry_rms_m:
+            return None
+        return (last - a.mean(axis=0)) @ R.T + b.mean(axis=0)
 
     def _last_known(self, order, k, i):
         t = self.t
@@ -251,7 +305,21 @@ class Tracker:
         good = (cols < cand.shape[0])
         good[good] &= inside[rows[good], cols[good]]
         out[rows[good]] = cand_idx[cols[good]]
+        moving = np.isfinite(self.t.positions[order[k - 1]]).all(axis=1)
+        for i in np.flatnonzero((out >= 0) & ~moving):  # found again after a gap: must fit its segment
+            if not self.fits_segment(i, rec.points[out[i]], rec.points, out):
+                out[i] = -1
         return out
+
+    def fits_segment(self, i: int, X: np.ndarray, points: np.ndarray, point_of: np.ndarray) -> bool:
+        """Whether ``X`` keeps marker ``i``'s distances to its labelled segment mates (reference: ``ref_dist``)."""
+        c = self.config
+        mates = [j for j in self.same[i] if point_of[j] >= 0 and np.isfinite(self.ref_dist[i, j])]
+        if not mates:
+            return True
+        d = np.linalg.norm(points[point_of[mates]] - X, axis=1)
+        ref = self.ref_dist[i, mates]
+        return bool(np.all(np.abs(d - ref) < c.segment_tolerance * ref + c.segment_floor_m))
 
     # ------------------------------------------------------------ 2D tracking
     def track_2d(self, f: int, pred: np.ndarray, gate: np.ndarray, missing: np.ndarray, used: list[np.ndarray]):
@@ -370,3 +438,108 @@ def nearest_neighbour_config(config: TrackConfig = TrackConfig()) -> TrackConfig
 
 
 __all__ = ["TrackConfig", "TrackState", "Tracker", "FrameMarkers", "nearest_neighbour_config"]
+
+
+#: Segment groups whose markers are checked together for swapped labels (a limb's distal pair of
+#: segments: nearly rigid, a joint of small range between them).
+SWAP_GROUPS = (("l_shank", "l_foot"), ("r_shank", "r_foot"), ("l_forearm", "l_hand"), ("r_forearm", "r_hand"),
+               ("pelvis",), ("thorax",), ("head",), ("l_thigh",), ("r_thigh",), ("l_upperarm",), ("r_upperarm",))
+
+
+def _rigid_rms(A: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Rms (n_maps,) of the best rigid fit of reference points A (n_maps, k, 3) to points P (k, 3)."""
+    a0 = A - A.mean(axis=1, keepdims=True)
+    b0 = P - P.mean(axis=0)
+    H = np.einsum("pki,kj->pij", a0, b0)
+    S = np.linalg.svd(H, compute_uv=False)
+    d = np.sign(np.linalg.det(H))
+    res = np.sum(a0 ** 2, axis=(1, 2)) + np.sum(b0 ** 2) - 2 * (S[:, 0] + S[:, 1] + d * S[:, 2])
+    return np.sqrt(np.maximum(res, 0) / P.shape[0])
+
+
+def repair_swaps(track: TrackState, reference: np.ndarray, *, min_rms_m: float = 0.025, ratio: float = 0.6,
+                 max_markers: int = 6, spare=None, fill_rms_m: float = 0.015, spare_reach_m: float = 0.3) -> int:
+    """Undo label swaps within nearly rigid marker groups, frame by frame.
+
+    In each frame and group (:data:`SWAP_GROUPS`), the labelled points are
+    compared with their labels' ``reference`` configuration (the
+    identification frame): when another labelling of the same points with
+    the group's labels (any label, also one missing in the frame) fits the
+    reference rigidly much better (rms below ``ratio`` times that of the
+    tracked labelling, which is above ``min_rms_m``), the points are
+    relabelled.  Relabelling one frame's points within a group never
+    creates a duplicate.
+
+    Parameters
+    ----------
+    track : TrackState
+        Changed in place (positions, state, point).
+    reference : ndarray of shape (M, 3)
+        Every marker in one pose (NaN if unknown).
+    spare : callable (frame) -> ndarray (K, 3), optional
+        Reconstructions of a frame that carry no label: a group missing a
+        label takes one when it fits the group rigidly within ``fill_rms_m``
+        (and lies within ``spare_reach_m`` of the group's points).
+
+    Returns
+    -------
+    int
+        Number of marker-frames relabelled or filled.
+    """
+    from itertools import permutations
+
+    seg = np.asarray(track.segments)
+    changed = 0
+    for group in SWAP_GROUPS:
+        idx = np.flatnonzero(np.isin(seg, group) & np.isfinite(reference).all(axis=1))
+        n = idx.size
+        if not 3 <= n <= max_markers:
+            continue
+        maps = {k: np.array(list(permutations(range(n), k))) for k in range(3, n + 1)}
+        for f in range(track.positions.shape[0]):
+            here = np.flatnonzero(np.isfinite(track.positions[f, idx]).all(axis=1))
+            if here.size < 3:
+                continue
+            m = maps[here.size]  # (P, k): the label (within the group) of each present point
+            P = track.positions[f, idx[here]]
+            rms = _rigid_rms(reference[idx][m], P)
+            now = int(np.flatnonzero(np.all(m == here, axis=1))[0])
+            best = int(np.argmin(rms))
+            if rms[now] > min_rms_m and rms[best] < ratio * rms[now]:
+                changed += _relabel(track, f, idx, here, m[best])
+                here = np.flatnonzero(np.isfinite(track.positions[f, idx]).all(axis=1))
+                rms_now = rms[best]
+            else:
+                rms_now = rms[now]
+            if spare is None or here.size == n:
+                continue
+            extra = spare(f)
+            if len(extra) == 0:
+                continue
+            P = track.positions[f, idx[here]]
+            near = extra[np.linalg.norm(extra - P.mean(axis=0), axis=1) < spare_reach_m]
+            missing = np.setdiff1d(np.arange(n), here)
+            best_fill = None
+            for x in near:
+                for lab in missing:
+                    r = _rigid_rms(reference[idx][np.append(here, lab)][None], np.vstack([P, x]))[0]
+                    if r < max(fill_rms_m, 1.2 * rms_now) and (best_fill is None or r < best_fill[0]):
+                        best_fill = (r, lab, x)
+            if best_fill is not None:
+                _, lab, x = best_fill
+                track.positions[f, idx[lab]] = x
+                track.state[f, idx[lab]] = TRINOCULAR
+                changed += 1
+    return changed
+
+
+def _relabel(track: TrackState, f: int, idx: np.ndarray, here: np.ndarray, labels: np.ndarray) -> int:
+    """Give the group ``idx``'s present points (``here``) the group labels ``labels`` in frame ``f``."""
+    src, dst = idx[here], idx[labels]
+    vals = [arr[f, src].copy() for arr in (track.positions, track.state, track.point)]
+    track.positions[f, idx] = np.nan
+    track.state[f, idx] = MISSING
+    track.point[f, idx] = -1
+    for arr, v in zip((track.positions, track.state, track.point), vals):
+        arr[f, dst] = v
+    return int(np.sum(src != dst))
