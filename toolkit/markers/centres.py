@@ -296,8 +296,11 @@ def sphere_centre(rot_parent, trans_parent, points: np.ndarray, *, anchor: np.nd
     k = pts.shape[1]
     # in coordinates centred on the markers' mean m (better conditioned): |y|^2 = 2 y.c' + d_k,
     # y = x - m, c' = c - m, d_k = r_k^2 - |c'|^2
-    with np.errstate(invalid="ignore"):
-        mean = np.nanmean(local.reshape(-1, 3), axis=0)
+    flat = local.reshape(-1, 3)
+    flat = flat[np.isfinite(flat).all(axis=1)]
+    if not len(flat):
+        raise InputError("points", "child markers seen in frames with the parent's motion", "none")
+    mean = flat.mean(axis=0)
     ys = [local[:, j][np.isfinite(local[:, j]).all(axis=1)] - mean for j in range(k)]
     a = np.concatenate([np.concatenate([2 * y, np.eye(k)[[j] * len(y)]], axis=1) for j, y in enumerate(ys)])
     b = np.concatenate([(y ** 2).sum(axis=1) for y in ys])
