@@ -15,7 +15,7 @@ from toolkit.softbody.mesh import sample_surface, surface_mesh
 from toolkit.softbody.track import TrackConfig, track_sequence
 
 N_FRAMES = 6
-N_POINTS = 400
+N_POINTS = 300
 #: Noiseless points of the model itself: the optimum is the truth; what is left is the
 #: solvers' stopping tolerance and the weak pull towards the start pose (well under 1 mm
 #: measured, 3 mm allowed).
@@ -64,7 +64,7 @@ def test_global_fit_recovers_lengths_that_tracking_gets_wrong(scene):
     assert tracked > 8.0
     obs = RecordingObserver()
     # noiseless points of the model itself: no pull towards the (wrong) start lengths
-    fit = global_fit(model, track, clouds, config=GlobalFitConfig(max_points=200, length_prior_weight=0.0),
+    fit = global_fit(model, track, clouds, config=GlobalFitConfig(max_points=150, length_prior_weight=0.0),
                      observer=obs)
     assert np.abs(fit.lengths - lengths).max() < 0.003
     assert _mpjpe_mm(fit.joints, joints).mean() < EXACT_MM
