@@ -123,3 +123,49 @@ def labelling_score(traj: MarkerTrajectories, capture_dir: str | Path, *,
         "position_error_mm": {"median": float(np.median(err)) if err.size else float("nan"),
                               "p90": float(np.percentile(err, 90)) if err.size else float("nan")},
     }
+
+
+def label_and_score(capture_dir: str | Path, *, config=None, marker_set=None) -> tuple[MarkerTrajectories, dict]:
+    """Label a synthetic capture and score it (the benchmark's entry point for the labelling).
+
+    Parameters
+    ----------
+    capture_dir : str or Path
+        A synthetic marker capture folder.
+    config : LabelConfig, optional
+    marker_set : MarkerSet, optional
+        Default: the capture's ``marker_set`` (``markers/calibration.toml`` metadata, else
+        ``groundtruth/marker_capture.json``).
+
+    Returns
+    -------
+    traj : MarkerTrajectories
+    score : dict
+        :func:`labelling_score` plus ``ms_per_frame`` (wall clock) and ``cpu_ms_per_frame``
+        (process time) of :func:`~toolkit.markers.label.label_capture`.
+    """
+    import json
+    import time
+
+    from toolkit.markers.capture import load_marker_capture
+    from toolkit.markers.label import LabelConfig, label_capture
+    from toolkit.markers.marker_sets import get_marker_set
+
+    root = Path(capture_dir)
+    capture = load_marker_capture(root)
+    if marker_set is None:
+        from toolkit.io import read_calibration_metadata
+
+        name = read_calibration_metadata(root / "markers" / "calibration.toml").get("marker_set")
+        if name is None and (root / "groundtruth" / "marker_capture.json").is_file():
+            name = json.loads((root / "groundtruth" / "marker_capture.json").read_text()).get("marker_set")
+        if name is None:
+            raise InputError(str(root), "a capture that names its marker set", "none")
+        marker_set = get_marker_set(str(name))
+    wall, cpu = time.perf_counter(), time.process_time()
+    traj = label_capture(capture, marker_set, config=config or LabelConfig())
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    score = labelling_score(traj, root)
+    score["ms_per_frame"] = 1000 * wall / max(traj.n_frames, 1)
+    score["cpu_ms_per_frame"] = 1000 * cpu / max(traj.n_frames, 1)
+    return traj, score

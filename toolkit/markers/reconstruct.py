@@ -99,12 +99,18 @@ class RigGeometry:
         Mean focal length of each camera, pixels (normalised units to pixels).
     essential : dict of (int, int) -> ndarray (3, 3)
         ``E_ba`` with ``x_b^T E_ba x_a = 0`` for every pair a < b.
+    KP : ndarray of shape (C, 3, 4)
+        ``K [R | t]`` (pixels, without distortion).
+    pinhole : bool
+        No camera has lens distortion (projection in one batched product).
     """
 
     rig: Rig
     P: np.ndarray
     focal: np.ndarray
     essential: dict
+    KP: np.ndarray
+    pinhole: bool
 
     @staticmethod
     def of(rig: Rig) -> "RigGeometry":
@@ -119,7 +125,8 @@ class RigGeometry:
             t = tb - R @ ta
             tx = np.array([[0, -t[2], t[1]], [t[2], 0, -t[0]], [-t[1], t[0], 0]])
             E[(a, b)] = tx @ R
-        return RigGeometry(rig, P, focal, E)
+        KP = np.stack([c.K @ p for c, p in zip(rig, P)])
+        return RigGeometry(rig, P, focal, E, KP, not any(c.has_distortion for c in rig))
 
 
 def normalise_blobs(rig: Rig, blobs: list[np.ndarray]) -> list[np.ndarray]:
@@ -180,7 +187,12 @@ def project_all(geom: RigGeometry, points: np.ndarray) -> np.ndarray:
     """Pixels (C, K, 2) of points (K, 3) in every camera (NaN behind a camera)."""
     if points.shape[0] == 0:
         return np.zeros((len(geom.rig), 0, 2))
-    uv = np.stack([cam.project(points) for cam in geom.rig])
+    if geom.pinhole:  # no lens distortion: one batched product for all cameras
+        q = np.einsum("cij,kj->cki", geom.KP[:, :, :3], points) + geom.KP[:, None, :, 3]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            uv = q[..., :2] / q[..., 2:3]
+    else:
+        uv = np.stack([cam.project(points) for cam in geom.rig])
     depth = points @ geom.P[:, 2, :3].T + geom.P[:, 2, 3]  # (K, C)
     depth = depth.T
     uv[depth < 0.0] = np.nan
@@ -285,12 +297,16 @@ def _greedy(geom: RigGeometry, B: np.ndarray, XY: np.ndarray, views: np.ndarray,
     items = {k: (views[k], X[k], rms[k]) for k in range(len(views))}
     fresh = count(len(views))
     out_v, out_x, out_r = [], [], []
+    accepted = False
+    same_m = 0.01  # two hypotheses this close are one marker (markers are >= 5 cm apart)
     while heap:
         _, _, k = heapq.heappop(heap)
         v, x, r = items.pop(k)
         vv = v.tolist()
         clash = [c for c in range(C) if vv[c] >= 0 and vv[c] in used[c]]
         if clash:
+            if accepted and np.min(np.sum((np.array(out_x) - x) ** 2, axis=1)) < same_m ** 2:
+                continue  # the same marker seen through another subset of views
             v = v.copy()
             v[clash] = -1
             if (v >= 0).sum() < 3:
@@ -310,6 +326,7 @@ def _greedy(geom: RigGeometry, B: np.ndarray, XY: np.ndarray, views: np.ndarray,
         out_v.append(v)
         out_x.append(x)
         out_r.append(r)
+        accepted = True
     if not out_v:
         return np.zeros((0, C), int), np.zeros((0, 3)), np.zeros(0)
     return np.array(out_v), np.array(out_x), np.array(out_r)
