@@ -3,9 +3,9 @@
 
 Usage::
 
-    python -m benchmarks.bench_softbody                    # 3 depth + 3 trinocular scenes x 20 frames
+    python -m benchmarks.bench_softbody                    # 2 depth + 2 trinocular scenes x 12 frames
     python -m benchmarks.bench_softbody --quick            # 1 + 1 scenes x 12 frames
-    python -m benchmarks.bench_softbody --scenes 4 --frames 30 --cache out/bench_softbody
+    python -m benchmarks.bench_softbody --scenes 3 --frames 20 --cache out/bench_softbody   # docs/benchmarks.md
 
 Seeded synthetic sequences, each a random person (1.60-1.90 m, random
 outfit with a checked shirt for the stereo scenes) doing one of several
@@ -213,8 +213,8 @@ def report(rows: list) -> bool:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
-    ap.add_argument("--scenes", type=int, default=3, help="scenes per source (depth, trinocular)")
-    ap.add_argument("--frames", type=int, default=20, help="frames per scene")
+    ap.add_argument("--scenes", type=int, default=2, help="scenes per source (depth, trinocular)")
+    ap.add_argument("--frames", type=int, default=12, help="frames per scene")
     ap.add_argument("--quick", action="store_true", help="1 scene per source x 12 frames")
     ap.add_argument("--sources", default="depth,trinocular", help="comma-separated: depth, trinocular")
     ap.add_argument("--cache", type=Path, default=Path("/tmp/bench_softbody"),
