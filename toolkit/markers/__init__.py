@@ -2,6 +2,7 @@
 
 from toolkit.markers.capture import MarkerCapture, load_marker_capture
 from toolkit.markers.functional import JointCentresConfig, JointCentresResult, joint_centres
+from toolkit.markers.label import LabelConfig, label_capture
 from toolkit.markers.marker_sets import MARKER_SETS, MarkerSet, Placement, get_marker_set
 from toolkit.markers.trajectories import (
     BRIDGED,
@@ -14,4 +15,4 @@ from toolkit.markers.trajectories import (
 
 __all__ = ["MARKER_SETS", "MarkerSet", "Placement", "get_marker_set", "MarkerTrajectories", "MISSING",
            "TRINOCULAR", "TWO_VIEW", "BRIDGED", "FROM_FILE", "MarkerCapture", "load_marker_capture",
-           "JointCentresConfig", "JointCentresResult", "joint_centres"]
+           "JointCentresConfig", "JointCentresResult", "joint_centres", "LabelConfig", "label_capture"]
