@@ -22,9 +22,10 @@ from toolkit.motion.kinematics import (
     set_bone_lengths,
     two_bone_ik,
 )
-from toolkit.motion.library import MOTIONS, Motion, generate_motion, synthesize_motion
+from toolkit.motion.library import MOTIONS, SCENE_MOTIONS, Motion, generate_motion, synthesize_motion
 
 __all__ = ["CMU_UNIT_M", "BvhMotion", "bvh_to_skeleton14", "motion_from_bvh", "parse_bvh", "read_bvh",
            "write_bvh", "KNEE_MIN_FLEXION", "Pose14", "align_to_ground", "bone_lengths14",
            "forward_kinematics", "inverse_kinematics", "leg_reach", "resample", "sequence_bone_lengths",
-           "set_bone_lengths", "two_bone_ik", "MOTIONS", "Motion", "generate_motion", "synthesize_motion"]
+           "set_bone_lengths", "two_bone_ik", "MOTIONS", "SCENE_MOTIONS", "Motion", "generate_motion",
+           "synthesize_motion"]

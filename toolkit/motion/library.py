@@ -30,12 +30,18 @@ from toolkit.motion.rom import rom_motion
 from toolkit.observe import as_observer
 from toolkit.skeleton import SKELETON_14
 
-__all__ = ["MOTIONS", "Motion", "synthesize_motion", "generate_motion", "GRAVITY_M_S2",
+__all__ = ["MOTIONS", "SCENE_MOTIONS", "Motion", "synthesize_motion", "generate_motion", "GRAVITY_M_S2",
            "WALK_CADENCE_HZ", "RUN_CADENCE_HZ", "PLACEMENT_RADIUS_M", "LINE_HALF_LENGTH_M"]
 
 
 #: Motion names understood by :func:`generate_motion`.
 MOTIONS = ("walk", "run", "jump", "kick", "turn", "wave", "crouch", "idle", "rom")
+
+#: The motions of everyday scenes: all but ``rom`` (the functional calibration trial of marker
+#: captures).  What the databases built from the library hold by default (the silhouette
+#: database's :class:`~toolkit.silhouettes.building.BuildConfig`, the template fit's pose
+#: database), so a motion added to :data:`MOTIONS` does not change them (or their cache key).
+SCENE_MOTIONS = ("walk", "run", "jump", "kick", "turn", "wave", "crouch", "idle")
 
 #: Builders return a plan (finished by ``_finish``) or a finished Motion (``rom``).
 _BUILDERS = {"walk": _walk, "run": _run, "jump": _jump, "kick": _kick, "turn": _turn,

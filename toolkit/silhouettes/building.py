@@ -33,7 +33,7 @@ import open3d as o3d
 
 from toolkit.anthropometry.proportions import BodyProportions
 from toolkit.errors import InputError
-from toolkit.motion import CMU_UNIT_M, MOTIONS, generate_motion, motion_from_bvh, read_bvh
+from toolkit.motion import CMU_UNIT_M, MOTIONS, SCENE_MOTIONS, generate_motion, motion_from_bvh, read_bvh
 from toolkit.observe import as_observer
 from toolkit.silhouettes.database import FLOW_SIZE, SilhouetteDatabase
 from toolkit.silhouettes.descriptor import (
@@ -78,7 +78,8 @@ class BuildConfig:
     Parameters
     ----------
     motions : tuple of str
-        Procedural motions (:data:`toolkit.motion.MOTIONS`).
+        Procedural motions (names from :data:`toolkit.motion.MOTIONS`; default
+        :data:`toolkit.motion.SCENE_MOTIONS`, without the lab's ``rom`` trial).
     sequences_per_motion : int
         Seeded sequences (person, build, motion parameters) per motion.
     frames_per_sequence : int
@@ -100,7 +101,7 @@ class BuildConfig:
         One pose every this many frames of each BVH file (at ``fps``).
     """
 
-    motions: tuple[str, ...] = tuple(MOTIONS)
+    motions: tuple[str, ...] = SCENE_MOTIONS
     sequences_per_motion: int = 4
     frames_per_sequence: int = 100
     fps: float = 25.0

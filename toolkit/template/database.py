@@ -118,16 +118,16 @@ class PoseDatabase:
         height : float
             Stature of the median body the motions are generated for, metres.
         motions : sequence of str, optional
-            Motion names (default: all).
+            Motion names (default: :data:`toolkit.motion.SCENE_MOTIONS`, all but the lab's ``rom`` trial).
         frames_per_motion : int
             Poses kept per motion (evenly spaced over a 3 s clip).
         rng : numpy.random.Generator or int or None
             Seeds the motion variations.
         """
-        from toolkit.motion import MOTIONS, generate_motion
+        from toolkit.motion import SCENE_MOTIONS, generate_motion
 
         rng = np.random.default_rng(rng)
-        names = tuple(MOTIONS if motions is None else motions)
+        names = tuple(SCENE_MOTIONS if motions is None else motions)
         props = BodyProportions.from_height(float(height))
         fps = 25.0
         n = 75
