@@ -341,3 +341,18 @@ def test_labelling_file_position_without_a_marker_is_an_error(tmp_path, capture_
     with pytest.raises(InputError, match="LASI"):
         label_capture(load_marker_capture(capture_dir), get_marker_set("plug-in-gait"), labelling=path,
                       config=LabelConfig(identify_within=5))
+
+
+def test_repair_swaps_relabels_a_swapped_group_and_fills_a_missing_label():
+    plate = np.array([[0.0, 0.0, 0.0], [0.09, 0.0, 0.0], [0.0, 0.11, 0.02], [0.07, 0.08, -0.05]])
+    st = TrackState.empty(3, ("l_thigh",) * 4)
+    st.positions[:] = plate + [0.2, 0.0, 1.0]
+    st.state[:] = TRINOCULAR
+    st.positions[1, [0, 2]] = st.positions[1, [2, 0]]  # frame 1: markers 0 and 2 swapped
+    st.positions[2, 3] = np.nan  # frame 2: marker 3 lost, its reconstruction left unlabelled
+    st.state[2, 3] = MISSING
+    spare = {0: np.zeros((0, 3)), 1: np.zeros((0, 3)), 2: (plate[3] + [0.2, 0.0, 1.0])[None]}
+    from toolkit.markers.track import repair_swaps
+
+    assert repair_swaps(st, plate, spare=spare.get) == 3
+    assert np.allclose(st.positions, plate + [0.2, 0.0, 1.0]) and np.all(st.state == TRINOCULAR)

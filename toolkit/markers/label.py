@@ -10,7 +10,9 @@
    labelling file; two-view reconstructions are added to that frame only when
    too few trinocular markers are found;
 3. **tracking** forwards to the end and backwards to the first frame with the
-   4-frame window, 2D tracking and bridging (:mod:`toolkit.markers.track`).
+   4-frame window, 2D tracking and bridging (:mod:`toolkit.markers.track`),
+   then swapped labels within nearly rigid groups repaired frame by frame
+   against the identification pose (:func:`~toolkit.markers.track.repair_swaps`).
 
 Markers that cannot be identified in that frame keep the state ``MISSING``
 until the tracker recovers them from their segment's motion; when too few

@@ -27,10 +27,20 @@ previous ones:
 Every candidate and every blob goes to at most one marker (Hungarian
 assignment, blobs marked used), so two labels never share a marker; this is
 checked at the end of each frame.
+
+The gate grows with the marker's last displacement (a fast limb accelerates
+more between frames); a lost marker is searched for where the markers of its
+segment and the adjacent ones carried it, and when found again it must keep
+its distances to its segment mates.  After tracking, :func:`repair_swaps`
+checks each nearly rigid group of markers (a segment, or a shank with its
+foot) frame by frame against the identification pose: a labelling of the
+same points that fits much better replaces a swapped one, and a missing
+label takes an unlabelled reconstruction that fits the group rigidly.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,9 +48,10 @@ from scipy.optimize import linear_sum_assignment
 
 from toolkit.errors import InputError
 from toolkit.markers.identify import SEGMENT_TREE, kabsch
-from toolkit.markers.reconstruct import (FrameMarkers, RigGeometry, project_all, triangulate_dlt,
-                                         used_blob_masks)
+from toolkit.markers.reconstruct import RigGeometry, project_all, triangulate_dlt, used_blob_masks
 from toolkit.markers.trajectories import BRIDGED, MISSING, TRINOCULAR, TWO_VIEW
+
+__all__ = ["TrackConfig", "TrackState", "Tracker", "repair_swaps", "SWAP_GROUPS"]
 
 _FAR = 1e3  # cost of a pair outside the gate (metres; never chosen over a "no partner" column)
 _NONE = 1e2  # cost of leaving a marker without a candidate
@@ -168,11 +179,9 @@ def reference_distances(track: TrackState) -> np.ndarray:
     P = track.positions[track.state.max(axis=1) > 0]
     seg = np.asarray(track.segments)
     d = np.linalg.norm(P[:, :, None] - P[:, None], axis=3)
-    with np.errstate(all="ignore"):
-        import warnings
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            ref = np.nanmedian(d, axis=0) if len(P) else np.full((seg.size, seg.size), np.nan)
+    with warnings.catch_warnings():  # pairs never seen together: an all-NaN median, NaN is the answer
+        warnings.simplefilter("ignore", RuntimeWarning)
+        ref = np.nanmedian(d, axis=0) if len(P) else np.full((seg.size, seg.size), np.nan)
     return np.where(seg[:, None] == seg[None, :], ref, np.nan)
 
 
@@ -430,14 +439,6 @@ class Tracker:
         for k in range(1, len(order)):
             self.step(order, k)
 
-
-def nearest_neighbour_config(config: TrackConfig = TrackConfig()) -> TrackConfig:
-    """The same settings with the nearest-neighbour window (the baseline of the tests and benchmark)."""
-    from dataclasses import replace
-    return replace(config, window=2)
-
-
-__all__ = ["TrackConfig", "TrackState", "Tracker", "FrameMarkers", "nearest_neighbour_config"]
 
 
 #: Segment groups whose markers are checked together for swapped labels (a limb's distal pair of
