@@ -11,6 +11,7 @@ cameras, a held-out source camera and three camera paths rendered and scored
 
 from __future__ import annotations
 
+import contextlib
 import json
 import time
 from collections import Counter
@@ -20,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from toolkit.errors import InputError
-from toolkit.pipeline.parallel import ParallelConfig, drop_cached, worker_cache
+from toolkit.pipeline.parallel import Cluster, ParallelConfig, drop_cached, worker_cache
 from toolkit.pipeline.run import FrameRecords, RunResult, open_run, run_frames
 from toolkit.rendering.freeviewpoint import FreeViewpointConfig
 
@@ -345,7 +346,20 @@ class _FrameTask:
     masks_dir: Path | None
 
     def __call__(self, est, masks, images: dict, observer=None) -> None:
-        worker_cache(self.token, lambda: _Frames(self))(est, masks, images, observer)
+        self.warm()(est, masks, images, observer)
+
+    def warm(self) -> "_Frames":
+        """This process's frame context of the run (built on first use; a warm-up task)."""
+        return worker_cache(self.token, lambda: _Frames(self))
+
+
+def _warm_imports() -> None:
+    """What a worker imports for a frame: a warm-up task while the main process calibrates and starts stage 1."""
+    import toolkit.pipeline.frame  # noqa: F401
+    import toolkit.pipeline.stage3  # noqa: F401
+    import toolkit.pipeline.views  # noqa: F401
+    import toolkit.rendering.evaluation  # noqa: F401
+    import toolkit.segmentation  # noqa: F401
 
 
 def _finish(ds, out: Path, records: list, n: int, novel: list, held, stage1: str) -> dict:
@@ -422,13 +436,17 @@ def run(config: FreeViewpointRunConfig, *, dataset, out, observer=None, log=prin
     from toolkit.pipeline.views import split_rig
 
     out = Path(out)
-    with Dataset.open(dataset) as ds:
+    with Dataset.open(dataset) as ds, contextlib.ExitStack() as stack:
         n = ds.frames_to_process(config.max_frames)
         kp_dir, masks_dir = _inputs(ds, config)
         exclude, extra = _identity_exclude(config, kp_dir, masks_dir)
         folder = open_run(out, "free_viewpoint", ds.root, config, n, exclude=exclude, extra=extra,
                           replace_stale=config.replace_stale, recording=config.recording and observer is None,
                           log=log)
+        # the workers start (and import) while this process calibrates and loads stage 1
+        cluster = stack.enter_context(Cluster(ParallelConfig(config.workers, config.scheduler)
+                                              if folder.records.todo() else ParallelConfig()))
+        cluster.warm(_warm_imports)
         novel = list(ds.novel_rig) if ds.has_groundtruth and (ds.root / "groundtruth/novel/calibration.toml").exists() \
             else []
         earlier = folder.records.done()
@@ -449,6 +467,8 @@ def run(config: FreeViewpointRunConfig, *, dataset, out, observer=None, log=prin
         stage1 = _Stage1(ds, rig, config, kp_dir, masks_dir, out, None if obs is None else _Only(obs, wanted))
         todo = list(range(todo[-1] + 1)) if todo else []
         task = _FrameTask(uuid.uuid4().hex, ds.root, out, config, rig, tuple(novel), held, n, kp_dir, masks_dir)
+        if wanted:
+            cluster.warm(task.warm)
 
         def frames():  # stage 1 in frame order (its temporal term, tracking), here, ahead of the workers
             for est, masks in stage1.estimates(todo):
@@ -457,10 +477,11 @@ def run(config: FreeViewpointRunConfig, *, dataset, out, observer=None, log=prin
 
         try:
             processed, stopped, seconds = run_frames(
-                task, frames(), total=len(wanted), parallel=ParallelConfig(config.workers, config.scheduler),
+                task, frames(), total=len(wanted), parallel=cluster,
                 observer=obs, progress=config.progress, desc="free viewpoint")
         finally:
             drop_cached(task.token)
+            cluster.close()
             if own and obs is not None:
                 obs.close()
         records = folder.records.read_all()

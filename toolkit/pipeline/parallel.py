@@ -194,8 +194,15 @@ def _client(config: ParallelConfig):
         except (OSError, TimeoutError) as e:
             raise InputError("scheduler (--scheduler)", "the address of a running Dask scheduler",
                              f"{config.scheduler!r}: {e}") from None
-    cluster = LocalCluster(n_workers=int(config.workers), threads_per_worker=1, processes=True,
-                           dashboard_address=":0", silence_logs=40)  # a free port: never "8787 in use"
+    import dask
+
+    # Dask's nannies start workers with MALLOC_TRIM_THRESHOLD_=65536, which turns off glibc's adaptive mmap
+    # threshold: every large temporary array is then mapped and unmapped afresh (page faults), and a frame's
+    # rendering took 3x the CPU time (measured on the default scene's background plates); the workers keep
+    # the allocator's defaults, as the main process has them
+    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
+        cluster = LocalCluster(n_workers=int(config.workers), threads_per_worker=1, processes=True,
+                               dashboard_address=":0", silence_logs=40)  # a free port: never "8787 in use"
     client = Client(cluster)
     client._toolkit_cluster = cluster  # closed with the client (_close)
     return client
@@ -208,7 +215,71 @@ def _close(client) -> None:
         cluster.close()
 
 
-def map_tasks(fn: Callable, tasks: Iterable[tuple], *, parallel: ParallelConfig = ParallelConfig(),
+class Cluster:
+    """Where tasks run, started before they come: its start overlaps the caller's own work.
+
+    With a sequential :class:`ParallelConfig` nothing is started.  Use it as a
+    context manager (closes the client, and the local cluster it started) and
+    pass it to :func:`map_tasks` as ``parallel``.
+
+    Parameters
+    ----------
+    config : ParallelConfig
+    """
+
+    def __init__(self, config: ParallelConfig):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.config = config
+        self._client = None
+        self._warm: list = []  # futures of the warm-up tasks (a future let go of is cancelled)
+        self._pool = None if config.sequential else ThreadPoolExecutor(1)
+        self._starting = None if config.sequential else self._pool.submit(_client, config)
+
+    @property
+    def sequential(self) -> bool:
+        return self.config.sequential
+
+    def client(self):
+        """The Dask client, once the cluster is up (waits for it)."""
+        if self._client is None:
+            self._client = self._starting.result()
+        return self._client
+
+    @property
+    def slots(self) -> int:
+        """Tasks the cluster runs at once (its workers' threads)."""
+        if self.config.scheduler is None:
+            return int(self.config.workers)
+        return max(1, sum(self.client().nthreads().values()))
+
+    def warm(self, fn: Callable) -> None:
+        """Run ``fn()`` once on every worker as soon as the cluster is up, without waiting for it (imports,
+        a run's context in :func:`worker_cache`); does nothing in this process with one worker."""
+        if self._pool is not None:
+            self._pool.submit(self._warm_all, fn)
+
+    def _warm_all(self, fn: Callable) -> None:
+        client = self._starting.result()
+        for w in client.scheduler_info()["workers"]:
+            self._warm.append(client.submit(_call, fn, (), pure=False, workers=[w], allow_other_workers=False))
+
+    def close(self) -> None:
+        if self._pool is None:
+            return
+        self._pool.shutdown(wait=True)
+        self._pool = None
+        if self._starting.exception() is None:
+            _close(self._starting.result())
+
+    def __enter__(self) -> "Cluster":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def map_tasks(fn: Callable, tasks: Iterable[tuple], *, parallel: "ParallelConfig | Cluster" = ParallelConfig(),
               on_result: Callable[[int, Any], None] | None = None, total: int | None = None,
               progress: bool = False, desc: str | None = None, unit: str = "task") -> list:
     """Run ``fn(*args)`` for every ``args`` of ``tasks``; results handed back in task order.
@@ -221,7 +292,8 @@ def map_tasks(fn: Callable, tasks: Iterable[tuple], *, parallel: ParallelConfig 
         Arguments of each task; may be a generator (e.g. stage 1 over the
         frames): it is read ahead of the running tasks by at most
         ``AHEAD_PER_WORKER`` tasks per worker.
-    parallel : ParallelConfig
+    parallel : ParallelConfig or Cluster
+        Where the tasks run; a :class:`Cluster` given is used and left open.
     on_result : callable, optional
         ``on_result(i, result)`` for task ``i`` (0-based, in the order given), in
         that order, as soon as every earlier task's result was handed on.
@@ -256,31 +328,28 @@ def map_tasks(fn: Callable, tasks: Iterable[tuple], *, parallel: ParallelConfig 
                 bar.update(1)
                 give(i, result)
             return kept
-        _map_dask(fn, tasks, parallel, give, bar)
+        own = not isinstance(parallel, Cluster)
+        cluster = Cluster(parallel) if own else parallel  # starts while the first task's arguments are made
+        try:
+            _map_dask(fn, tasks, cluster, give, bar)
+        finally:
+            if own:
+                cluster.close()
     return kept
 
 
-def _map_dask(fn, tasks, parallel: ParallelConfig, give, bar) -> None:
+def _map_dask(fn, tasks, cluster: Cluster, give, bar) -> None:
     """:func:`map_tasks` on a Dask cluster: submit ahead, collect as completed, hand on in order."""
-    from concurrent.futures import ThreadPoolExecutor
-
     from dask.distributed import as_completed
 
     tasks = iter(tasks)
-    with ThreadPoolExecutor(1) as starter:  # the cluster starts while the first task's arguments are made
-        starting = starter.submit(_client, parallel)
-        try:
-            first = next(tasks, None)
-        except BaseException:
-            _close(starting.result())
-            raise
-        client = starting.result()
+    first = next(tasks, None)  # e.g. stage 1 of the first frame, while the cluster starts
+    client = cluster.client()
     if first is not None:
         tasks = itertools.chain([first], tasks)
     futures: dict = {}
     try:
-        slots = max(1, sum(client.nthreads().values())) if parallel.scheduler is not None else int(parallel.workers)
-        ahead = AHEAD_PER_WORKER * slots
+        ahead = AHEAD_PER_WORKER * cluster.slots
         done = as_completed()
         ready: dict = {}
         index_of: dict = {}
@@ -310,7 +379,6 @@ def _map_dask(fn, tasks, parallel: ParallelConfig, give, bar) -> None:
     finally:
         if futures:
             client.cancel(list(futures.values()))
-        _close(client)
 
 
 def map_scenes(fn: Callable, scenes: Iterable, *, workers: int = 1, scheduler: str | None = None,

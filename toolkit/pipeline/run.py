@@ -510,8 +510,8 @@ def compare_runs(a: str | os.PathLike, b: str | os.PathLike, *, atol_m: float = 
     Images and every other file byte for byte; JSON records and metrics less
     their wall times, numbers to ``atol_m`` (absolute, or relative above 1);
     ``.npz`` arrays to ``atol_m`` (poses, metres) where float, exactly
-    otherwise.  ``run.json`` (its recording id) and the
-    recordings are not compared.
+    otherwise.  ``run.json`` (its recording id), the recordings and hidden
+    files (the temporary file of a write a killed worker left) are not compared.
 
     Parameters
     ----------
@@ -530,8 +530,9 @@ def compare_runs(a: str | os.PathLike, b: str | os.PathLike, *, atol_m: float = 
 
     a, b = Path(a), Path(b)
 
-    def files(root: Path) -> set:
+    def files(root: Path) -> set:  # hidden files left out: an atomic write's temporary, left by a killed worker
         return {p.relative_to(root).as_posix() for p in root.rglob("*") if p.is_file()
+                and not any(part.startswith(".") for part in p.relative_to(root).parts)
                 and not any(fnmatch.fnmatch(p.relative_to(root).as_posix(), g) for g in _UNCOMPARED)}
 
     fa, fb = files(a), files(b)
