@@ -198,12 +198,14 @@ class _Body:
         self.markers = s * self.markers @ R.T + t
         self.joints = s * self.joints @ R.T + t
 
-    def rotate_segment(self, segment: str, target: np.ndarray, match: np.ndarray, reach: float) -> None:
+    def rotate_segment(self, segment: str, target: np.ndarray, match: np.ndarray, reach: float,
+                       max_turn_deg: float = 90.0) -> None:
         """Rotate ``segment`` and its descendants about its pivot onto ``target`` (ICP step).
 
         The subtree's markers are paired one-to-one with the points that no
         marker outside the subtree holds, within ``reach`` metres (a limb far
-        from the rest pose has no partner within the global gate yet).
+        from the rest pose has no partner within the global gate yet).  A
+        turn of more than ``max_turn_deg`` in one step is refused.
         """
         sel = self.subtree_markers[segment]
         if sel.sum() < 2:
@@ -218,6 +220,8 @@ class _Body:
             return
         p = self.pivot(segment)
         R = kabsch(self.markers[sel][ok] - p, target[free[sub[ok]]] - p, center=False)
+        if np.trace(R) < 1.0 + 2.0 * np.cos(np.radians(max_turn_deg)):
+            return  # a segment turned over (a foot's heel onto its toe) is a wrong pairing, not a pose
         self.markers[sel] = (self.markers[sel] - p) @ R.T + p
         js = self.subtree_joints[segment]
         self.joints[js] = (self.joints[js] - p) @ R.T + p
