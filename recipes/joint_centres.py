@@ -58,7 +58,8 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("dataset", type=Path, help="marker capture folder or .c3d file")
     ap.add_argument("--out", type=Path, required=True, help="output folder")
     ap.add_argument("--config", type=Path, default=None, help="options from a TOML file (flags given here win)")
-    ap.add_argument("--marker-set", default=None, help="marker set of a capture folder (default: its metadata's)")
+    ap.add_argument("--marker-set", default=None, help="marker set of a capture folder (default: its metadata's) "
+                    "or of a C3D file's labels (default: found from the labels)")
     ap.add_argument("--labelling", type=Path, default=None, help="user labelling file (JSON or CSV)")
     ap.add_argument("--min-rom", type=float, default=None, help="least range of motion for a functional centre, deg")
     ap.add_argument("--height", type=float, default=None, help="performer's stature in metres (default: fitted)")

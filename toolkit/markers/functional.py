@@ -325,13 +325,25 @@ def joint_centres(traj, *, config: JointCentresConfig = JointCentresConfig(), ob
     Raises
     ------
     InputError
-        Fewer than three frames or two markers.
+        Fewer than three frames with two markers seen; a marker set named in
+        ``config`` of which the labels hold fewer than three markers.
     """
     obs = as_observer(observer)
     pos = np.asarray(traj.positions, dtype=float)
     if pos.ndim != 3 or pos.shape[0] < 3 or pos.shape[1] < 2:
         raise InputError(f"{traj.source}: positions", "at least 3 frames of at least 2 markers", f"{pos.shape}")
+    n_seen = int(np.sum(np.isfinite(pos).all(axis=-1).sum(axis=1) >= 2))
+    if n_seen < 3:
+        raise InputError(f"{traj.source}: positions", "at least 3 frames with at least 2 markers seen",
+                         f"{n_seen} such frames of {pos.shape[0]} (markers missing, NaN, in the others)")
     mset = _choose_marker_set(traj.labels, config.marker_set)
+    if mset is not None and config.marker_set != "auto":
+        known = [lab for lab in mset.labels if lab in traj.labels]
+        if len(known) < 3:
+            raise InputError(f"{traj.source}: labels (marker set {mset.name!r} asked for)",
+                             f"at least 3 of the marker set's labels (e.g. {list(mset.labels[:4])})",
+                             f"{len(known)} of them among {list(traj.labels[:6])}"
+                             f"{' ...' if traj.n_markers > 6 else ''}")
     groups = {} if config.marker_set == "none" else _segment_groups(traj, mset)
     if sum(1 for g in groups.values() if g) < 2:
         return _unlabelled(traj, config, obs)
@@ -342,6 +354,11 @@ def _labelled(traj, groups, mset, config, obs) -> JointCentresResult:
     pos = traj.positions
     t = pos.shape[0]
     messages = []
+    never = np.flatnonzero(~np.isfinite(pos).all(axis=-1).any(axis=0))
+    if never.size:
+        messages.append(f"markers {[traj.labels[i] for i in never]} are missing in every frame; left out of "
+                        "the fits")
+        groups = {k: [i for i in v if i not in set(never.tolist())] for k, v in groups.items()}
     std, _ = _r.distance_std(pos)
     bad = _r.check_segments(pos, groups, tolerance_m=config.segment_tolerance_m)
     for seg, idx in bad.items():

@@ -53,7 +53,8 @@ class JointCentresRunConfig:
         Reconstruction, identification and tracking of a capture folder (``[label]`` table).
     marker_set : str
         The marker set of a capture folder ("" = the one its calibration's
-        metadata names); for a C3D file, ``centres.marker_set`` decides.
+        metadata names); for a C3D file it stands for ``centres.marker_set``
+        when that is "auto" (the two may not name different sets).
     labelling : Path, optional
         A user labelling file for a capture folder (:func:`toolkit.markers.identify.read_labelling`).
     record_max_frames : int
@@ -113,6 +114,19 @@ def _open_input(config: JointCentresRunConfig, dataset: Path, obs):
     traj = label_capture(capture, get_marker_set(str(name)), config=config.label, labelling=config.labelling,
                          observer=obs)
     return traj, capture
+
+
+def _centres_config(config: JointCentresRunConfig, dataset: Path) -> JointCentresConfig:
+    """The centres' options; for a C3D file ``config.marker_set`` (--marker-set) names the labels' set."""
+    centres, name = config.centres, config.marker_set
+    if dataset.suffix.lower() != ".c3d" or not name or name == centres.marker_set:
+        return centres
+    if centres.marker_set != "auto":
+        raise InputError("--marker-set (marker_set)", f"the [centres] table's marker set {centres.marker_set!r} "
+                         "or nothing", repr(name))
+    from dataclasses import replace
+
+    return replace(centres, marker_set=name)
 
 
 def report_centres(obs, traj, res: JointCentresResult, *, max_frames: int = RECORD_MAX_FRAMES) -> None:
@@ -289,7 +303,7 @@ def run(config: JointCentresRunConfig, *, dataset, out, observer=None, log=print
     try:
         traj, _capture = _open_input(config, dataset, obs)
         t1 = time.perf_counter()
-        res = joint_centres(traj, config=config.centres, observer=obs)
+        res = joint_centres(traj, config=_centres_config(config, dataset), observer=obs)
         t2 = time.perf_counter()
         report_centres(obs, traj, res, max_frames=config.record_max_frames)
     finally:
