@@ -161,6 +161,11 @@ class TrackState:
         return (s == TRINOCULAR) | (s == TWO_VIEW)
 
 
+def seen_before(t: "TrackState", r: int, i: int) -> bool:
+    """Whether marker ``i`` was measured (not bridged or hinted) in frame ``r``."""
+    return bool(t.state[r, i] in (TRINOCULAR, TWO_VIEW))
+
+
 def _segment_mates(segments) -> list[np.ndarray]:
     """Per marker, the other markers of its segment, then those of its parent and children segments."""
     seg = np.asarray(segments)
@@ -392,7 +397,8 @@ class Tracker:
                 mates = self.mates[i]
                 usable = mates[now[mates] & np.isfinite(t.positions[r, mates]).all(axis=1)]
                 same = usable[np.asarray(t.segments)[usable] == t.segments[i]]
-                same = same if same.size >= c.bridge_min_mates else usable
+                if not seen_before(t, r, i):  # the template's hint: adjacent segments may carry it
+                    same = same if same.size >= c.bridge_min_mates else usable
                 if same.size < c.bridge_min_mates:
                     return None
                 a, b = t.positions[r, same], t.positions[f, same]
@@ -441,10 +447,13 @@ class Tracker:
 
 
 
-#: Segment groups whose markers are checked together for swapped labels (a limb's distal pair of
-#: segments: nearly rigid, a joint of small range between them).
+#: Segment groups whose markers are checked together for swapped labels: a limb's distal pair of
+#: segments (nearly rigid, a joint of small range between them) when they carry at most 6 markers,
+#: and every segment alone.
 SWAP_GROUPS = (("l_shank", "l_foot"), ("r_shank", "r_foot"), ("l_forearm", "l_hand"), ("r_forearm", "r_hand"),
-               ("pelvis",), ("thorax",), ("head",), ("l_thigh",), ("r_thigh",), ("l_upperarm",), ("r_upperarm",))
+               ("pelvis",), ("thorax",), ("head",), ("l_thigh",), ("r_thigh",), ("l_upperarm",), ("r_upperarm",),
+               ("l_shank",), ("r_shank",), ("l_foot",), ("r_foot",), ("l_forearm",), ("r_forearm",),
+               ("l_hand",), ("r_hand",))
 
 
 def _rigid_rms(A: np.ndarray, P: np.ndarray) -> np.ndarray:
