@@ -121,5 +121,5 @@ def test_recording_reports_are_declared():
     report_centres(obs, traj, joint_centres(traj, observer=obs), max_frames=20)
     assert {"joints3d", "lines3d", "points3d", "skeleton", "text"} <= obs.kinds
     assert len(obs.of_kind("joints3d")) == 20
-    assert any(d.get("name") == "markers/spheres" for d in obs.of_kind("points3d"))
+    assert any(d.get("name") == "markers/spheres" for d in obs.of_kind("lines3d"))
     assert any(d.get("name") == "markers/axes" for d in obs.of_kind("lines3d"))

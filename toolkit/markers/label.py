@@ -42,6 +42,9 @@ TEMPLATE_STATURE_M = 1.75
 #: RGB of each marker state in reports (missing, trinocular, two-view, bridged, from file).
 STATE_COLORS = np.array([[128, 128, 128], [40, 200, 80], [250, 180, 30], [80, 140, 255], [200, 200, 200]],
                         np.uint8)
+#: The 2D blobs in the camera views: screen points (negative: rerun's UI points, readable at any zoom), colour.
+BLOB_RADIUS_UI = -2.5
+BLOB_COLOR = np.array([230, 60, 20], np.uint8)
 
 
 @dataclass(frozen=True)
@@ -235,7 +238,8 @@ def _report(obs, names, blobs, recon, traj: MarkerTrajectories, f0, ident, marke
                name="markers/log", static=True)
     for f in range(traj.n_frames):
         for name, b in zip(names, blobs[f]):
-            obs.report("points2d", camera=name, points=b, name="markers/blobs", frame=f)
+            obs.report("points2d", camera=name, points=b, name="markers/blobs", frame=f, radii=BLOB_RADIUS_UI,
+                       colors=np.tile(BLOB_COLOR, (len(b), 1)))
         obs.report("points3d", points=recon[f].points, name="markers/reconstructed", frame=f,
                    colors=STATE_COLORS[recon[f].state])
         ok = traj.state[f] != 0

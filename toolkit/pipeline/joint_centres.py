@@ -39,6 +39,10 @@ SUBSET_COLORS = np.array([[230, 25, 75], [60, 180, 75], [255, 225, 25], [0, 130,
                           [145, 30, 180], [70, 240, 240], [240, 50, 230], [210, 245, 60], [250, 190, 212],
                           [0, 128, 128], [220, 190, 255], [170, 110, 40], [128, 0, 0], [170, 255, 195]],
                          np.uint8)
+#: Colour of the centres of rotation and the hinge axes (dark: the 3D view's background is light).
+CENTRE_COLOR = np.array([20, 20, 20], np.uint8)
+#: Colour of the fitted spheres' wire circles.
+SPHERE_COLOR = np.array([110, 110, 110], np.uint8)
 
 
 @dataclass(frozen=True)
@@ -129,6 +133,14 @@ def _centres_config(config: JointCentresRunConfig, dataset: Path) -> JointCentre
     return replace(centres, marker_set=name)
 
 
+def _sphere_strips(centre: np.ndarray, radius: float, n: int = 48) -> list[np.ndarray]:
+    """Three great circles (n + 1, 3) of a sphere around ``centre`` (metres): a wire sphere."""
+    a = np.linspace(0.0, 2 * np.pi, n + 1)
+    c, s = radius * np.cos(a), radius * np.sin(a)
+    z = np.zeros_like(a)
+    return [centre + np.stack(v, axis=1) for v in ((c, s, z), (c, z, s), (z, c, s))]
+
+
 def report_centres(obs, traj, res: JointCentresResult, *, max_frames: int = RECORD_MAX_FRAMES) -> None:
     """Log the rigid subsets (markers in colours), tracks, fitted spheres and axes, centres and skeleton.
 
@@ -165,21 +177,25 @@ def report_centres(obs, traj, res: JointCentresResult, *, max_frames: int = RECO
     fits = list(res.fits.items())
     for f in frames:
         ok = np.isfinite(traj.positions[f]).all(axis=1)
-        obs.report("points3d", points=traj.positions[f, ok], colors=colors[ok], name="markers/subsets", frame=int(f))
+        obs.report("points3d", points=traj.positions[f, ok], colors=colors[ok], name="markers/subsets", frame=int(f),
+                   radii=0.01)
+        obs.report("scalar", name="markers/labelled_markers", value=float(ok.sum()), frame=int(f))
         if fits:
             c = np.array([fit.centre[f] for _, fit in fits])
-            obs.report("points3d", points=c, colors=np.array([[255, 255, 255]] * len(c), np.uint8), radii=0.012,
+            obs.report("points3d", points=c, colors=np.tile(CENTRE_COLOR, (len(c), 1)), radii=0.015,
                        name="markers/centres", frame=int(f))
             axes = [np.stack([fit.centre[f] - 0.12 * fit.axis[f], fit.centre[f] + 0.12 * fit.axis[f]])
                     for _, fit in fits if fit.axis is not None and np.isfinite(fit.axis[f]).all()
                     and np.isfinite(fit.centre[f]).all()]
             if axes:
-                obs.report("lines3d", strips=axes, name="markers/axes", frame=int(f))
-            spheres = [(fit.centre[f], np.nanmax(fit.local_child)) for _, fit in fits if fit.method == "sphere"]
-            if spheres:
-                obs.report("points3d", points=np.array([s[0] for s in spheres]),
-                           radii=np.array([s[1] for s in spheres]), name="markers/spheres", frame=int(f),
-                           colors=np.array([[255, 255, 255]] * len(spheres), np.uint8))
+                obs.report("lines3d", strips=axes, name="markers/axes", frame=int(f),
+                           colors=np.tile(CENTRE_COLOR, (len(axes), 1)))
+            spheres = [_sphere_strips(fit.centre[f], np.nanmax(fit.local_child)) for _, fit in fits
+                       if fit.method == "sphere" and np.isfinite(fit.centre[f]).all()]
+            if spheres:  # wire spheres: the markers and the centre stay visible inside
+                strips = [c for s in spheres for c in s]
+                obs.report("lines3d", strips=strips, name="markers/spheres", frame=int(f),
+                           colors=np.tile(SPHERE_COLOR, (len(strips), 1)))
         if res.labelled:
             obs.report("joints3d", joints=res.joints[f], skeleton=SKELETON_14, name="skeleton", frame=int(f))
 

@@ -97,6 +97,8 @@ OVERVIEW_OVERLAYS = ("silhouettes/pose", "render/articulated")
 #: Distance of the 3D view's eye from the subject, metres, and its height above the subject's centre.
 EYE_DISTANCE_M = 6.0
 EYE_HEIGHT_M = 1.5
+#: Cameras whose mean unit direction from the subject is shorter than this surround it (a capture ring).
+RING_SPREAD = 0.5
 
 
 def subject_eye(target, camera_centres=None) -> tuple[list[float], list[float]]:
@@ -107,7 +109,9 @@ def subject_eye(target, camera_centres=None) -> tuple[list[float], list[float]]:
     target : array_like of shape (3,)
         The subject's centre, metres (world, z up).
     camera_centres : array_like of shape (n_cams, 3), optional
-        The eye looks from their mean horizontal direction (default: from -y).
+        The eye looks from their mean horizontal direction (default: from -y);
+        from cameras all around the subject (their mean unit direction shorter
+        than ``RING_SPREAD``), from the middle of the widest gap between them.
 
     Returns
     -------
@@ -119,9 +123,16 @@ def subject_eye(target, camera_centres=None) -> tuple[list[float], list[float]]:
     t = np.asarray(target, float).reshape(3)
     d = np.array([0.0, -1.0])
     if camera_centres is not None and len(camera_centres):
-        v = (np.asarray(camera_centres, float)[:, :2] - t[:2]).mean(axis=0)
-        if np.linalg.norm(v) > 1e-6:
-            d = v / np.linalg.norm(v)
+        v = np.asarray(camera_centres, float)[:, :2] - t[:2]
+        u = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-9)
+        if len(u) >= 3 and np.linalg.norm(u.mean(axis=0)) < RING_SPREAD:  # a ring: between two cameras
+            a = np.sort(np.arctan2(u[:, 1], u[:, 0]))
+            gaps = np.diff(np.append(a, a[0] + 2 * np.pi))
+            k = int(np.argmax(gaps))
+            mid = a[k] + gaps[k] / 2
+            d = np.array([np.cos(mid), np.sin(mid)])
+        elif np.linalg.norm(v.mean(axis=0)) > 1e-6:
+            d = v.mean(axis=0) / np.linalg.norm(v.mean(axis=0))
     pos = [t[0] + EYE_DISTANCE_M * d[0], t[1] + EYE_DISTANCE_M * d[1], t[2] + EYE_HEIGHT_M]
     return [float(x) for x in pos], [float(x) for x in t]
 

@@ -648,7 +648,7 @@ class RerunObserver:
         colors = _colors(kind, data, "colors", len(pts))
         self._log(self._image_path(kind, data, "points"),
                   rr.Points2D(pts[ok], colors=None if colors is None else colors[ok],
-                              radii=self.config.keypoint_radius_px), static=static)
+                              radii=float(data.get("radii", self.config.keypoint_radius_px))), static=static)
 
     def _lines2d(self, kind, data, static):
         strips = [np.asarray(s, float) for s in _field(kind, data, "strips")]
@@ -852,8 +852,19 @@ class RerunObserver:
     def _text(self, kind, data, static):
         text = _field(kind, data, "text")
         level = data.get("level")
-        self._log(entity_path(LOGS, data.get("name") or "text"),
-                  rr.TextLog(str(text), level=None if level is None else str(level)), static=static)
+        # clear_unset: a line without a level must not show the entity's previous line's level (e.g. WARN)
+        log = rr.TextLog.from_fields(text=str(text), level=None if level is None else str(level), clear_unset=True)
+        if not static and self.frame is not None:
+            self._log(entity_path(LOGS, data.get("name") or "text"), log)
+            return
+        # a static line (or one before any frame) at frame 0: rerun's text log view lists no static rows, and a
+        # static row replaces the entity's earlier one (several warnings under one name would show only the last)
+        self.recording.set_time(FRAME_TIMELINE, sequence=0)
+        self._log(entity_path(LOGS, data.get("name") or "text"), log)
+        if self.frame is None:
+            self.recording.disable_timeline(FRAME_TIMELINE)
+        else:
+            self.recording.set_time(FRAME_TIMELINE, sequence=self.frame)
 
     def _generic(self, kind, data, static):
         """Unknown kind: scalars to metrics, numeric arrays as tensors, a text line with everything."""
