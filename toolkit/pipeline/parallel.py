@@ -32,6 +32,7 @@ from __future__ import annotations
 import contextlib
 import itertools
 import re
+import warnings
 from collections import OrderedDict
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -370,7 +371,9 @@ def _map_dask(fn, tasks, cluster: Cluster, give, bar) -> None:
         for i, args in enumerate(tasks):
             while len(futures) >= ahead:
                 collect(block=True)
-            f = client.submit(_call, fn, tuple(args), pure=False, retries=RETRIES)
+            with warnings.catch_warnings():  # a frame's images go to one task, once: no data for Dask to share
+                warnings.filterwarnings("ignore", message="Sending large graph")
+                f = client.submit(_call, fn, tuple(args), pure=False, retries=RETRIES)
             futures[i], index_of[f.key] = f, i
             done.add(f)
             collect(block=False)
