@@ -451,6 +451,8 @@ def run(config: SoftBodyRunConfig, *, dataset, out, observer=None, log=print) ->
     n = len(source) if config.max_frames is None else min(len(source), int(config.max_frames))
     if n < 1:
         raise InputError(str(dataset), "at least one frame", "none")
+    if not config.independent and config.init_frame >= n:
+        raise InputError("init_frame (--init-frame)", f"a frame in [0, {n}) (the frames used)", str(config.init_frame))
     if config.independent and source.kind != "depth":
         raise InputError("independent (--independent)", "depth input (unrelated depth frames)", source.kind)
     open_run(out, "fit_soft_body", dataset, config, n, exclude=SoftBodyRunConfig.RUNTIME,

@@ -227,11 +227,12 @@ def read_init_joints(path, frame: int) -> np.ndarray:
             j = np.asarray(z["joints"], float)
     except (OSError, ValueError, KeyError) as e:
         raise InputError(str(p), "an .npz file with 'joints' (T, 14, 3) or (14, 3), metres", str(e)) from None
-    if j.shape == (14, 3):
-        return j
-    if j.ndim != 3 or j.shape[1:] != (14, 3) or not 0 <= frame < len(j):
+    if j.shape != (14, 3) and (j.ndim != 3 or j.shape[1:] != (14, 3) or not 0 <= frame < len(j)):
         raise InputError(f"{p}: joints", f"shape (T, 14, 3) with frame {frame} in it, or (14, 3)", f"{j.shape}")
-    return j[frame]
+    where, j = (f"{p}: joints", j) if j.shape == (14, 3) else (f"{p}: joints[{frame}]", j[frame])
+    if not np.isfinite(j).all():
+        raise InputError(where, "14 finite joints", f"NaN/inf in {int((~np.isfinite(j)).any(axis=1).sum())}")
+    return j
 
 
 def read_clicks(path, rig):

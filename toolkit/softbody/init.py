@@ -146,7 +146,8 @@ def model_from_joints(joints, *, stature: float | None = None, girth: float = 1.
     Raises
     ------
     InputError
-        If ``joints`` is not a finite (14, 3) array or ``stature`` is out of range.
+        If ``joints`` is not a finite (14, 3) array, its bone lengths give an
+        implausible stature (not metres), or ``stature`` is out of range.
     """
     j = np.asarray(joints, float)
     if j.shape != (14, 3) or not np.all(np.isfinite(j)):
@@ -158,6 +159,10 @@ def model_from_joints(joints, *, stature: float | None = None, girth: float = 1.
         chain = lengths[LENGTH_NAMES.index("torso")] + lengths[LENGTH_NAMES.index("neck_to_head")] + 0.5 * (
             lengths[LENGTH_NAMES.index("l_thigh")] + lengths[LENGTH_NAMES.index("r_thigh")]
             + lengths[LENGTH_NAMES.index("l_shank")] + lengths[LENGTH_NAMES.index("r_shank")])
+        if not 0.5 * STATURE_LIMITS[0] <= chain / _HEAD_ABOVE_ANKLE <= 2.0 * STATURE_LIMITS[1]:
+            raise InputError("joints", "the joints of a person in metres (a stature of "
+                             f"{0.5 * STATURE_LIMITS[0]:.2f}-{2.0 * STATURE_LIMITS[1]:.1f} m from the bone lengths)",
+                             f"a stature of {chain / _HEAD_ABOVE_ANKLE:.3g} m (millimetres? mixed-up joints?)")
         stature = float(np.clip(chain / _HEAD_ABOVE_ANKLE, *STATURE_LIMITS))
     elif not (np.isfinite(stature) and 1.0 <= stature <= 2.5):
         raise InputError("stature", "a stature between 1.0 and 2.5 metres", repr(stature))
