@@ -93,7 +93,8 @@ class TrackConfig:
         ... plus this much, metres.
     bridge_min_mates : int
         Segment mates seen both now and when the marker was last measured
-        needed to bridge it (3 fix a rigid motion).
+        needed to bridge it (3 fix a rigid motion); a segment with fewer
+        markers than this borrows those of the adjacent segments.
     bridge_rms_m : float
         Largest residual of the mates' rigid fit for a bridge, metres.
     bridge_max_frames : int
@@ -210,6 +211,7 @@ class Tracker:
         self.mates = _segment_mates(track.segments)
         seg = np.asarray(track.segments)
         self.same = [np.flatnonzero((seg == s) & (np.arange(seg.size) != i)) for i, s in enumerate(seg)]
+        self.n_same = [m.size for m in self.same]
         self.ref_dist = reference_distances(track)
 
     # ------------------------------------------------------------ prediction
@@ -397,7 +399,8 @@ class Tracker:
                 mates = self.mates[i]
                 usable = mates[now[mates] & np.isfinite(t.positions[r, mates]).all(axis=1)]
                 same = usable[np.asarray(t.segments)[usable] == t.segments[i]]
-                if not seen_before(t, r, i):  # the template's hint: adjacent segments may carry it
+                if not seen_before(t, r, i) or self.n_same[i] + 1 < c.bridge_min_mates:
+                    # a hint, or a segment with too few markers to fix its motion: adjacent segments carry it
                     same = same if same.size >= c.bridge_min_mates else usable
                 if same.size < c.bridge_min_mates:
                     return None
