@@ -359,8 +359,9 @@ def _labelled(traj, groups, mset, config, obs) -> JointCentresResult:
         messages.append(f"markers {[traj.labels[i] for i in never]} are missing in every frame; left out of "
                         "the fits")
         groups = {k: [i for i in v if i not in set(never.tolist())] for k, v in groups.items()}
-    std, _ = _r.distance_std(pos)
-    bad = _r.check_segments(pos, groups, tolerance_m=config.segment_tolerance_m)
+    short = min(10, t)  # a trial of fewer frames than distance_std's default: judge pairs on all of them
+    std, _ = _r.distance_std(pos, min_frames=short)
+    bad = _r.check_segments(pos, groups, tolerance_m=config.segment_tolerance_m, min_frames=short)
     for seg, idx in bad.items():
         messages.append(f"{seg}: markers {[traj.labels[i] for i in idx]} do not move rigidly with the "
                         f"others of the segment (distance std over {1e3 * config.segment_tolerance_m:.0f} mm); "
