@@ -425,8 +425,15 @@ def read_labelling(path: str | os.PathLike, labels) -> tuple[int, dict]:
     except OSError as e:
         raise InputError(path, "a readable labelling file", f"{type(e).__name__}: {e}") from None
     if path.lower().endswith(".json"):
+        def unique(pairs):  # json.loads would keep the last of duplicated keys silently
+            keys = [k for k, _ in pairs]
+            dup = sorted({k for k in keys if keys.count(k) > 1})
+            if dup:
+                raise InputError(f"{path}: label {dup[0]!r}", "each label once", "a duplicated label (key)")
+            return dict(pairs)
+
         try:
-            data = json.loads(text)
+            data = json.loads(text, object_pairs_hook=unique)
         except json.JSONDecodeError as e:
             raise InputError(path, "valid JSON", str(e)) from None
         if not isinstance(data, dict) or not isinstance(data.get("markers"), dict):
