@@ -18,7 +18,7 @@ from toolkit.viz.blueprint import EYE_DISTANCE_M, subject_eye
 TINY_MARKERS = """
 seed = 5
 frames = 24
-fps = 100
+fps = 8
 name = "tiny_markers_rec"
 
 [subject]
@@ -90,6 +90,23 @@ def test_joint_centres_recording_has_every_item(tmp_path):
     logs = {e: c for e, c in ents.items() if e.startswith("logs/markers")}
     assert {"logs/markers/log", "logs/markers/subsets", "logs/markers/joints"} <= set(logs)
     assert all("frame" in c for c in logs.values())
+
+
+def test_joint_centres_recording_of_a_c3d_file(tmp_path):
+    from tests.markers.rom_trial import rom_trial
+    from toolkit.io.c3d import write_c3d
+    from toolkit.pipeline.joint_centres import JointCentresRunConfig, run
+
+    traj, _ = rom_trial("cluster", n_frames=60, noise_m=0.0005, seed=2)
+    path = write_c3d(tmp_path / "rom.c3d", traj.labels, traj.positions, traj.fps)
+    run(JointCentresRunConfig(), dataset=path, out=tmp_path / "run", log=lambda *a: None)
+    ents = _entities(tmp_path / "run" / "recording.rrd")
+    for name in ("subsets", "centres"):
+        assert _has(ents, f"world/markers/{name}", "Points3D:colors"), name
+    assert _has(ents, "world/markers/axes", "LineStrips3D:strips")  # the knees and elbows are hinges
+    assert _has(ents, "world/skeleton", "Points3D:keypoint_ids")
+    assert not any(e.startswith("world/cams") for e in ents)  # no cameras: the layout has no 2D views
+    assert any(e.startswith("logs/markers") and "frame" in c for e, c in ents.items())
 
 
 def test_text_lines_all_reach_the_log_view_with_their_own_level(tmp_path):

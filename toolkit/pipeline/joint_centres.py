@@ -314,6 +314,10 @@ def run(config: JointCentresRunConfig, *, dataset, out, observer=None, log=print
 
         rec = RerunObserver(application_id="joint_centres", path=out / "recording.rrd",
                             recording_id=run_recording(out, False)[1])
+        if dataset.suffix.lower() == ".c3d":  # no cameras: the 3D view (the viewer frames it) over the log
+            from toolkit.viz.blueprint import make_blueprint
+
+            rec.send_blueprint(make_blueprint([], include_metrics=False))
     obs = as_observer(MultiObserver(rec, observer) if (rec or observer) else None)
     t0 = time.perf_counter()
     try:
