@@ -107,7 +107,8 @@ def dress(shape: BodyShape, *, near: np.ndarray | None = None, shirt_rgb=None, t
         within about 0.1 per channel, the print slightly darker or lighter).
     shirt_rgb, trousers_rgb : array_like of shape (3,), optional
         Explicit colours (override ``near``).
-    pattern : {"stripes", "checks", "plain"}, optional
+    pattern : {"stripes", "checks", "plain", "checks_all"}, optional
+        The shirt's print; ``"checks_all"`` prints the checks on the trousers too.
     rng : numpy.random.Generator or int or None
 
     Returns
@@ -458,12 +459,14 @@ class BodyModel:
         u, v = UV[:, 0], UV[:, 1]
         if s.pattern_kind == "stripes":
             on = (np.floor(v / 0.06) % 2) == 0
-        elif s.pattern_kind == "checks":
+        elif s.pattern_kind in ("checks", "checks_all"):
             on = ((np.floor(v / 0.07) + np.floor(u * 10)) % 2) == 0
         else:
             on = np.zeros(n, bool)
         col[shirt & on] = 0.55 * col[shirt & on] + 0.45 * s.pattern[0]
         trousers = mat == TROUSERS
+        if s.pattern_kind == "checks_all":  # the whole outfit checked (texture for stereo matching)
+            col[trousers & on] = 0.55 * col[trousers & on] + 0.45 * s.pattern[0]
         seam = (np.abs(((u * 4) % 1.0) - 0.5) < 0.04)
         col[trousers & seam] = 0.6 * col[trousers & seam] + 0.4 * s.pattern[1]
         col = col * (1.0 + s.noise_amplitude * self._noise)

@@ -5,8 +5,11 @@ pose values plus the 13 lengths and 7 widths shared by all frames.  Residual
 blocks, per frame: the robust point-to-surface distances and the coverage
 block of :mod:`toolkit.softbody.residuals`; over frames: a small term
 favouring constant angular speed (second differences of the joint angles and
-of the root rotation over consecutive frames, as in the source); and weak
-priors keeping the widths near the start and left and right limbs alike.  Each frame's residuals depend
+of the root rotation over consecutive frames, as in the source); and priors
+on the shape: widths and lengths near the start (stronger for the joints
+buried in the torso), left and right limbs alike, and each limb's split
+(thigh / shank, upper arm / forearm) near the anthropometric ratio, which
+the surface of a straight limb does not show.  Each frame's residuals depend
 on its own pose and the shared shape only, so the Jacobian is assembled as a
 ``scipy.sparse`` matrix and ``least_squares(method="trf", tr_solver="lsmr")``
 solves it without forming a dense matrix: hundreds of frames stay tractable.
@@ -25,10 +28,10 @@ from toolkit.errors import InputError
 from toolkit.observe import Observer, as_observer
 from toolkit.softbody.distance import check_points
 from toolkit.softbody.model import LENGTH_NAMES, N_PARAMS, N_POSE, SoftBodyModel, SoftBodyParams, pose_bounds
-from toolkit.softbody.residuals import (LOSSES, coverage_residuals, coverage_samples, data_residuals, gate_points,
+from toolkit.softbody.residuals import (LOSSES, CoverageSamples, coverage_residuals, coverage_samples, data_residuals, gate_points,
                                         coverage_margin,
                                         one_blas_thread)
-from toolkit.softbody.track import SoftBodyTrack, subsample
+from toolkit.softbody.track import SoftBodyTrack, part_support, subsample
 
 __all__ = ["GlobalFitConfig", "SoftBodyFit", "global_fit"]
 
@@ -37,6 +40,12 @@ _ANGLES = np.r_[0:3, 6:N_POSE]  # root rotation and joint angles: the constant-a
 #: Left and right limb lengths (indices into LENGTH_NAMES) tied by the symmetry prior.
 _SYM = np.array([[LENGTH_NAMES.index(f"l_{n}"), LENGTH_NAMES.index(f"r_{n}")]
                  for n in ("upper_arm", "forearm", "thigh", "shank")])
+#: Proximal and distal segment of each limb (indices into LENGTH_NAMES) tied by the split prior.
+_SPLIT = np.array([[LENGTH_NAMES.index(f"{s}_{a}"), LENGTH_NAMES.index(f"{s}_{b}")]
+                   for s in ("l", "r") for a, b in (("upper_arm", "forearm"), ("thigh", "shank"))])
+#: Lengths of joints buried in the torso (shoulders, hips): seen through the surface only weakly.
+_BURIED = np.array([LENGTH_NAMES.index(n) for n in ("shoulder_half_width", "shoulder_drop",
+                                                      "hip_half_width")])
 
 
 @dataclass(frozen=True)
@@ -53,6 +62,11 @@ class GlobalFitConfig:
         Points further than this outside the tracked model are ignored, metres.
     max_points : int
         Points per frame (an even subsample).
+    unseen_weight, part_points, part_distance
+        As in :class:`toolkit.softbody.track.TrackConfig`: per frame, the
+        angles of parts with fewer than ``part_points`` points are pulled to
+        the tracked ones and those parts get no coverage block (a leg
+        without points shrank by 17 cm into the thigh's points).
     smooth_weight : float
         Weight of the constant-angular-speed residuals, metres per radian per
         frame squared: small, so that it does not degrade the fit (source 002).
@@ -65,6 +79,25 @@ class GlobalFitConfig:
     symmetry_weight : float
         Pull of each left limb length towards the right one (metres per metre;
         0: independent sides).
+    split_weight : float
+        Pull of each limb's split (upper arm / forearm, thigh / shank) towards
+        a reference ratio, on the residual ``proximal - ratio * distal``
+        (metres per metre).  The surface of a
+        straight limb shows its whole length but not where the elbow or knee
+        is: without it the fit slid the knees along straight legs (thighs
+        +75 mm, shanks -80 mm on a depth wave).  Bent frames still move the
+        split (their surface shows the joint).
+    split_reference : {"start", "anthropometric"}
+        The reference ratio: the start lengths' (the initial joints mark the
+        elbows and knees: clicked, or the depth tracker's) or the median
+        body's of the model's stature (:class:`toolkit.anthropometry.BodyProportions`;
+        people differ from it by up to 10 %: measured thigh / shank 0.90-1.02
+        against 0.98).
+    buried_prior_weight : float
+        Pull of the lengths of joints buried in the torso (neck to head,
+        shoulder width and drop, hip width) towards the start, replacing
+        ``length_prior_weight`` for them (metres per metre): the coverage
+        block otherwise widened the shoulders into the arms' points.
     fit_lengths, fit_widths : bool
         Which shape blocks are free.
     max_nfev : int
@@ -80,10 +113,16 @@ class GlobalFitConfig:
     viewpoints: tuple | None = None
     gate: float = 0.25
     max_points: int = 300
+    unseen_weight: float = 0.3
+    part_points: int = 10
+    part_distance: float = 0.06
     smooth_weight: float = 0.02
     width_prior_weight: float = 0.02
     length_prior_weight: float = 0.5
     symmetry_weight: float = 2.0
+    split_weight: float = 3.0
+    split_reference: str = "start"
+    buried_prior_weight: float = 3.0
     fit_lengths: bool = True
     fit_widths: bool = True
     max_nfev: int = 40
@@ -91,6 +130,9 @@ class GlobalFitConfig:
     def __post_init__(self):
         if self.loss not in LOSSES:
             raise InputError("GlobalFitConfig.loss", f"one of {LOSSES}", repr(self.loss))
+        if self.split_reference not in ("start", "anthropometric"):
+            raise InputError("GlobalFitConfig.split_reference", "'start' or 'anthropometric'",
+                             repr(self.split_reference))
         if not (self.f_scale > 0 and self.gate > 0 and self.max_points > 0):
             raise InputError("GlobalFitConfig", "positive f_scale, gate and max_points",
                              f"{self.f_scale}, {self.gate}, {self.max_points}")
@@ -143,6 +185,8 @@ class _Problem:
         self.shape0 = track.params[0, N_POSE:].copy()
         self.free_shape = np.r_[np.full(13, config.fit_lengths), np.full(7, config.fit_widths)]
         self.frames = []  # (t, points, tree, coverage samples, coverage margin)
+        self.pose0 = track.params[:, :N_POSE].copy()
+        self.unseen_w = np.zeros((self.T, N_POSE))  # pull of poorly seen parts' angles to the tracked ones
         for t in range(self.T):
             if track.states[t] != "ok":
                 continue
@@ -151,11 +195,24 @@ class _Problem:
             pts = subsample(pts[gate_points(model, p, pts, config.gate)], config.max_points)
             if len(pts) == 0:
                 continue
+            support = part_support(model, p, pts, config.part_distance)
             samples = coverage_samples(model, p, n_dirs=config.coverage_dirs, viewpoints=config.viewpoints) \
                 if config.coverage_weight > 0 else None
+            if samples is not None:  # coverage only from parts with points of their own (as in tracking)
+                keep = support[model.prim_frame[samples.prims]] >= config.part_points
+                samples = CoverageSamples(samples.prims[keep], samples.dirs[keep])
             tree = cKDTree(pts)
             self.frames.append((t, pts, tree, samples, coverage_margin(tree, pts, config.coverage_margin)))
+            missing = np.clip(1.0 - (model.subtree[model.state(p).dof_frames] @ support) / max(config.part_points, 1),
+                              0.0, 1.0)
+            missing[:6] = 0.0
+            self.unseen_w[t] = config.unseen_weight * missing
         self.n = self.T * N_POSE + _N_SHAPE
+        ref = self.shape0[:13] if config.split_reference == "start" else \
+            model.lengths_from_proportions(model.proportions)
+        self.split_ratio = ref[_SPLIT[:, 0]] / ref[_SPLIT[:, 1]]
+        self.len_w = np.full(13, config.length_prior_weight)
+        self.len_w[_BURIED] = config.buried_prior_weight
 
     def unpack(self, z):
         return z[:self.T * N_POSE].reshape(self.T, N_POSE), z[self.T * N_POSE:]
@@ -198,11 +255,15 @@ class _Problem:
             rows += n_sm
         else:
             sm = []
+        uw = self.unseen_w.ravel()
+        res.append(uw * (poses - self.pose0).ravel())
+        unseen_rows = rows + np.arange(uw.size)
+        rows += uw.size
         wp = c.width_prior_weight
         res.append(wp * (shape[13:] - self.shape0[13:]))
         prior_rows = rows + np.arange(7)
         rows += 7
-        wl = c.length_prior_weight if c.fit_lengths else 0.0
+        wl = self.len_w if c.fit_lengths else np.zeros(13)
         res.append(wl * (shape[:13] - self.shape0[:13]))
         len_rows = rows + np.arange(13)
         rows += 13
@@ -210,6 +271,10 @@ class _Problem:
         res.append(ws * (shape[_SYM[:, 0]] - shape[_SYM[:, 1]]))
         sym_rows = rows + np.arange(len(_SYM))
         rows += len(_SYM)
+        wr = c.split_weight if c.fit_lengths else 0.0
+        res.append(wr * (shape[_SPLIT[:, 0]] - self.split_ratio * shape[_SPLIT[:, 1]]))
+        split_rows = rows + np.arange(len(_SPLIT))
+        rows += len(_SPLIT)
         r = np.concatenate(res)
         if not with_jac:
             return r, None
@@ -222,19 +287,26 @@ class _Problem:
             ri.append(r_idx)
             ci.append(c_idx)
             vals.append(np.full(len(r_idx), v))
+        ri.append(unseen_rows)
+        ci.append(np.arange(uw.size))
+        vals.append(uw)
         if c.fit_widths:
             ri.append(prior_rows)
             ci.append(self.T * N_POSE + 13 + np.arange(7))
             vals.append(np.full(7, wp))
-        if wl > 0:
+        if np.any(wl > 0):
             ri.append(len_rows)
             ci.append(self.T * N_POSE + np.arange(13))
-            vals.append(np.full(13, wl))
+            vals.append(wl)
         if ws > 0:
             for side, sign in ((0, 1.0), (1, -1.0)):
                 ri.append(sym_rows)
                 ci.append(self.T * N_POSE + _SYM[:, side])
                 vals.append(np.full(len(_SYM), sign * ws))
+        if wr > 0:
+            ri += [split_rows, split_rows]
+            ci += [self.T * N_POSE + _SPLIT[:, 0], self.T * N_POSE + _SPLIT[:, 1]]
+            vals += [np.full(len(_SPLIT), wr), -wr * self.split_ratio]
         J = sp.csr_matrix((np.concatenate(vals), (np.concatenate(ri), np.concatenate(ci))), shape=(rows, self.n))
         return r, J
 

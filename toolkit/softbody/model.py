@@ -486,12 +486,18 @@ def attached_points_jacobian(model: SoftBodyModel, st: ModelState, points: np.nd
     return out
 
 
+#: Largest flexion of elbows and knees, radians (active ranges of about 145 and 140 degrees, with margin).
+FLEXION_LIMITS = {"elbow": 2.7, "knee": 2.6}
+
+
 def pose_bounds() -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper bounds of the 27 pose entries.
 
-    Elbows and knees bend one way only (``[0, pi]``, as in
-    :mod:`toolkit.motion.kinematics`); every other entry is free (Euler
-    angles are not unique, so limits on them would cut off valid poses).
+    Elbows and knees bend one way only, as in :mod:`toolkit.motion.kinematics`,
+    and not further than the body allows (:data:`FLEXION_LIMITS`: a fully
+    folded shank lies inside the thigh, a false minimum when the shank has
+    no points); every other entry is free (Euler angles are not unique, so
+    limits on them would cut off valid poses).
 
     Returns
     -------
@@ -500,5 +506,5 @@ def pose_bounds() -> tuple[np.ndarray, np.ndarray]:
     lo, hi = np.full(N_POSE, -np.inf), np.full(N_POSE, np.inf)
     for k, name in enumerate(DOF_NAMES):
         if name.endswith(("_elbow", "_knee")):
-            lo[k], hi[k] = 0.0, np.pi
+            lo[k], hi[k] = 0.0, FLEXION_LIMITS[name.split("_")[1]]
     return lo, hi

@@ -3,7 +3,8 @@
 Per frame, the root and the joint angles (27 values; lengths and widths
 fixed) minimise the robust point-to-surface distances of the cloud plus the
 coverage block of :mod:`toolkit.softbody.residuals` and a weak pull towards
-the start pose, with ``scipy.optimize.least_squares`` (trust-region
+the start pose (stronger, and towards the previous frame, for parts with few
+points of their own; those parts get no coverage block), with ``scipy.optimize.least_squares`` (trust-region
 reflective, analytic Jacobian, elbows and knees bounded to ``[0, pi]``).
 Each frame starts from the previous one (extrapolated by a damped constant
 velocity).  Points further than ``gate`` outside the start model are ignored
@@ -28,9 +29,9 @@ from scipy.spatial import cKDTree
 
 from toolkit.errors import InputError
 from toolkit.observe import Observer, as_observer
-from toolkit.softbody.distance import check_points, distance
+from toolkit.softbody.distance import check_points, distance, primitive_distances
 from toolkit.softbody.model import N_POSE, SoftBodyModel, SoftBodyParams, pose_bounds
-from toolkit.softbody.residuals import (LOSSES, coverage_residuals, coverage_samples, data_residuals, gate_points,
+from toolkit.softbody.residuals import (LOSSES, CoverageSamples, coverage_residuals, coverage_samples, data_residuals, gate_points,
                                        coverage_margin,
                                        one_blas_thread)
 
@@ -78,6 +79,17 @@ class TrackConfig:
         Pull of each angle towards the start pose, metres per radian (and
         metre per metre for the root): keeps unobserved angles (e.g. the axial
         rotation of a straight limb) still.
+    unseen_weight : float
+        Pull (metres per radian) of the angles of a part with fewer than
+        ``part_points`` points towards the previous frame's angles, scaled
+        by the missing fraction; such parts also get no coverage block (its
+        nearest points belong to other parts: a leg without points folded up
+        into the thigh and torso data).
+    part_points : int
+        Points within ``part_distance`` of a rigid part (and the parts it
+        carries) for its angles to count as observed.
+    part_distance : float
+        A point belongs to the part of its nearest metaball within this, metres.
     predict : float
         Fraction of the last frame-to-frame change added to the start pose.
     max_nfev : int
@@ -97,6 +109,9 @@ class TrackConfig:
     inlier_distance: float = 0.05
     min_inlier_fraction: float = 0.3
     prior_weight: float = 0.01
+    unseen_weight: float = 0.3
+    part_points: int = 10
+    part_distance: float = 0.06
     predict: float = 0.5
     max_nfev: int = 40
 
@@ -149,16 +164,50 @@ def subsample(points: np.ndarray, n: int) -> np.ndarray:
     return points[np.linspace(0, len(points) - 1, n).round().astype(int)]
 
 
+def part_support(model: SoftBodyModel, params: SoftBodyParams, pts: np.ndarray, within: float) -> np.ndarray:
+    """Points on each rigid frame of the model, shape (11,) int.
+
+    A point counts for the frame of its nearest metaball (ellipsoidal
+    distance) when that distance is below ``within`` metres.
+    """
+    from toolkit.softbody.model import FRAMES
+
+    if len(pts) == 0:
+        return np.zeros(len(FRAMES), int)
+    e = primitive_distances(model.state(params), pts)
+    k = np.argmin(e, axis=1)
+    near = e[np.arange(len(pts)), k] < within
+    return np.bincount(model.prim_frame[k[near]], minlength=len(FRAMES))
+
+
+def _pose_prior_weights(model, st, support: np.ndarray, config: TrackConfig) -> np.ndarray:
+    """Per pose entry: ``prior_weight`` plus ``unseen_weight`` times the missing fraction of its parts' points."""
+    sub = model.subtree[st.dof_frames] @ support  # points on the frames each DOF moves
+    missing = np.clip(1.0 - sub / max(config.part_points, 1), 0.0, 1.0)
+    w = config.prior_weight + config.unseen_weight * missing
+    w[:6] = config.prior_weight
+    return w
+
+
 def _fit_pose(model, start: SoftBodyParams, pts: np.ndarray, config: TrackConfig,
-              coverage_weight: float) -> SoftBodyParams:
+              coverage_weight: float, anchor: SoftBodyParams | None = None) -> SoftBodyParams:
     cols = np.arange(N_POSE)
     tree = cKDTree(pts)
     margin = coverage_margin(tree, pts, config.coverage_margin)
+    support = part_support(model, start, pts, config.part_distance)
     samples = coverage_samples(model, start, n_dirs=config.coverage_dirs, viewpoints=config.viewpoints) \
         if coverage_weight > 0 else None
+    if samples is not None:  # coverage only from parts that have points of their own
+        keep = support[model.prim_frame[samples.prims]] >= config.part_points
+        samples = CoverageSamples(samples.prims[keep], samples.dirs[keep])
     lo, hi = pose_bounds()
     x0 = np.clip(start.pose, lo + 1e-9, hi - 1e-9)
-    wc, wp = np.sqrt(coverage_weight), config.prior_weight
+    wp = _pose_prior_weights(model, model.state(start), support, config)
+    xa = x0.copy()
+    if anchor is not None:  # unseen parts are pulled to the previous frame, not to the extrapolation
+        unseen = wp > config.prior_weight
+        xa[unseen] = np.clip(anchor.pose, lo + 1e-9, hi - 1e-9)[unseen]
+    wc = np.sqrt(coverage_weight)
     cache = {}
 
     def evaluate(x):
@@ -168,7 +217,7 @@ def _fit_pose(model, start: SoftBodyParams, pts: np.ndarray, config: TrackConfig
             p = start.replace(pose=x)
             st = model.state(p)
             r, J = data_residuals(model, p, pts, st, cols, config.loss, config.f_scale)
-            r, J = [r, wp * (x - x0)], [J, wp * np.eye(N_POSE)]
+            r, J = [r, wp * (x - xa)], [J, np.diag(wp)]
             if samples is not None:
                 rc, Jc = coverage_residuals(model, st, samples, tree, pts, cols, "cauchy", config.coverage_scale,
                                             margin)
@@ -182,8 +231,8 @@ def _fit_pose(model, start: SoftBodyParams, pts: np.ndarray, config: TrackConfig
     return start.replace(pose=res.x)
 
 
-def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: TrackConfig = TrackConfig()
-                ) -> tuple[SoftBodyParams, str, int, float, float]:
+def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: TrackConfig = TrackConfig(),
+                anchor: SoftBodyParams | None = None) -> tuple[SoftBodyParams, str, int, float, float]:
     """Fit the pose of one frame.
 
     Parameters
@@ -194,6 +243,9 @@ def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: Trac
     cloud : array_like of shape (N, 3)
         Metres, world; may be empty.
     config : TrackConfig
+    anchor : SoftBodyParams, optional
+        The previous frame's pose: parts without points are pulled to it
+        (default: to ``start``).
 
     Returns
     -------
@@ -208,9 +260,10 @@ def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: Trac
     pts = subsample(pts[gate_points(model, start, pts, config.gate)], config.max_points)
     if len(pts) < config.min_points:
         return start, "empty", len(pts), float("nan"), float("nan")
-    fitted = _fit_pose(model, start, pts, config, 0.0)
+    fitted = _fit_pose(model, start, pts, config, 0.0, anchor)
     if config.coverage_weight > 0:
-        fitted = _fit_pose(model, fitted, pts, config, config.coverage_weight)
+        fitted = _fit_pose(model, fitted, pts, config, config.coverage_weight, anchor if anchor is not None
+                           else start)
     d = np.abs(distance(model, fitted, pts))
     inl = float(np.mean(d < config.inlier_distance))
     if inl < config.min_inlier_fraction:
@@ -248,7 +301,7 @@ def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, con
         start = prev
         if prev2 is not None and config.predict > 0:
             start = prev.replace(pose=prev.pose + config.predict * (prev.pose - prev2.pose))
-        p, state, n, f_in, m = track_frame(model, start, cloud, config)
+        p, state, n, f_in, m = track_frame(model, start, cloud, config, anchor=prev)
         if state != "ok":
             p = prev
         out[t] = p.vector

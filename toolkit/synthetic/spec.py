@@ -55,8 +55,8 @@ LAYOUTS = ("broadcast", "studio", "trinocular")
 BASELINE_RANGE_M = (0.2, 0.4)
 #: ``[subject] outfit`` values: drawn from the palettes, or close to the surroundings' colours.
 OUTFITS = ("random", "like_background")
-#: Shirt print patterns (``[subject] pattern``).
-PATTERNS = ("stripes", "checks", "plain")
+#: Shirt print patterns (``[subject] pattern``; ``checks_all``: shirt and trousers checked).
+PATTERNS = ("stripes", "checks", "plain", "checks_all")
 #: ``[novel] placement`` values.
 NOVEL_PLACEMENTS = ("between", "around")
 #: Allowed ``[cameras] spacing_deg`` range, degrees.
