@@ -187,7 +187,12 @@ def disparity_map(rect_left: np.ndarray, rect_right: np.ndarray, pair: Rectified
                                  P2=32 * ch * b * b, disp12MaxDiff=cfg.lr_max_diff,
                                  uniquenessRatio=cfg.uniqueness_ratio, speckleWindowSize=cfg.speckle_window,
                                  speckleRange=cfg.speckle_range, mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY)
-    d = sgbm.compute(rect_left, rect_right).astype(np.float32) / 16.0
+    # SGBM gives no disparity in the left image's first lo + num columns (their matches could lie left of
+    # the right image); padding both images there keeps that band: on the vertical pair (images turned 90
+    # degrees) it was the bottom third of the picture, the lower legs.
+    pad = lo + num
+    border = lambda im: cv2.copyMakeBorder(im, 0, 0, pad, 0, cv2.BORDER_CONSTANT, value=0)  # noqa: E731
+    d = sgbm.compute(border(rect_left), border(rect_right))[:, pad:].astype(np.float32) / 16.0
     d[d < lo + 0.5] = np.nan  # OpenCV marks failures with minDisparity - 1
     return d
 
