@@ -62,6 +62,10 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--sweeps", type=int, default=None, help="most sweeps over the joints (default 4, source 000)")
     ap.add_argument("--no-seams", action="store_true", help="no seam correction")
     ap.add_argument("--no-recording", action="store_true", help="do not write recording.rrd")
+    ap.add_argument("--workers", type=int, default=None,
+                    help="frames at once on a local Dask cluster of N worker processes (default 1: here; "
+                         "the outputs are those of one worker, docs/parallel.md)")
+    ap.add_argument("--scheduler", default=None, help="run the frames on this Dask scheduler (tcp://HOST:8786)")
     ap.add_argument("--replace-stale", action="store_true",
                     help="if OUT holds results of another dataset or other options, move it to OUT.stale-N "
                          "and start afresh (default: refuse)")
@@ -71,7 +75,8 @@ def parser() -> argparse.ArgumentParser:
 def config_from_args(args: argparse.Namespace) -> OptimizeJointsConfig:
     """The run's config: the --config file (or the defaults), then the flags given."""
     config = load_config(OptimizeJointsConfig, args.config, poses=args.poses, parts=args.parts,
-                         noise_cm=args.noise_cm, seed=args.seed, max_frames=args.max_frames)
+                         noise_cm=args.noise_cm, seed=args.seed, max_frames=args.max_frames,
+                         workers=args.workers, scheduler=args.scheduler)
     search = config.optimize if args.sweeps is None else replace(config.optimize, max_sweeps=args.sweeps)
     return replace(config, optimize=search, seams=config.seams and not args.no_seams,
                    recording=config.recording and not args.no_recording,

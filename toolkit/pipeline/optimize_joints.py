@@ -12,7 +12,6 @@ and depth (a stage-2 run's files, or ground truth) -> the stage-3 chain
 from __future__ import annotations
 
 import json
-import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -22,7 +21,8 @@ import numpy as np
 
 from toolkit.errors import InputError
 from toolkit.optimize import OptimizeConfig
-from toolkit.pipeline.run import STOPPED_INTERRUPTED, RunResult, open_run
+from toolkit.pipeline.parallel import ParallelConfig, drop_cached, worker_cache
+from toolkit.pipeline.run import FrameRecords, RunResult, open_run, run_frames
 
 #: ``joints3d.npz`` ``status`` of a frame without a finite start.
 NO_START = "no initial joints"
@@ -55,6 +55,15 @@ class OptimizeJointsConfig:
         Write ``recording.rrd``.
     replace_stale : bool
         Move another run's results aside instead of refusing them.
+    workers : int
+        Frames at once, each a task on a local Dask cluster of this many worker
+        processes (1: in this process; ``docs/parallel.md``).  Frames are
+        independent here (no state carried from one frame to the next), so the
+        outputs are those of one worker.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://HOST:PORT``) to run the frames on.
+    progress : bool
+        A progress bar over the frames.
     """
 
     optimize: OptimizeConfig = field(default_factory=OptimizeConfig)
@@ -66,15 +75,19 @@ class OptimizeJointsConfig:
     max_frames: int | None = None
     recording: bool = True
     replace_stale: bool = False
+    workers: int = 1
+    scheduler: str | None = None
+    progress: bool = False
 
     #: Fields that do not change the results (left out of the run identity).
-    RUNTIME = ("max_frames", "recording", "replace_stale")
+    RUNTIME = ("max_frames", "recording", "replace_stale", "workers", "scheduler", "progress")
 
     def __post_init__(self):
         if not (np.isfinite(self.noise_cm) and self.noise_cm >= 0):
             raise InputError("OptimizeJointsConfig.noise_cm", "a non-negative distance in cm", repr(self.noise_cm))
         if self.max_frames is not None and int(self.max_frames) < 1:
             raise InputError("OptimizeJointsConfig.max_frames", "a positive number of frames", repr(self.max_frames))
+        ParallelConfig(self.workers, self.scheduler)  # checked
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,40 +139,67 @@ def _labels_and_depth(ds, config: OptimizeJointsConfig, t: int) -> tuple[dict, d
     return labels, depth
 
 
-class _Frame:
-    """One frame of the run: the stage-3 chain from the start, its record, its line."""
+@dataclass(frozen=True)
+class _FrameTask:
+    """One frame of the run as a task (picklable: a Dask worker opens the dataset itself, once per run).
 
-    def __init__(self, ds, config: OptimizeJointsConfig, start: _Start, gt, observer, log):
+    ``task(t, J0, cameras, observer=None)``: the stage-3 chain of frame ``t``
+    from ``J0`` (14, 3) m with that frame's cameras (a Rig), its record written
+    into ``out`` (``frames/NNNNNN.json``, the frame is then finished).  Nothing
+    is carried from one frame to the next (the constraints are fixed, the
+    search borrows nothing), so frames run in any order and on any worker.
+    """
+
+    token: str
+    dataset: Path
+    out: Path
+    n: int
+    config: OptimizeJointsConfig
+
+    def __call__(self, t: int, J0: np.ndarray, cameras, observer=None) -> None:
+        FrameRecords(self.out, self.n).write(t, self._record(t, J0, cameras, observer))
+
+    def warm(self):
+        """This process's dataset of the run (opened on first use)."""
+        from toolkit.io import Dataset
+
+        return worker_cache(self.token, lambda: Dataset.open(self.dataset))
+
+    def _record(self, t: int, J0: np.ndarray, cameras, observer) -> dict:
         from toolkit.anthropometry import AnthropometricConstraints
-
-        self.ds, self.config, self.start, self.gt, self.obs, self.log = ds, config, start, gt, observer, log
-        self.constraints = AnthropometricConstraints()
-
-    def __call__(self, t: int) -> dict:
         from toolkit.pipeline.stage3 import optimize_frame
-        from toolkit.skeleton import SKELETON_14, mpjpe
+        from toolkit.skeleton import SKELETON_14
 
-        J0 = self.start.joints[t]
         if not np.all(np.isfinite(J0)):
-            self.log(f"frame {t}: no initial joints, skipped")
             return {"frame": t, "status": NO_START}
-        images = {c: self.ds.frame(c, t) for c in self.ds.camera_names}
-        labels, depth = _labels_and_depth(self.ds, self.config, t)
-        if self.obs is not None:
-            self.obs.report("joints3d", name="optimize/initial", joints=J0, skeleton=SKELETON_14, frame=t)
-        res = optimize_frame(images, labels, self.start.cameras(t), J0, depths=depth if self.config.seams else None,
-                             constraints=self.constraints,
-                             config=self.config.optimize, billboards=1 if self.obs is not None else None,
-                             borrow=False, observer=self.obs, frame=t)
-        s, counts = res.search, res.outcome
-        line = (f"frame {t}: {s.n_sweeps} sweeps, {s.n_evaluations} evaluations, {s.seconds:.1f} s; "
-                "joints " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
-        if self.gt is not None:
-            line += f", MPJPE {mpjpe(J0, self.gt[t]) * 100:.1f} -> {mpjpe(s.joints, self.gt[t]) * 100:.1f} cm"
-        self.log(line)
+        ds = self.warm()
+        images = {c: ds.frame(c, t) for c in ds.camera_names}
+        labels, depth = _labels_and_depth(ds, self.config, t)
+        if observer is not None:
+            observer.report("joints3d", name="optimize/initial", joints=J0, skeleton=SKELETON_14, frame=t)
+        res = optimize_frame(images, labels, cameras, J0, depths=depth if self.config.seams else None,
+                             constraints=AnthropometricConstraints(),
+                             config=self.config.optimize, billboards=1 if observer is not None else None,
+                             borrow=False, observer=observer, frame=t)
+        s = res.search
         return {"frame": t, "status": "converged" if s.converged else "max sweeps", "joints": s.joints.tolist(),
                 "scores": s.scores[-1].tolist(), "n_evaluations": int(s.n_evaluations), "seconds": float(s.seconds),
-                "outcome": counts}
+                "n_sweeps": int(s.n_sweeps), "outcome": res.outcome}
+
+
+def _line(record: dict, start: _Start, gt) -> str:
+    """A finished frame's log line."""
+    from toolkit.skeleton import mpjpe
+
+    t = record["frame"]
+    if "joints" not in record:
+        return f"frame {t}: no initial joints, skipped"
+    line = (f"frame {t}: {record['n_sweeps']} sweeps, {record['n_evaluations']} evaluations, "
+            f"{record['seconds']:.1f} s; joints " + ", ".join(f"{k} {v}" for k, v in sorted(record["outcome"].items())))
+    if gt is not None:
+        line += (f", MPJPE {mpjpe(start.joints[t], gt[t]) * 100:.1f} -> "
+                 f"{mpjpe(np.asarray(record['joints']), gt[t]) * 100:.1f} cm")
+    return line
 
 
 def _finish(out: Path, records: list, n: int, start: _Start, gt, config: OptimizeJointsConfig) -> dict:
@@ -219,6 +259,8 @@ def run(config: OptimizeJointsConfig, *, dataset, out, observer=None, log=print)
     InputError
         Bad dataset, options, input folders, or an output folder of another run.
     """
+    import uuid
+
     from toolkit.io import Dataset
 
     log = log or (lambda *_: None)
@@ -245,20 +287,24 @@ def run(config: OptimizeJointsConfig, *, dataset, out, observer=None, log=print)
                                 recording_id=folder.recording_id, camera_names=ds.camera_names)
             obs.report("rig", rig=start.rig)
             obs.report("skeleton", skeleton=SKELETON_14)
-        todo, step, stopped, processed = folder.records.todo(), _Frame(ds, config, start, gt, obs, log), "", 0
-        t0 = time.perf_counter()
+        todo = folder.records.todo()
+        task = _FrameTask(uuid.uuid4().hex, ds.root, out, n, config)
+
+        def logged(i: int) -> None:
+            log(_line(json.loads(folder.records.path(todo[i]).read_text(encoding="utf-8")), start, gt))
+
         try:
-            for t in todo:
-                folder.records.write(t, step(t))
-                processed += 1
-        except KeyboardInterrupt:
-            stopped = STOPPED_INTERRUPTED
+            processed, stopped, seconds = run_frames(
+                task, ((t, start.joints[t], start.cameras(t)) for t in todo), total=len(todo),
+                parallel=ParallelConfig(config.workers, config.scheduler), observer=obs, progress=config.progress,
+                desc="optimize joints", on_frame=logged)
         finally:
+            drop_cached(task.token)
             if own and obs is not None:
                 obs.close()
         records = folder.records.read_all()
         metrics = _finish(out, records, n, start, gt, config)
-    return RunResult(out, n, len(records), processed, n - len(todo), stopped, time.perf_counter() - t0, metrics,
+    return RunResult(out, n, len(records), processed, n - len(todo), stopped, seconds, metrics,
                      folder.recording if own else None, {"start": start.source})
 
 

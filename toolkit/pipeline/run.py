@@ -409,7 +409,8 @@ class _FrameCall:
 
 
 def run_frames(task, frames, *, total: int, parallel: ParallelConfig = ParallelConfig(), observer=None,
-               progress: bool = True, desc: str = "frames") -> tuple[int, str, float]:
+               progress: bool = True, desc: str = "frames",
+               on_frame: typing.Callable[[int], None] | None = None) -> tuple[int, str, float]:
     """The frame loop of a run: each frame a task, here or on Dask workers, reports in frame order.
 
     The task writes the frame's results itself (atomically, its record last:
@@ -435,6 +436,9 @@ def run_frames(task, frames, *, total: int, parallel: ParallelConfig = ParallelC
     observer : Observer, optional
     progress : bool
     desc : str
+    on_frame : callable, optional
+        ``on_frame(i)`` in this process once frame ``i`` (0-based, in the order
+        of ``frames``) is finished and its reports passed on (e.g. its log line).
 
     Returns
     -------
@@ -454,6 +458,8 @@ def run_frames(task, frames, *, total: int, parallel: ParallelConfig = ParallelC
         if callable(checkpoint):
             checkpoint()
         processed += 1
+        if on_frame is not None:
+            on_frame(_i)
 
     t0 = time.perf_counter()
     try:
@@ -509,7 +515,7 @@ def compare_runs(a: str | os.PathLike, b: str | os.PathLike, *, atol_m: float = 
 
     Images and every other file byte for byte; JSON records and metrics less
     their wall times, numbers to ``atol_m`` (absolute, or relative above 1);
-    ``.npz`` arrays to ``atol_m`` (poses, metres) where float, exactly
+    ``.npz`` arrays (less wall times) to ``atol_m`` (poses, metres) where float, exactly
     otherwise.  ``run.json`` (its recording id), the recordings and hidden
     files (the temporary file of a write a killed worker left) are not compared.
 
@@ -546,7 +552,7 @@ def compare_runs(a: str | os.PathLike, b: str | os.PathLike, *, atol_m: float = 
                 diffs.append(f"{f}: differs at {where or 'the top'}")
         elif f.endswith(".npz"):
             za, zb = np.load(pa), np.load(pb)
-            for k in sorted(set(za.files) | set(zb.files)):
+            for k in sorted((set(za.files) | set(zb.files)) - _TIMING_KEYS):
                 if k not in za.files or k not in zb.files:
                     diffs.append(f"{f}: {k} in one only")
                 elif za[k].dtype.kind == "f":
