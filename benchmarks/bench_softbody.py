@@ -8,7 +8,7 @@ Usage::
     python -m benchmarks.bench_softbody --scenes 3 --frames 20 --seed 2600   # docs/benchmarks.md
 
 Seeded synthetic sequences, each a random person (1.60-1.90 m, random
-outfit with a checked shirt for the stereo scenes) doing one of several
+outfit, checked shirt and trousers for the stereo scenes) doing one of several
 motions (``wave``, ``kick``, ``crouch``, ``turn``, in turn), seen by
 
 * ``depth``: one Kinect-like depth camera 3 m away, 320 x 240, with the
