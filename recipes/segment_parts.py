@@ -65,13 +65,17 @@ def parser() -> argparse.ArgumentParser:
                     help="if OUT holds results of another dataset or other options, move it to OUT.stale-N "
                          "and start afresh (default: refuse)")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
+    ap.add_argument("--workers", type=int, default=None,
+                    help="frames at once on a local Dask cluster of N worker processes (default 1: here; "
+                         "the outputs are those of one worker, docs/parallel.md)")
+    ap.add_argument("--scheduler", default=None, help="run the frames on this Dask scheduler (tcp://HOST:8786)")
     return ap
 
 
 def config_from_args(args: argparse.Namespace) -> SegmentPartsConfig:
     """The run's config: the --config file (or the defaults), then the flags given."""
     config = load_config(SegmentPartsConfig, args.config, poses=args.poses, template_pose=args.template_pose,
-                         max_frames=args.max_frames)
+                         max_frames=args.max_frames, workers=args.workers, scheduler=args.scheduler)
     return replace(config, gt_joints=config.gt_joints or args.gt_joints, gt_masks=config.gt_masks or args.gt_masks,
                    recording=config.recording and not args.no_recording,
                    replace_stale=config.replace_stale or args.replace_stale,

@@ -10,14 +10,14 @@ record is skipped when the run resumes.
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from toolkit.errors import InputError
-from toolkit.pipeline.run import STOPPED_INTERRUPTED, RunResult, open_run
+from toolkit.pipeline.parallel import ParallelConfig, drop_cached, worker_cache
+from toolkit.pipeline.run import FrameRecords, RunResult, open_run, run_frames
 from toolkit.segmentation.segment import SegmentationConfig
 from toolkit.segmentation.pipeline import TEMPLATE_POSES
 
@@ -52,6 +52,14 @@ class SegmentPartsConfig:
         Move another run's results aside instead of refusing them.
     progress : bool
         Show a progress bar.
+    workers : int
+        Frames at once, each a task on a local Dask cluster of this many worker
+        processes (1: in this process; ``docs/parallel.md``).  The silhouettes
+        (a motion prior from the previous frame) are extracted here in frame
+        order; a frame's segmentation depends on nothing else, so the outputs
+        are those of one worker.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://HOST:PORT``) to run the frames on.
     """
 
     segmentation: SegmentationConfig = field(default_factory=SegmentationConfig)
@@ -64,9 +72,11 @@ class SegmentPartsConfig:
     recording: bool = True
     replace_stale: bool = False
     progress: bool = True
+    workers: int = 1
+    scheduler: str | None = None
 
     #: Fields that do not change the results (left out of the run identity).
-    RUNTIME = ("recording", "replace_stale", "progress")
+    RUNTIME = ("recording", "replace_stale", "progress", "workers", "scheduler")
 
     def __post_init__(self):
         if self.template_pose not in TEMPLATE_POSES:
@@ -76,6 +86,7 @@ class SegmentPartsConfig:
                              f"poses={self.poses}, gt_joints=True")
         if self.max_frames is not None and int(self.max_frames) < 1:
             raise InputError("SegmentPartsConfig.max_frames", "a positive number of frames", repr(self.max_frames))
+        ParallelConfig(self.workers, self.scheduler)  # checked
 
 
 def _poses(ds, config: SegmentPartsConfig, log):
@@ -159,6 +170,44 @@ def _silhouettes(ds, config: SegmentPartsConfig, n: int, todo: list):
     return _StreamedSilhouettes(ds, n)
 
 
+@dataclass(frozen=True)
+class _FrameTask:
+    """One frame of the run as a task (picklable; a worker builds the template once per run).
+
+    ``task(t, views, observer=None)`` segments frame ``t``: ``views`` maps each
+    camera to ``(image (H, W, 3) uint8, silhouette (H, W) bool, camera, joints
+    (14, 3) m or None, 2D joints (14, 2) px or None, ground-truth labels (H, W)
+    uint8 or None)``; the labels go to ``OUT/parts/<camera>/NNNNNN.png``, then
+    the frame's record.  The colour models are fitted per view with a fixed
+    seed: nothing is carried from frame to frame.
+    """
+
+    token: str
+    out: Path
+    n: int
+    config: SegmentPartsConfig
+
+    def __call__(self, t: int, views: dict, observer=None) -> None:
+        from toolkit.io import atomic_write_png, frame_filename
+        from toolkit.segmentation import part_iou
+        from toolkit.segmentation.segment import segment_frame
+        from toolkit.template import Template
+
+        template = worker_cache(self.token, lambda: Template(self.config.template_height_m))
+        record = {"frame": t, "missing": {}, "iou": {}}
+        for c, (image, silhouette, cam, J, x, gt) in views.items():
+            r = segment_frame(image, silhouette, J, cam, template, self.config.segmentation, observer, joints2d=x,
+                              frame=t)
+            if observer is not None:
+                observer.report("image", camera=c, image=image, frame=t)
+            atomic_write_png(Path(self.out) / "parts" / c / frame_filename(t), r.labels)
+            for p in r.parts_without_model:
+                record["missing"][str(p)] = record["missing"].get(str(p), 0) + 1
+            if gt is not None:
+                record["iou"][c] = part_iou(r.labels, gt).tolist()
+        FrameRecords(self.out, self.n).write(t, record)
+
+
 def _observer(folder, rig, names: list):
     from toolkit.skeleton import SKELETON_14
     from toolkit.viz import RerunObserver
@@ -198,12 +247,11 @@ def run(config: SegmentPartsConfig, *, dataset, out, observer=None, log=print) -
     InputError
         Bad dataset, options, stage-1 folder, or an output folder of another run.
     """
-    import numpy as np
-    from tqdm import tqdm
+    import uuid
 
-    from toolkit.io import Dataset, atomic_write_png, frame_filename
-    from toolkit.segmentation import part_iou, segment_views
-    from toolkit.template import Template
+    import numpy as np
+
+    from toolkit.io import Dataset
 
     log = log or (lambda *_: None)
     out = Path(out)
@@ -219,28 +267,23 @@ def run(config: SegmentPartsConfig, *, dataset, out, observer=None, log=print) -
         silhouette = _silhouettes(ds, config, n, todo)
         own = observer is None
         obs = _observer(folder, poses.rig, names) if own and folder.recording is not None else observer
-        views = segment_views(ds.frame, silhouette, poses, n, Template(config.template_height_m),
-                              config.segmentation, obs, frame_indices=todo)
-        record, count, stopped = None, 0, ""
-        t0 = time.perf_counter()
+        task = _FrameTask(uuid.uuid4().hex, out, n, config)
+
+        def frames():  # the silhouettes' motion prior needs the frames in order: here, ahead of the workers
+            for t in todo:
+                views = {}
+                for c in names:
+                    cam, J, x = poses.view(c, t)
+                    image = ds.frame(c, t)
+                    views[c] = (image, silhouette(c, t), cam, J, x, ds.gt_parts(c, t) if ds.has_groundtruth else None)
+                yield t, views
+
         try:
-            for t, c, r in tqdm(views, total=len(todo) * len(names), desc="segmentation", unit="view",
-                                disable=not config.progress):
-                if obs is not None:
-                    obs.report("image", camera=c, image=ds.frame(c, t), frame=t)
-                atomic_write_png(out / "parts" / c / frame_filename(t), r.labels)
-                count += 1
-                record = record if record is not None and record["frame"] == t else {"frame": t, "missing": {},
-                                                                                      "iou": {}}
-                for p in r.parts_without_model:
-                    record["missing"][str(p)] = record["missing"].get(str(p), 0) + 1
-                if ds.has_groundtruth:
-                    record["iou"][c] = part_iou(r.labels, ds.gt_parts(c, t)).tolist()
-                if c == names[-1]:
-                    folder.records.write(t, record)
-        except KeyboardInterrupt:
-            stopped = STOPPED_INTERRUPTED
+            processed, stopped, seconds = run_frames(
+                task, frames(), total=len(todo), parallel=ParallelConfig(config.workers, config.scheduler),
+                observer=obs, progress=config.progress, desc="segmentation")
         finally:
+            drop_cached(task.token)
             if own and obs is not None:
                 obs.close()
         records = folder.records.read_all()
@@ -249,11 +292,10 @@ def run(config: SegmentPartsConfig, *, dataset, out, observer=None, log=print) -
         for p, k in rec["missing"].items():
             missing[int(p)] = missing.get(int(p), 0) + k
     ious = [v for rec in records for v in rec["iou"].values()]
-    metrics = {"views": count, "missing": dict(sorted(missing.items())),
+    metrics = {"views": processed * len(names), "missing": dict(sorted(missing.items())),
                "iou": np.nanmean(np.array(ious, float), 0).tolist() if ious else None}
-    return RunResult(out, n, len(records), count // max(len(names), 1), n - len(todo), stopped,
-                     time.perf_counter() - t0, metrics, folder.recording if own else None,
-                     {"poses": poses.name, "cameras": len(names)})
+    return RunResult(out, n, len(records), processed, n - len(todo), stopped, seconds, metrics,
+                     folder.recording if own else None, {"poses": poses.name, "cameras": len(names)})
 
 
 def summary_lines(result: RunResult) -> list:
