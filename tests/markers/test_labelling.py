@@ -323,7 +323,7 @@ def test_labelling_csv_and_bad_files(tmp_path):
     frame, pos = read_labelling(good, labels)
     assert frame == 3 and set(pos) == {"LASI", "RASI"} and np.allclose(pos["LASI"], [0.1, 0.2, 1.0])
     cases = {
-        "u.json": (json.dumps({"frame": 0, "markers": {"XXXX": [0, 0, 0]}}), "XXXX"),
+        "u.json": (json.dumps({"frame": 0, "markers": {"NOT_A_MARKER": [0, 0, 0]}}), "NOT_A_MARKER"),
         "h.csv": ("name,x,y,z\nLASI,0,0,0\n", "header"),
         "n.json": (json.dumps({"frame": 0, "markers": {"LASI": [0, "a", 0]}}), "LASI"),
         "f.csv": ("label,x,y,z,frame\nLASI,0,0,0,1\nRASI,0,0,0,2\n", "frame"),
