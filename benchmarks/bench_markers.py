@@ -6,6 +6,7 @@ Usage::
     python benchmarks/bench_markers.py                # 5 seeded scenes at 100 fps (rom at its natural pace)
     python benchmarks/bench_markers.py --workers 2    # the scenes on 2 processes
     python benchmarks/bench_markers.py --quick        # 1 rom scene at 50 fps (natural pace) + 1 walk at 100
+    python benchmarks/bench_markers.py --seed 71      # fresh scenes: rom plug-in-gait 71-73, cluster 74, walks 81
     python benchmarks/bench_markers.py --json out/bench_markers.json --cache out/bench_markers
 
 Seeded synthetic marker captures of :mod:`toolkit.synthetic.marker_capture`
@@ -70,6 +71,14 @@ SCENES = (("rom", "plug-in-gait", 51), ("rom", "cluster", 53), ("rom", "plug-in-
 #: The quick run's scenes (rom at :data:`QUICK_FPS`, walk at :data:`FPS`: at 50 fps a walking foot moves
 #: ~8 cm per frame and the cluster walk of seed 61 fell to 86 % labelled, its left ankle 462 mm off).
 QUICK_SCENES = (("rom", "plug-in-gait", 51), ("walk", "cluster", 61))
+
+
+def seeded_scenes(base: int) -> tuple:
+    """The scenes of ``--seed BASE``: rom plug-in-gait BASE..BASE+2, rom cluster BASE+3, both walks BASE+10."""
+    return (("rom", "plug-in-gait", base), ("rom", "plug-in-gait", base + 1), ("rom", "plug-in-gait", base + 2),
+            ("rom", "cluster", base + 3), ("walk", "cluster", base + 10), ("walk", "plug-in-gait", base + 10))
+
+
 FPS = 100
 QUICK_FPS = 50
 #: Frames of a walk scene at 100 fps (scaled with the frame rate).
@@ -210,11 +219,17 @@ def main(argv=None) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help=f"{len(QUICK_SCENES)} scenes, rom at {QUICK_FPS} fps")
     ap.add_argument("--scenes", type=int, default=None, help="the first N default scenes")
+    ap.add_argument("--seed", type=int, default=None,
+                    help="fresh scenes from this base seed: rom plug-in-gait BASE..BASE+2, rom cluster BASE+3, "
+                         "walks BASE+10 (default: the fixed scenes 51-53, 61)")
     ap.add_argument("--workers", type=int, default=1, help="scenes run on this many processes")
     ap.add_argument("--cache", type=Path, default=None, help="keep the generated captures here (reused)")
     ap.add_argument("--json", type=Path, default=None, help="write every scene's scores here (after each scene)")
     args = ap.parse_args(argv)
-    scenes = QUICK_SCENES if args.quick else SCENES[:args.scenes] if args.scenes else SCENES
+    if args.seed is not None and args.quick:
+        ap.error("--seed and --quick exclude each other (--quick runs the fixed quick scenes)")
+    base = seeded_scenes(args.seed) if args.seed is not None else SCENES
+    scenes = QUICK_SCENES if args.quick else base[:args.scenes] if args.scenes else base
     fps = QUICK_FPS if args.quick else FPS
     tmp = None
     root = args.cache

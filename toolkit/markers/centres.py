@@ -32,7 +32,7 @@ import numpy as np
 from toolkit.errors import InputError
 
 #: How a joint centre was obtained.
-METHODS = ("score", "sara", "sphere", "generic", "none")
+METHODS = ("score", "sara", "sphere", "circle", "generic", "none")
 
 
 @dataclass(frozen=True)
@@ -42,7 +42,7 @@ class CentreFit:
     Attributes
     ----------
     method : str
-        ``"score"`` or ``"sara"``.
+        ``"score"``, ``"sara"``, ``"sphere"`` or ``"circle"``.
     local_parent, local_child : ndarray of shape (3,)
         The centre in the parent's and the child's reference frames, metres.
     axis_parent, axis_child : ndarray of shape (3,) or None
@@ -63,6 +63,10 @@ class CentreFit:
     conditioning : float
         Smallest over second smallest singular value of the system (near 0: a
         hinge, whose centre along the axis is not determined by the motion).
+    axis_spread_m : float
+        Circle fits: RMS distance of each child marker's own circle centre
+        from the common one, metres (how well the motion fixes where the axis
+        lies); NaN for the other methods.
     """
 
     method: str
@@ -76,6 +80,7 @@ class CentreFit:
     rom_deg: np.ndarray
     n_frames: int
     conditioning: float
+    axis_spread_m: float = float("nan")
 
 
 def _check_motion(rot, trans, where):
@@ -328,3 +333,203 @@ def sphere_centre(rot_parent, trans_parent, points: np.ndarray, *, anchor: np.nd
     radii3[:min(3, k)] = radii[:3]
     return CentreFit("sphere", c, radii3, None, None, centre, None, residual, rom, len(b),
                      float(s[-1] / max(s[-2], 1e-30)))
+
+
+
+def _circles(local: np.ndarray) -> dict:
+    """Common plane normal and centre of the circles of child markers (T, K, 3) in the parent's frame."""
+    seen = np.isfinite(local).all(axis=-1)  # (T, K)
+    keep = [k for k in range(local.shape[1]) if seen[:, k].sum() >= 3]
+    if not keep:
+        raise InputError("points", "a child marker seen in at least 3 frames with the parent's motion", "none")
+    ys = [local[seen[:, k], k] for k in keep]
+    centred = np.concatenate([y - y.mean(axis=0) for y in ys])
+    _, s, vt = np.linalg.svd(centred, full_matrices=False)
+    n, u, v = vt[2], vt[0], vt[1]
+    mean = np.concatenate(ys).mean(axis=0)
+    # the circles' common centre in the plane (u, v about ``mean``), one constant per marker
+    q = [np.stack([(y - mean) @ u, (y - mean) @ v], axis=1) for y in ys]
+    k = len(ys)
+    a = np.concatenate([np.concatenate([2 * qj, np.eye(k)[[j] * len(qj)]], axis=1) for j, qj in enumerate(q)])
+    b = np.concatenate([(qj ** 2).sum(axis=1) for qj in q])
+    sol, *_ = np.linalg.lstsq(a, b, rcond=None)
+    radii = np.sqrt(np.maximum(sol[2:] + sol[:2] @ sol[:2], 0.0))
+    # the algebraic fit is biased towards small circles on short arcs: refined by the geometric one
+    # (distances to the circles, scipy's least_squares from the algebraic solution)
+    from scipy.optimize import least_squares
+
+    def dist(x):
+        return np.concatenate([np.linalg.norm(qj - x[:2], axis=1) - x[2 + j] for j, qj in enumerate(q)])
+
+    x = least_squares(dist, np.concatenate([sol[:2], radii])).x
+    sol, radii = x[:2], np.abs(x[2:])
+    # each marker's own circle centre: their spread says how well the motion fixes the axis' position
+    own = []
+    for j, qj in enumerate(q):
+        if len(q) > 1:
+            xj = least_squares(lambda z: np.linalg.norm(qj - z[:2], axis=1) - z[2], np.r_[sol, radii[j]]).x
+            own.append(np.linalg.norm(xj[:2] - sol))
+    spread = float(np.sqrt(np.mean(np.square(own)))) if own else 0.0
+    c0 = mean + sol[0] * u + sol[1] * v  # a point of the axis
+    levels = np.array([float(np.mean((y - c0) @ n)) for y in ys])  # each circle's plane along the axis
+    return {"keep": keep, "n": n, "u": u, "v": v, "c0": c0, "mean": mean, "radii": radii, "levels": levels,
+            "s": s, "n_eq": len(centred), "spread": spread}
+
+
+def _on_circles(local: np.ndarray, fit: dict) -> np.ndarray:
+    """The nearest point of each marker's circle to its position (T, K, 3), NaN where unseen or not fitted."""
+    out = np.full_like(local, np.nan)
+    n, c0 = fit["n"], fit["c0"]
+    for j, k in enumerate(fit["keep"]):
+        d = local[:, k] - c0
+        perp = d - (d @ n)[:, None] * n
+        rho = np.linalg.norm(perp, axis=1, keepdims=True)
+        out[:, k] = c0 + fit["levels"][j] * n + fit["radii"][j] * perp / np.maximum(rho, 1e-9)
+    return out
+
+
+def _kabsch_per_frame(ref: np.ndarray, pts: np.ndarray):
+    """Rigid motions (T, 3, 3), (T, 3) taking per-frame references ``ref`` (T, K, 3) onto ``pts``; NaN-aware."""
+    w = (np.isfinite(ref).all(axis=-1) & np.isfinite(pts).all(axis=-1)).astype(float)[..., None]
+    nw = np.maximum(w.sum(axis=1), 1.0)
+    r = np.where(w > 0, ref, 0.0)
+    x = np.where(w > 0, pts, 0.0)
+    cr, cx = r.sum(axis=1) / nw, x.sum(axis=1) / nw
+    h = np.einsum("tki,tkj->tij", (r - cr[:, None]) * w, (x - cx[:, None]) * w)
+    u, sv, vt = np.linalg.svd(h)
+    d = np.sign(np.linalg.det(np.einsum("tji,tkj->tik", vt, u)))
+    dm = np.ones((len(d), 3))
+    dm[:, 2] = d
+    rot = np.einsum("tji,tj,tkj->tik", vt, dm, u)
+    trans = cx - np.einsum("tij,tj->ti", rot, cr)
+    bad = (w[..., 0].sum(axis=1) < 3) | ~(sv[:, 1] > 1e-4 * sv[:, 0])
+    rot[bad], trans[bad] = np.nan, np.nan
+    return rot, trans
+
+
+def circle_axis(rot_parent, trans_parent, points: np.ndarray, *, anchor: np.ndarray | None = None,
+                parent_reference: np.ndarray | None = None, parent_points: np.ndarray | None = None,
+                iterations: int = 5) -> CentreFit:
+    """Hinge axis from the circles that child markers describe in the parent's frame.
+
+    For a child segment whose own markers give no reliable rigid motion (one
+    or two markers, or markers nearly on one line: Plug-in Gait's shank
+    ``TIB``/``ANK`` with the borrowed ``KNE``, whose rotation about that line
+    the skin noise decides), each child marker still turns about the hinge:
+    in the parent's frame it moves on a circle in a plane normal to the axis,
+    centred on it (the axis method of Gamage and Lasenby 2002, "New least
+    squares solutions for estimating the average centre of rotation and the
+    axis of rotation", J Biomech 35:87-93).  Linear least squares twice:
+
+    1. the axis direction ``n``: the common normal of the markers' planes,
+       the smallest right singular vector of the markers' positions centred
+       per marker and stacked (``n . y_kt = d_k``);
+    2. the axis position: the common centre ``c`` (in the plane) of the
+       markers' circles, ``|y|^2 = 2 y.c + (r_k^2 - |c|^2)`` in plane
+       coordinates, as in :func:`sphere_centre`.
+
+    With the parent's markers given, the parent's pose in each frame is then
+    fitted to its own markers and the child markers' circles together (the
+    hinge as a joint constraint of a global optimisation, Lu and O'Connor
+    1999, "Bone position estimation from skin marker co-ordinates using
+    global optimisation with joint constraints", J Biomech 32:129-134):
+    alternately, each child marker's nearest point on its circle joins the
+    parent's reference markers in a per-frame Kabsch fit, and the circles are
+    fitted again; each step lowers the same sum of squared marker distances.
+    A parent whose markers leave its rotation about one line loosely held
+    (Plug-in Gait's thigh: ``THI`` a few centimetres off the hip-``KNE``
+    line) thus takes it from the child's circles.
+
+    Where on the axis the joint lies is not observable from the motion (as
+    for :func:`sara`): the point of the axis nearest the anchor.
+
+    Parameters
+    ----------
+    rot_parent : ndarray of shape (T, 3, 3)
+    trans_parent : ndarray of shape (T, 3)
+        The parent's rigid motion (``x_world = R x_local + t``), NaN where unknown.
+    points : ndarray of shape (T, K, 3)
+        The child's markers in the world, metres, NaN where missing.
+    anchor : ndarray of shape (T, 3) or (3,), optional
+        An anatomical estimate of the joint centre (world, NaN allowed); the
+        centre is the point of the axis nearest to it (median over frames, in
+        the parent's frame).  Without it, the axis point at the markers' mean level.
+    parent_reference : ndarray of shape (P, 3), optional
+        The parent's markers in its own frame (``rot_parent`` maps them to the world).
+    parent_points : ndarray of shape (T, P, 3), optional
+        The parent's markers in the world; with ``parent_reference``, the
+        parent's poses are refined as above.
+    iterations : int
+        Refinement rounds.
+
+    Returns
+    -------
+    CentreFit
+        ``method="circle"``: ``local_parent`` the centre and ``axis_parent``
+        the axis in the parent's frame, ``axis`` in the world per frame,
+        ``local_child`` the circles' radii (K,) padded/truncated to 3 values
+        (no child frame); ``axis_spread_m`` how far the markers' own circle
+        centres lie from the common one; ``residual_m`` the RMS distance of the child
+        markers from their circles and (refined) of the parent's markers from
+        their fitted places; ``rom_deg[0]`` the largest angular extent
+        (2.5-97.5 percentile) of a marker about the axis; ``conditioning`` the
+        smallest over the second smallest singular value of the child
+        markers' centred positions (near 0: they stay in planes, a clean hinge).
+
+    Raises
+    ------
+    InputError
+        Wrong shapes; fewer than three frames of a marker seen with the parent's motion.
+    """
+    rp, tp = _check_motion(rot_parent, trans_parent, "rot_parent/trans_parent")
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 3 or pts.shape[0] != rp.shape[0] or pts.shape[2] != 3 or pts.shape[1] < 1:
+        raise InputError("points", f"an array of shape ({rp.shape[0]}, K, 3), K >= 1", f"{pts.shape}")
+    refine = parent_reference is not None and parent_points is not None and iterations > 0
+    if refine:
+        pref = np.asarray(parent_reference, dtype=float)
+        ppts = np.asarray(parent_points, dtype=float)
+        if pref.ndim != 2 or pref.shape[1] != 3 or ppts.shape != (rp.shape[0], pref.shape[0], 3):
+            raise InputError("parent_reference/parent_points", f"(P, 3) and ({rp.shape[0]}, P, 3)",
+                             f"{pref.shape}, {ppts.shape}")
+    local = np.einsum("tji,tkj->tki", rp, pts - tp[:, None])  # (T, K, 3), parent's frame
+    fit = _circles(local)
+    for _ in range(iterations if refine else 0):
+        targets = _on_circles(local, fit)
+        ref = np.concatenate([np.broadcast_to(pref, (len(rp), *pref.shape)), targets], axis=1)
+        r2, t2 = _kabsch_per_frame(ref, np.concatenate([ppts, pts], axis=1))
+        ok = np.isfinite(t2).all(axis=1)
+        rp, tp = np.where(ok[:, None, None], r2, rp), np.where(ok[:, None], t2, tp)
+        local = np.einsum("tji,tkj->tki", rp, pts - tp[:, None])
+        fit = _circles(local)
+    n, u, v, c0, radii = fit["n"], fit["u"], fit["v"], fit["c0"], fit["radii"]
+    dist, rom = [], 0.0
+    for j, k in enumerate(fit["keep"]):
+        y = local[:, k][np.isfinite(local[:, k]).all(axis=1)]
+        d = y - c0
+        h = d @ n
+        perp = d - h[:, None] * n
+        rho = np.linalg.norm(perp, axis=1)
+        dist.append(np.sqrt((h - fit["levels"][j]) ** 2 + (rho - radii[j]) ** 2))
+        if radii[j] > 0.05:  # a marker near the axis gives no angle
+            ang = np.arctan2(perp @ v, perp @ u)
+            ang = np.angle(np.exp(1j * (ang - np.angle(np.exp(1j * ang).mean()))))  # about the mean direction
+            rom = max(rom, float(np.degrees(np.percentile(ang, 97.5) - np.percentile(ang, 2.5))))
+    if refine:
+        fitted = np.einsum("tij,kj->tki", rp, pref) + tp[:, None]
+        e = np.linalg.norm(fitted - ppts, axis=-1)
+        dist.append(e[np.isfinite(e)])
+    residual = float(np.sqrt(np.mean(np.concatenate(dist) ** 2)))
+    lam = float((fit["mean"] - c0) @ n)
+    anc_local = _local_anchor(rp, tp, anchor)
+    if anc_local is not None:
+        lam = float((anc_local - c0) @ n)
+    c = c0 + lam * n
+    centre = np.einsum("tij,j->ti", rp, c) + tp
+    axis = np.einsum("tij,j->ti", rp, n)
+    k = len(radii)
+    radii3 = np.full(3, np.nan)
+    radii3[:min(3, k)] = radii[:3]
+    s = fit["s"]
+    return CentreFit("circle", c, radii3, n, None, centre, axis, residual, np.array([rom, 0.0, 0.0]),
+                     fit["n_eq"], float(s[2] / max(s[1], 1e-30)), fit["spread"])

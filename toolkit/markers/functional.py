@@ -51,7 +51,7 @@ PARENT = {ch: p for _j, p, ch, _k in FUNCTIONAL_JOINTS}
 PROXIMAL = {ch: j for j, _p, ch, _k in FUNCTIONAL_JOINTS}
 
 #: How each joint was placed.
-JOINT_METHODS = ("score", "sara", "sphere", "template", "anatomical", "none")
+JOINT_METHODS = ("score", "sara", "sphere", "circle", "template", "anatomical", "none")
 
 
 @dataclass(frozen=True)
@@ -90,6 +90,11 @@ class JointCentresConfig:
         A SARA fit whose two smallest singular values are closer than this
         ratio did not see a clean hinge (the axis is not determined); it is
         not used either.
+    max_axis_spread_m : float
+        Circle fits (:func:`toolkit.markers.centres.circle_axis`): each child
+        marker's own circle centre may lie this far (RMS, metres) from the
+        common one; farther, the motion does not fix where the axis lies
+        (short arcs, soft tissue) and the fit is not used.
     max_generic_distance_m : float
         A functional centre farther than this (median over frames, metres)
         from the marker set template's joint is not used (mislabelled markers
@@ -108,12 +113,13 @@ class JointCentresConfig:
     max_joint_residual_m: float = 0.03
     max_residual_m: float = 0.015
     max_hinge_conditioning: float = 0.2
+    max_axis_spread_m: float = 0.005
     max_generic_distance_m: float = 0.04
     height_m: float = 0.0
 
     def __post_init__(self):
         for name in ("rigid_tolerance_m", "segment_tolerance_m", "subset_threshold_m", "max_joint_residual_m",
-                     "max_residual_m", "max_hinge_conditioning", "planar_ratio"):
+                     "max_residual_m", "max_hinge_conditioning", "planar_ratio", "max_axis_spread_m"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
                 raise InputError(f"JointCentresConfig.{name}", "a positive number", repr(v))
@@ -248,6 +254,7 @@ FRAME_RMS_M = 0.01
 
 
 def _motion(pos: np.ndarray):
+    """(rotations, translations, reference shape) of a subset's markers (T, K, 3), or None."""
     if pos.shape[1] < 3:
         return None
     try:
@@ -259,22 +266,49 @@ def _motion(pos: np.ndarray):
     rot[bad], trans[bad] = np.nan, np.nan
     if np.isfinite(trans).all(axis=1).sum() < 3:
         return None
-    return rot, trans
+    return rot, trans, ref
 
 
-def _fit_joint(kind, parent_pos, child_pos, anchor, config, *, trusted: bool = True):
+#: A subset whose centred shape has its second singular value below this share of the first lies
+#: nearly on a line: its rotation about that line is decided by the skin noise, not by the markers.
+COLLINEAR_RATIO = 0.1
+
+
+def _nearly_collinear(pos: np.ndarray) -> bool:
+    """Whether a subset's markers (T, K, 3) lie nearly on one line (:data:`COLLINEAR_RATIO`)."""
+    if pos.shape[1] < 3:
+        return True
+    try:
+        ref = _r.reference_shape(pos)
+    except InputError:
+        return True
+    ref = ref[np.isfinite(ref).all(axis=1)]
+    s = np.linalg.svd(ref - ref.mean(axis=0), compute_uv=False) if len(ref) >= 3 else np.zeros(2)
+    return not s[1] >= COLLINEAR_RATIO * s[0]
+
+
+def _fit_joint(kind, parent_pos, child_pos, anchor, config, *, trusted: bool = True, n_own: int | None = None):
     """One functional joint: (CentreFit or None, why-not message).
 
     ``trusted``: the anchor is the marker set's template (a synthetic capture), close enough to the
     joint that a functional centre far from it means mislabelled markers; an anatomical rule's anchor
-    (a file from elsewhere) is not used for that check.
+    (a file from elsewhere) is not used for that check.  ``n_own``: the first ``n_own`` markers of
+    ``child_pos`` are the child's own (the others borrowed from the parent); default all.
+
+    A hinge whose child has no well-determined rigid motion (fewer than three markers, or markers
+    nearly on one line, :func:`_nearly_collinear`) gets its axis from the circles its own markers
+    describe in the parent's frame (:func:`toolkit.markers.centres.circle_axis`); other hinges SARA.
     """
     pm = _motion(parent_pos)
     if pm is None:
         return None, "its parent segment has fewer than three markers seen together"
     cm = _motion(child_pos)
+    own = child_pos if n_own is None else child_pos[:, :n_own]
     try:
-        if cm is None:
+        if kind == "hinge" and own.shape[1] > 0 and (cm is None or _nearly_collinear(child_pos)):
+            fit = _c.circle_axis(pm[0], pm[1], own, anchor=anchor, parent_reference=pm[2],
+                                 parent_points=parent_pos)
+        elif cm is None:
             if child_pos.shape[1] == 0:
                 return None, "its child segment has no markers"
             fit = _c.sphere_centre(pm[0], pm[1], child_pos, anchor=anchor)
@@ -293,9 +327,12 @@ def _fit_joint(kind, parent_pos, child_pos, anchor, config, *, trusted: bool = T
     if not fit.residual_m <= config.max_residual_m:
         return fit, (f"the {fit.method} fit's residual {1e3 * fit.residual_m:.0f} mm exceeds "
                      f"{1e3 * config.max_residual_m:.0f} mm")
-    if fit.method == "sara" and not fit.conditioning <= config.max_hinge_conditioning:
+    if fit.method in ("sara", "circle") and not fit.conditioning <= config.max_hinge_conditioning:
         return fit, (f"no clean hinge axis (singular value ratio {fit.conditioning:.2f} > "
                      f"{config.max_hinge_conditioning:.2f})")
+    if fit.method == "circle" and not fit.axis_spread_m <= config.max_axis_spread_m:
+        return fit, (f"the markers' circles put the axis {1e3 * fit.axis_spread_m:.0f} mm apart (over "
+                     f"{1e3 * config.max_axis_spread_m:.0f} mm: the motion does not fix where the axis lies)")
     if config.max_generic_distance_m > 0 and anchor is not None and trusted:
         with _r._quiet():
             d = float(np.nanmedian(np.linalg.norm(fit.centre - anchor, axis=1)))
@@ -405,7 +442,8 @@ def _labelled(traj, groups, mset, config, obs) -> JointCentresResult:
         ppos = pos[:, p_idx]
         if len(p_idx) < 3 and PROXIMAL.get(parent) in functional:
             ppos = np.concatenate([ppos, functional[PROXIMAL[parent]][:, None]], axis=1)
-        fit, why = _fit_joint(kind, ppos, pos[:, c_idx], generic[:, j], config, trusted=source[j] == "template")
+        fit, why = _fit_joint(kind, ppos, pos[:, c_idx], generic[:, j], config, trusted=source[j] == "template",
+                              n_own=len(groups.get(child, ())))
         if fit is not None:
             rom[j] = fit.rom_deg[0]
         if fit is None or why:

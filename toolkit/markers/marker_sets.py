@@ -418,7 +418,7 @@ _PIG = (
     ("RASI", "pelvis", Placement(0.12, direction=_dir(50.0))),
     ("RPSI", "pelvis", Placement(0.14, offset=(0.045, 0.0, 0.0), direction=_BACK)),
     ("RTHI", "r_thigh", Placement(0.62, direction=_dir(85.0))),
-    ("RKNE", "r_thigh", Placement(0.98, direction=_LAT)),
+    ("RKNE", "r_thigh", Placement(1.0, direction=_LAT)),  # lateral epicondyle, on the flexion axis
     ("RTIB", "r_shank", Placement(0.55, direction=_dir(80.0))),
     ("RANK", "r_shank", Placement(0.99, direction=_LAT)),
     ("RHEE", "r_foot", Placement(0.0, offset=(0.0, 0.0, -0.032), direction=_BACK)),
