@@ -377,7 +377,9 @@ def fit_clouds(model, params0, clouds, config: SoftBodyRunConfig, viewpoints=Non
                            observer=observer)
     final = track
     if config.global_fit:
-        final = global_fit(model, track, clouds, config=_with_viewpoints(config.fit, viewpoints), observer=observer)
+        # the global fit sees the subject's points only (the tracker left other bodies' out)
+        final = global_fit(model, track, track.subject_clouds(clouds), config=_with_viewpoints(config.fit, viewpoints),
+                           observer=observer)
     return Fitted([model] * len(clouds), np.asarray(final.params), np.asarray(track.params), final.joints,
                   track.joints, list(track.states), config.global_fit)
 

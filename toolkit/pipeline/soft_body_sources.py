@@ -4,8 +4,12 @@ Two sources of 3D points (issue 18 item 2):
 
 * :class:`DepthClouds` -- a depth camera (a dataset folder with ``depth_camera/``
   or a folder of depth frames, :func:`toolkit.io.depth_readers.open_depth_input`):
-  the user's pixels (:func:`toolkit.pointcloud.user_mask`, against the empty
-  scene when there is one) back-projected to the world;
+  the foreground pixels (:func:`toolkit.pointcloud.foreground_mask`, against the
+  empty scene when there is one) back-projected to the world.  Every person in
+  view stays in: the tracker tells the subject from the others with its model
+  (:mod:`toolkit.softbody.separate`), which a mask of one person chosen by size
+  cannot (a second person standing apart, larger in the image, was taken for the
+  user: every frame "empty");
 * :class:`StereoClouds` -- the trinocular heads of a dataset
   (:mod:`toolkit.pointcloud.stereo`), limited to the subject by a foreground
   mask: the dataset's own masks (``masks/``), else background subtraction
@@ -39,7 +43,8 @@ FOREGROUNDS = ("auto", "masks", "plate", "groundtruth")
 
 
 class DepthClouds:
-    """The user's points in each depth frame, world (or level camera) coordinates, metres."""
+    """The foreground points (every person in view) of each depth frame, world (or level camera)
+    coordinates, metres."""
 
     kind = "depth"
 
@@ -50,7 +55,6 @@ class DepthClouds:
         self.input = open_depth_input(dataset)
         self.background = None if self.input.background is None else BackgroundModel(self.input.background)
         self.mask_config = mask_config or MaskConfig()
-        self._previous = None
 
     def __len__(self) -> int:
         return len(self.input)
@@ -73,16 +77,14 @@ class DepthClouds:
         return points_cam @ LEVEL_FROM_CAMERA.T
 
     def cloud(self, t: int) -> np.ndarray:
-        """The user's points of frame ``t``, (N, 3) metres (empty when no user is found)."""
-        from toolkit.pointcloud import depth_to_points, user_mask
+        """The foreground points of frame ``t``, (N, 3) metres (empty when there are none)."""
+        from toolkit.pointcloud import depth_to_points, foreground_mask
 
         d = self.input.read(t)
-        um = user_mask(d, self.input.camera, background=self.background, previous=self._previous,
-                       config=self.mask_config)
-        self._previous = um.mask if um.found else None
-        if not um.found:
+        m = foreground_mask(d, self.input.camera, background=self.background, config=self.mask_config)
+        if not m.any():
             return np.zeros((0, 3))
-        pts, _, _ = depth_to_points(d, self.input.camera, um.mask)
+        pts, _, _ = depth_to_points(d, self.input.camera, m)
         return self.to_world(pts)
 
 

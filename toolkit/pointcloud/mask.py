@@ -1,5 +1,8 @@
 """The user mask: given, or from a background depth model and connected components.
 
+(:func:`foreground_mask` keeps every foreground component instead, for consumers
+that tell the user from other people themselves.)
+
 Foreground pixels are those with a reading clearly in front of the background
 model (or any reading when there is no model).  Foreground pixels are grouped
 into 8-connected components; the user is the component that overlaps the
@@ -22,7 +25,7 @@ from toolkit.cameras import Camera
 from toolkit.pointcloud.cloud import _check_depth
 from toolkit.errors import InputError
 
-__all__ = ["BackgroundModel", "MaskConfig", "UserMask", "user_mask"]
+__all__ = ["BackgroundModel", "MaskConfig", "UserMask", "foreground_mask", "user_mask"]
 
 
 @dataclass(frozen=True)
@@ -119,6 +122,55 @@ def _empty(shape) -> UserMask:
     return UserMask(np.zeros(shape, bool), 0, 0.0, float("nan"))
 
 
+def _foreground(d: np.ndarray, valid: np.ndarray, background: BackgroundModel | None,
+                config: MaskConfig) -> np.ndarray:
+    """Pixels with a valid reading clearly in front of the background (all valid ones without a model)."""
+    if background is None:
+        return valid
+    bg = background.depth
+    if bg.shape != d.shape:
+        raise InputError("background", f"a depth map of shape {d.shape}", f"shape {bg.shape}")
+    with np.errstate(invalid="ignore"):
+        farther = d >= bg - (config.background_margin_m + config.background_margin_rel * bg)   # False for NaN bg
+    return valid & ~farther
+
+
+def foreground_mask(depth: np.ndarray, camera: Camera, *, background: BackgroundModel | None = None,
+                    config: MaskConfig = MaskConfig()) -> np.ndarray:
+    """Every foreground component of at least ``config.min_join_area_m2`` (all people in view, not
+    only the user; specks of sensor noise left out).
+
+    For consumers that tell the user apart themselves (the soft-body tracker separates
+    the subject from other bodies with its model:
+    :mod:`toolkit.softbody.separate`): a second person standing apart stays in, so
+    the choice of :func:`user_mask` (the largest person when there is no previous
+    mask) cannot pick the wrong one.
+
+    Parameters
+    ----------
+    depth : ndarray of shape (H, W)
+        Metres, NaN = no reading.
+    camera : Camera
+    background : BackgroundModel, optional
+    config : MaskConfig
+
+    Returns
+    -------
+    ndarray of shape (H, W), bool
+    """
+    d = _check_depth(depth, camera)
+    with np.errstate(invalid="ignore"):
+        valid = (d > config.near_m) & (d < config.far_m)          # False for NaN
+    fg = _foreground(d, valid, background, config)
+    if not fg.any():
+        return fg
+    n, lab = cv2.connectedComponents(fg.view(np.uint8), connectivity=8)
+    z = d[fg].astype(np.float64)
+    areas = np.bincount(lab[fg], weights=z * z, minlength=n) / (camera.K[0, 0] * camera.K[1, 1])
+    areas[0] = 0.0
+    return (areas >= config.min_join_area_m2)[lab] & fg
+
+
 def user_mask(depth: np.ndarray, camera: Camera, *, background: BackgroundModel | None = None,
               given: np.ndarray | None = None, previous: np.ndarray | None = None,
               config: MaskConfig = MaskConfig()) -> UserMask:
@@ -154,14 +206,7 @@ def user_mask(depth: np.ndarray, camera: Camera, *, background: BackgroundModel 
             return _empty(d.shape)
         zm = d[m].astype(np.float64)
         return UserMask(m, 1, float((zm * zm).sum() / f2), float(np.median(zm)))
-    fg = valid
-    if background is not None:
-        bg = background.depth
-        if bg.shape != d.shape:
-            raise InputError("background", f"a depth map of shape {d.shape}", f"shape {bg.shape}")
-        with np.errstate(invalid="ignore"):
-            farther = d >= bg - (config.background_margin_m + config.background_margin_rel * bg)   # False for NaN bg
-        fg = valid & ~farther
+    fg = _foreground(d, valid, background, config)
     if not fg.any():
         return _empty(d.shape)
     n, lab, stats, _ = cv2.connectedComponentsWithStats(fg.view(np.uint8), connectivity=8)

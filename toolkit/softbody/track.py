@@ -7,12 +7,19 @@ the start pose (stronger, and towards the previous frame, for parts with few
 points of their own; those parts get no coverage block), with ``scipy.optimize.least_squares`` (trust-region
 reflective, analytic Jacobian, elbows and knees bounded to ``[0, pi]``).
 Each frame starts from the previous one (extrapolated by a damped constant
-velocity).  Points further than ``gate`` outside the start model are ignored
-(a second person, the far floor), and every frame gets an explicit state:
+velocity).  The cloud is first split into the subject's points and other
+bodies' (:func:`toolkit.softbody.separate.separate_subject`: points further
+than ``gate`` outside the start model, and the points connected to them that
+are not within ``near_margin`` of it: a second person touching the subject,
+the floor); only the subject's are fitted.  Every frame gets an explicit state:
 
 * ``"ok"``: fitted, enough points near the fitted surface;
+* ``"crowded"``: fitted on the subject's points, but another body touches
+  more than ``crowded_contact`` of them: where the two meet the separation is
+  a guess (people overlapping in the view, a hug); the fitted pose is kept
+  and tracking goes on from it, the global fit leaves the frame's points out;
 * ``"empty"``: fewer than ``min_points`` points in the cloud (or after the
-  gate): the pose is carried over;
+  separation): the pose is carried over;
 * ``"lost"``: fitted, but too few points lie near the surface: the start pose
   is kept.
 
@@ -22,6 +29,7 @@ Silhouette observations (the source's optional term) are not implemented.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -31,13 +39,14 @@ from toolkit.errors import InputError
 from toolkit.observe import Observer, as_observer
 from toolkit.softbody.distance import check_points, distance, primitive_distances
 from toolkit.softbody.model import N_POSE, SoftBodyModel, SoftBodyParams, pose_bounds
-from toolkit.softbody.residuals import (LOSSES, CoverageSamples, coverage_residuals, coverage_samples, data_residuals, gate_points,
+from toolkit.softbody.residuals import (LOSSES, CoverageSamples, coverage_residuals, coverage_samples, data_residuals,
                                        coverage_margin,
                                        one_blas_thread)
+from toolkit.softbody.separate import link_distance, separate_subject
 
-__all__ = ["TrackConfig", "SoftBodyTrack", "track_sequence", "track_frame", "FRAME_STATES", "subsample"]
+__all__ = ["TrackConfig", "SoftBodyTrack", "FrameFit", "track_sequence", "track_frame", "FRAME_STATES", "subsample"]
 
-FRAME_STATES = ("ok", "empty", "lost")
+FRAME_STATES = ("ok", "crowded", "empty", "lost")
 
 
 @dataclass(frozen=True)
@@ -66,7 +75,28 @@ class TrackConfig:
     viewpoints : tuple of (3,) or None
         Camera centres (metres): coverage only from model points facing one.
     gate : float
-        Points further than this outside the start model are ignored, metres.
+        Points further than this outside the start model are not the subject's, metres;
+        nor are the points connected to them (neighbours closer than ``link``) that
+        lie further than ``near_margin`` outside it.
+    near_margin : float
+        Points closer than this to the start model's surface are the subject's, metres:
+        the model's misfit (about 35 mm at the 99th percentile on synthetic depth
+        clouds) plus the error of the motion prediction over one frame.
+    link : float
+        Smallest neighbour distance of the separation, metres (raised to twice the
+        cloud's spacing, :func:`toolkit.softbody.separate.link_distance`).
+    crowded_contact : float
+        Another body touching more than this fraction of the subject's points:
+        state ``"crowded"``.
+    crowded_undecided : float
+        More than this fraction of the subject's points further than the near margin
+        from the start model (another body within the gate that could not be told
+        apart): state ``"crowded"``, and only the points within the near margin are
+        fitted (the pose follows the subject by at most about that margin per frame).
+    regate : int
+        Before that, up to this many times: the pose fitted to the points within the
+        near margin and the cloud separated again around it (a rough start pose
+        brings the subject's own points near; another body's stay undecided).
     max_points : int
         Points kept per frame (an even subsample, the cloud's order kept).
     min_points : int
@@ -104,6 +134,11 @@ class TrackConfig:
     coverage_dirs: int = 24
     viewpoints: tuple | None = None
     gate: float = 0.25
+    near_margin: float = 0.03
+    link: float = 0.04
+    crowded_contact: float = 0.25
+    crowded_undecided: float = 0.15
+    regate: int = 2
     max_points: int = 1000
     min_points: int = 30
     inlier_distance: float = 0.05
@@ -118,9 +153,12 @@ class TrackConfig:
     def __post_init__(self):
         if self.loss not in LOSSES:
             raise InputError("TrackConfig.loss", f"one of {LOSSES}", repr(self.loss))
-        for name in ("f_scale", "coverage_scale", "gate", "inlier_distance"):
+        for name in ("f_scale", "coverage_scale", "gate", "near_margin", "link", "inlier_distance"):
             if not getattr(self, name) > 0:
                 raise InputError(f"TrackConfig.{name}", "a positive distance in metres", repr(getattr(self, name)))
+        if self.near_margin >= self.gate:
+            raise InputError("TrackConfig.near_margin", f"a distance below gate ({self.gate} m)",
+                             repr(self.near_margin))
         if self.min_points < 1 or self.max_points < self.min_points:
             raise InputError("TrackConfig.max_points/min_points", "1 <= min_points <= max_points",
                              f"{self.min_points}, {self.max_points}")
@@ -139,11 +177,18 @@ class SoftBodyTrack:
     states : tuple of str
         One of :data:`FRAME_STATES` per frame.
     n_points : ndarray of shape (T,) int
-        Points used after the gate and the subsample.
+        Points used after the separation and the subsample.
     inlier_fraction : ndarray of shape (T,)
         Fraction of those within ``inlier_distance`` of the fitted surface (NaN when empty).
     median_distance : ndarray of shape (T,)
         Median absolute point-to-surface distance, metres (NaN when empty).
+    subject : tuple of ndarray of shape (N_t,), bool, optional
+        Per frame, the cloud's points taken for the subject's (the others are other
+        bodies': :mod:`toolkit.softbody.separate`).
+    contact : ndarray of shape (T,), optional
+        Fraction of the subject's points that another body touches.
+    undecided : ndarray of shape (T,), optional
+        Fraction of the subject's points further than the near margin from the start model.
     """
 
     params: np.ndarray
@@ -152,6 +197,15 @@ class SoftBodyTrack:
     n_points: np.ndarray
     inlier_fraction: np.ndarray
     median_distance: np.ndarray
+    subject: tuple | None = None
+    contact: np.ndarray | None = None
+    undecided: np.ndarray | None = None
+
+    def subject_clouds(self, clouds) -> list:
+        """The subject's points of each cloud (``clouds`` as tracked), list of (M_t, 3) arrays."""
+        if self.subject is None:
+            return [np.asarray(c, float).reshape(-1, 3) for c in clouds]
+        return [np.asarray(c, float).reshape(-1, 3)[m] for c, m in zip(clouds, self.subject)]
 
     def frame_params(self, t: int) -> SoftBodyParams:
         return SoftBodyParams(self.params[t])
@@ -231,44 +285,95 @@ def _fit_pose(model, start: SoftBodyParams, pts: np.ndarray, config: TrackConfig
     return start.replace(pose=res.x)
 
 
+class FrameFit(NamedTuple):
+    """One frame's tracking result (:func:`track_frame`).
+
+    Attributes
+    ----------
+    params : SoftBodyParams
+    state : str
+        One of :data:`FRAME_STATES`.
+    n_points : int
+        Points fitted (after the separation and the subsample).
+    inlier_fraction, median_distance : float
+        NaN when the frame is empty; the inlier fraction counts the points left out
+        as doubtful (stray pieces within the gate) as outliers.
+    subject : ndarray of shape (N,), bool
+        The cloud's points taken for the subject's (fitted, before the subsample).
+    other : ndarray of shape (N,), bool
+        The cloud's points taken for other bodies'.
+    contact : float
+        Fraction of them another body touches.
+    undecided : float
+        Fraction of them further than the near margin from the start model.
+    """
+
+    params: SoftBodyParams
+    state: str
+    n_points: int
+    inlier_fraction: float
+    median_distance: float
+    subject: np.ndarray
+    other: np.ndarray
+    contact: float
+    undecided: float
+
+
 def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: TrackConfig = TrackConfig(),
-                anchor: SoftBodyParams | None = None) -> tuple[SoftBodyParams, str, int, float, float]:
+                anchor: SoftBodyParams | None = None, others: np.ndarray | None = None) -> FrameFit:
     """Fit the pose of one frame.
 
     Parameters
     ----------
     model : SoftBodyModel
     start : SoftBodyParams
-        Start (the previous frame's pose, or a prediction).
+        Start (the previous frame's pose, or a prediction); the separation of the
+        subject's points from other bodies' is made around it.
     cloud : array_like of shape (N, 3)
         Metres, world; may be empty.
     config : TrackConfig
     anchor : SoftBodyParams, optional
         The previous frame's pose: parts without points are pulled to it
         (default: to ``start``).
+    others : ndarray of shape (M, 3), optional
+        The previous frame's points of other bodies (see :func:`~toolkit.softbody.separate.separate_subject`).
 
     Returns
     -------
-    params : SoftBodyParams
-    state : str
-        One of :data:`FRAME_STATES`.
-    n_points : int
-    inlier_fraction, median_distance : float
-        NaN when the frame is empty.
+    FrameFit
     """
-    pts = check_points(cloud, "cloud")
-    pts = subsample(pts[gate_points(model, start, pts, config.gate)], config.max_points)
+    nan = float("nan")
+    cloud = check_points(cloud, "cloud")
+    link = link_distance(cloud, config.link)
+    sep = separate_subject(model, start, cloud, near=config.near_margin, gate=config.gate, link=link, others=others)
+    base = start
+    for _ in range(config.regate):
+        if sep.undecided <= config.crowded_undecided or sep.near_points.sum() < config.min_points:
+            break
+        # many points between the near margin and the gate: a rough prediction (they come near once the
+        # pose is fitted to the near points) or another body within the gate (they stay where they are)
+        base = _fit_pose(model, base, subsample(cloud[sep.near_points], config.max_points), config, 0.0, anchor)
+        sep = separate_subject(model, base, cloud, near=config.near_margin, gate=config.gate, link=link,
+                               others=others)
+    mixed = sep.undecided > config.crowded_undecided   # another body within the gate: the near points only
+    keep = sep.near_points if mixed else sep.keep
+    # points within the gate left out as doubtful (stray pieces; undecided ones when mixed) count as outliers
+    doubt = int(sep.stray.sum() + (sep.keep & ~keep).sum())
+    pts = subsample(cloud[keep], config.max_points)
     if len(pts) < config.min_points:
-        return start, "empty", len(pts), float("nan"), float("nan")
-    fitted = _fit_pose(model, start, pts, config, 0.0, anchor)
+        return FrameFit(start, "empty", len(pts), nan, nan, keep, sep.other, sep.contact, sep.undecided)
+    fitted = _fit_pose(model, base, pts, config, 0.0, anchor)
     if config.coverage_weight > 0:
         fitted = _fit_pose(model, fitted, pts, config, config.coverage_weight, anchor if anchor is not None
                            else start)
     d = np.abs(distance(model, fitted, pts))
-    inl = float(np.mean(d < config.inlier_distance))
+    n_keep = int(keep.sum())
+    inl, med = float(np.mean(d < config.inlier_distance)) * n_keep / (n_keep + doubt), float(np.median(d))
     if inl < config.min_inlier_fraction:
-        return start, "lost", len(pts), inl, float(np.median(d))
-    return fitted, "ok", len(pts), inl, float(np.median(d))
+        return FrameFit(start, "lost", len(pts), inl, med, keep, sep.other, sep.contact, sep.undecided)
+    crowded = mixed or sep.contact > config.crowded_contact
+    return FrameFit(fitted, "crowded" if crowded else "ok", len(pts), inl, med, keep, sep.other, sep.contact,
+                    sep.undecided)
 
 
 def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, config: TrackConfig = TrackConfig(),
@@ -285,7 +390,8 @@ def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, con
     config : TrackConfig
     observer : Observer, optional
         Receives per frame ``joints3d`` (``softbody/track/joints``) and
-        ``scalar`` reports (``softbody/track/inlier_fraction``, ``.../median_distance_m``).
+        ``scalar`` reports (``softbody/track/inlier_fraction``, ``.../median_distance_m``,
+        ``.../other_points``: the points taken for other bodies').
 
     Returns
     -------
@@ -295,26 +401,29 @@ def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, con
     if not isinstance(params0, SoftBodyParams):
         raise InputError("params0", "a SoftBodyParams", type(params0).__name__)
     out = np.empty((len(clouds), params0.vector.size))
-    states, npts, inl, med = [], [], [], []
-    prev, prev2 = params0, None
+    fits = []
+    prev, prev2, others = params0, None, None
     for t, cloud in enumerate(clouds):
         start = prev
         if prev2 is not None and config.predict > 0:
             start = prev.replace(pose=prev.pose + config.predict * (prev.pose - prev2.pose))
-        p, state, n, f_in, m = track_frame(model, start, cloud, config, anchor=prev)
-        if state != "ok":
-            p = prev
+        f = track_frame(model, start, cloud, config, anchor=prev, others=others)
+        others = check_points(cloud, "cloud")[f.other]
+        fitted = f.state in ("ok", "crowded")
+        p = f.params if fitted else prev
         out[t] = p.vector
-        states.append(state)
-        npts.append(n)
-        inl.append(f_in)
-        med.append(m)
-        prev2, prev = (prev, p) if state == "ok" else (None, p)
+        fits.append(f)
+        prev2, prev = (prev, p) if fitted else (None, p)
         obs.report("joints3d", joints=model.joints(p), name="softbody/track/joints", frame=t)
-        if state != "empty":
-            obs.report("scalar", name="softbody/track/inlier_fraction", value=f_in, frame=t)
-            obs.report("scalar", name="softbody/track/median_distance_m", value=m, frame=t)
-        if state != "ok":
-            obs.report("text", text=f"frame {t}: {state} ({n} points)", level="WARN", frame=t)
+        if f.state != "empty":
+            obs.report("scalar", name="softbody/track/inlier_fraction", value=f.inlier_fraction, frame=t)
+            obs.report("scalar", name="softbody/track/median_distance_m", value=f.median_distance, frame=t)
+        obs.report("scalar", name="softbody/track/other_points", value=float(np.sum(f.other)), frame=t)
+        if f.state != "ok":
+            obs.report("text", text=f"frame {t}: {f.state} ({f.n_points} points, another body touching "
+                       f"{100 * f.contact:.0f} % of them)", level="WARN", frame=t)
     joints = np.stack([model.joints(SoftBodyParams(v)) for v in out]) if len(out) else np.zeros((0, 14, 3))
-    return SoftBodyTrack(out, joints, tuple(states), np.array(npts, int), np.array(inl), np.array(med))
+    return SoftBodyTrack(out, joints, tuple(f.state for f in fits), np.array([f.n_points for f in fits], int),
+                         np.array([f.inlier_fraction for f in fits]), np.array([f.median_distance for f in fits]),
+                         tuple(f.subject for f in fits), np.array([f.contact for f in fits]),
+                         np.array([f.undecided for f in fits]))
