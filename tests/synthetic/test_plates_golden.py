@@ -118,7 +118,7 @@ def test_plates_not_kept_equal_kept_ones_and_are_read_only():
     assert not r._plates  # nothing kept
     assert once.tobytes() == r.background_plate(cams[5]).tobytes()
     plates = BackgroundPlates.__new__(BackgroundPlates)
-    plates._renderer, plates._kept = r, {}
+    plates._renderer, plates._kept, plates._store = r, {}, None
     first = plates.plate(cams[0])
     with pytest.raises(ValueError):
         first[0, 0] = 0

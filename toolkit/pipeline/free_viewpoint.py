@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import shutil
 import time
 from collections import Counter
 from dataclasses import dataclass, field, replace
@@ -165,6 +166,10 @@ def _camera_paths(rig, n: int) -> dict:
             "birds_eye": [birds_eye(rig, target)] * n}
 
 
+#: Hidden folder of a run (``OUT/.plates``) where its processes share the fixed cameras' background plates
+#: (synthetic scenes); removed when every frame is finished.
+PLATE_STORE = ".plates"
+
 class _Stage1:
     """Stage 1 of the run: the silhouette database or a detector's keypoints, over the frames to do."""
 
@@ -268,13 +273,21 @@ class _Frames:
             self.compositor = Open3DRenderer(job.rig[0].size)
         else:
             self.compositor = CpuCompositor()
-        self.plates = BackgroundPlates(ds.scene_toml) if ds.scene_toml is not None else None
+        self.plates = BackgroundPlates(ds.scene_toml, store=self.out / PLATE_STORE) \
+            if ds.scene_toml is not None else None
         self.source_plates = {c: p for c in job.rig.names if (p := ds.background(c)) is not None}
         self.records = FrameRecords(self.out, job.n)
         self.observer = None
+        self.share_plates()
 
     def close(self) -> None:
         self.ds.close()
+
+    def share_plates(self) -> None:
+        """Draw the plates of the run's fixed cameras (novel views, bird's-eye view) that no other process of
+        the run has claimed: each drawn once per run, not once per worker (:meth:`BackgroundPlates.share`)."""
+        if self.plates is not None:
+            self.plates.share(self.novel + [self.paths["birds_eye"][0]])
 
     def _views(self, t: int, res) -> list:
         from toolkit.pipeline.views import EvaluationView
@@ -353,13 +366,18 @@ class _FrameTask:
         return worker_cache(self.token, lambda: _Frames(self))
 
 
+#: What a worker imports for a frame (preloaded by the local cluster's fork server, :class:`Cluster`).
+_FRAME_MODULES = ("toolkit.pipeline.free_viewpoint", "toolkit.pipeline.frame", "toolkit.pipeline.stage3",
+                  "toolkit.pipeline.views", "toolkit.rendering.evaluation", "toolkit.segmentation",
+                  "toolkit.synthetic.render", "open3d")
+
+
 def _warm_imports() -> None:
     """What a worker imports for a frame: a warm-up task while the main process calibrates and starts stage 1."""
-    import toolkit.pipeline.frame  # noqa: F401
-    import toolkit.pipeline.stage3  # noqa: F401
-    import toolkit.pipeline.views  # noqa: F401
-    import toolkit.rendering.evaluation  # noqa: F401
-    import toolkit.segmentation  # noqa: F401
+    import importlib
+
+    for m in _FRAME_MODULES:
+        importlib.import_module(m)
 
 
 def _finish(ds, out: Path, records: list, n: int, novel: list, held, stage1: str) -> dict:
@@ -378,6 +396,7 @@ def _finish(ds, out: Path, records: list, n: int, novel: list, held, stage1: str
         joints[r["frame"]], stage1_joints[r["frame"]], status[r["frame"]] = r["joints"], r["joints_stage1"], r["status"]
     write_free_viewpoint_poses(out, FreeViewpointPoses(joints, stage1_joints, status, SKELETON_14.joint_names))
     if len(records) == n:
+        shutil.rmtree(out / PLATE_STORE, ignore_errors=True)
         for p in PATHS:
             write_video(out / "paths" / f"{p}.mp4", (read_png(out / "paths" / p / frame_filename(t))
                                                      for t in range(n)), ds.fps)
@@ -445,7 +464,7 @@ def run(config: FreeViewpointRunConfig, *, dataset, out, observer=None, log=prin
                           log=log)
         # the workers start (and import) while this process calibrates and loads stage 1
         cluster = stack.enter_context(Cluster(ParallelConfig(config.workers, config.scheduler)
-                                              if folder.records.todo() else ParallelConfig()))
+                                              if folder.records.todo() else ParallelConfig(), _FRAME_MODULES))
         cluster.warm(_warm_imports)
         novel = list(ds.novel_rig) if ds.has_groundtruth and (ds.root / "groundtruth/novel/calibration.toml").exists() \
             else []

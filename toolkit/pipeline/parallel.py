@@ -185,8 +185,50 @@ def _unwrap(value):
     return value
 
 
-def _client(config: ParallelConfig):
-    """A Dask client: of the scheduler given, or of a new local cluster (closed with the client)."""
+#: Dask settings of the local cluster's workers (what each costs was measured on the default scene's frames):
+#:
+#: * ``MALLOC_TRIM_THRESHOLD_`` unset: Dask's nannies start workers with 65536, which turns off glibc's
+#:   adaptive mmap threshold; every large temporary array is then mapped and unmapped afresh (page faults)
+#:   and a frame's rendering took 3x the CPU time; the workers keep the allocator's defaults, as the main
+#:   process has them.
+#: * the workers' statistical profiler off: it samples the task thread's Python stack every 10 ms (taking
+#:   the GIL from the task each time) for the dashboard's profile page, which these runs do not show.
+#: * workers forked from a fork server that has imported Dask and the run's modules once
+#:   (:func:`_forkserver`), instead of each worker starting a fresh interpreter and importing them again
+#:   (5-6 s of CPU per worker on two cores busy with the run); a fork server is a single-threaded process,
+#:   so forking it is safe, unlike forking this process (stage 1 and Dask's threads run in it).
+#: * the housekeeping of the scheduler and the workers less often (the event loop's tick, the system and
+#:   memory monitors, the cluster's status line): an idle local cluster of two workers used 13 % of a core
+#:   with Dask's defaults (ticks every 20 ms, memory checks every 100 ms), that much taken from the frames.
+LOCAL_WORKER_SETTINGS = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+                         "distributed.worker.profile.enabled": False,
+                         "distributed.worker.multiprocessing-method": "forkserver",
+                         "distributed.admin.tick.interval": "1s",
+                         "distributed.admin.system-monitor.interval": "2s",
+                         "distributed.worker.memory.monitor-interval": "1s",
+                         "distributed.deploy.cluster-repr-interval": "5s"}
+
+
+def _forkserver(preload: tuple) -> None:
+    """Have the fork server import Dask and ``preload`` (module names) before it forks the first worker.
+
+    The fork server is one per process, started with the first local cluster; what it imports is fixed
+    then (a later cluster of this process gets the same modules; its tasks import the rest themselves).
+    """
+    import multiprocessing
+
+    from distributed.utils import get_mp_context
+
+    get_mp_context()  # Dask's own preload (distributed and the packages it uses), set once per process
+    modules = ["distributed", "numpy", "scipy", "cv2", *preload]
+    multiprocessing.get_context("forkserver").set_forkserver_preload(modules)
+
+
+def _client(config: ParallelConfig, preload: tuple = ()):
+    """A Dask client: of the scheduler given, or of a new local cluster (closed with the client).
+
+    ``preload``: modules the local cluster's workers import before their first task (:func:`_forkserver`).
+    """
     from dask.distributed import Client, LocalCluster
 
     if config.scheduler is not None:
@@ -197,11 +239,8 @@ def _client(config: ParallelConfig):
                              f"{config.scheduler!r}: {e}") from None
     import dask
 
-    # Dask's nannies start workers with MALLOC_TRIM_THRESHOLD_=65536, which turns off glibc's adaptive mmap
-    # threshold: every large temporary array is then mapped and unmapped afresh (page faults), and a frame's
-    # rendering took 3x the CPU time (measured on the default scene's background plates); the workers keep
-    # the allocator's defaults, as the main process has them
-    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
+    with dask.config.set(LOCAL_WORKER_SETTINGS):
+        _forkserver(preload)
         cluster = LocalCluster(n_workers=int(config.workers), threads_per_worker=1, processes=True,
                                dashboard_address=":0", silence_logs=40)  # a free port: never "8787 in use"
     client = Client(cluster)
@@ -226,16 +265,19 @@ class Cluster:
     Parameters
     ----------
     config : ParallelConfig
+    preload : tuple of str
+        Modules a local cluster's workers import before their first task (once, in the process they are
+        forked from: :data:`LOCAL_WORKER_SETTINGS`); ignored with a scheduler given.
     """
 
-    def __init__(self, config: ParallelConfig):
+    def __init__(self, config: ParallelConfig, preload: tuple = ()):
         from concurrent.futures import ThreadPoolExecutor
 
         self.config = config
         self._client = None
         self._warm: list = []  # futures of the warm-up tasks (a future let go of is cancelled)
         self._pool = None if config.sequential else ThreadPoolExecutor(1)
-        self._starting = None if config.sequential else self._pool.submit(_client, config)
+        self._starting = None if config.sequential else self._pool.submit(_client, config, tuple(preload))
 
     @property
     def sequential(self) -> bool:

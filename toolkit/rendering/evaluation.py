@@ -8,6 +8,10 @@ data only).
 
 from __future__ import annotations
 
+import hashlib
+import io
+import os
+import time
 from pathlib import Path
 
 import numpy as np
@@ -27,9 +31,14 @@ class BackgroundPlates:
     ----------
     scene_toml : path
         The dataset's ``scene.toml``.
+    store : path, optional
+        A folder shared by the processes of one run (e.g. the run folder's
+        ``.plates``): the plates of :meth:`share` cameras are drawn there
+        once, by whichever process claims each first, and read by the others
+        (the same float32 values, ``.npy``).
     """
 
-    def __init__(self, scene_toml: str | Path):
+    def __init__(self, scene_toml: str | Path, store: str | Path | None = None):
         from toolkit.synthetic.environment import make_environment
         from toolkit.synthetic.generator import build_scene, make_renderer
         from toolkit.synthetic.spec import parse_spec
@@ -37,28 +46,103 @@ class BackgroundPlates:
         p = Path(scene_toml)
         if not p.is_file():
             raise InputError(str(p), "the scene.toml of a synthetic dataset", "no such file")
-        spec = parse_spec(p.read_text())
+        text = p.read_text()
+        spec = parse_spec(text)
         scene = build_scene(spec)
         env = make_environment(spec.layout, scene.rngs["environment"])
         self._renderer = make_renderer(spec, env)
         self._kept: dict = {}
+        self._scene_digest = hashlib.sha1(text.encode()).hexdigest()
+        self._store = None if store is None else Path(store)
 
     def plate(self, camera: Camera) -> np.ndarray:
         """The surroundings seen by ``camera`` (its size must be the scene's resolution); read-only.
 
         The last :data:`PLATES_KEPT` cameras' plates are kept (a novel camera's
         is drawn once per run, a camera path's views once each, without
-        keeping them all).
+        keeping them all); with a store, a plate found there is read, not drawn.
         """
         key = (camera.K.tobytes(), camera.cam_from_world.tobytes())
         plate = self._kept.pop(key, None)
         if plate is None:
-            plate = self._renderer.background_plate(camera, keep=False)
+            plate = self._stored(camera, wait=True) if self._store is not None else None
+            if plate is None:
+                plate = self._renderer.background_plate(camera, keep=False)
             plate.flags.writeable = False
         self._kept[key] = plate  # the most recently used last
         while len(self._kept) > PLATES_KEPT:
             self._kept.pop(next(iter(self._kept)))
         return plate
+
+    def share(self, cameras) -> int:
+        """Draw into the store the plates of ``cameras`` no other process has claimed; returns how many.
+
+        Every process of a run calls it with the run's fixed cameras (novel
+        views, a bird's-eye view) before its first frame: each plate is drawn
+        once in all, the work split between the processes, none waiting for
+        another.  Without a store it does nothing.
+        """
+        if self._store is None:
+            return 0
+        self._store.mkdir(parents=True, exist_ok=True)
+        drawn = 0
+        for cam in cameras:
+            path = self._path(cam)
+            if path.exists() or not _claim(path.with_suffix(".claim")):
+                continue
+            try:
+                plate = self._renderer.background_plate(cam, keep=False)
+                buf = io.BytesIO()
+                np.save(buf, plate, allow_pickle=False)
+                from toolkit.io import atomic_write_bytes
+
+                atomic_write_bytes(path, buf.getvalue())
+                drawn += 1
+            finally:
+                path.with_suffix(".claim").unlink(missing_ok=True)
+        return drawn
+
+    def _path(self, camera: Camera) -> Path:
+        h = hashlib.sha1(self._scene_digest.encode())
+        for a in (camera.K, camera.cam_from_world, np.asarray(camera.size)):
+            h.update(np.ascontiguousarray(a, np.float64).tobytes())
+        return self._store / f"{h.hexdigest()}.npy"
+
+    def _stored(self, camera: Camera, wait: bool) -> np.ndarray | None:
+        """The stored plate of ``camera``; while another process draws it (its claim is fresh), waited for."""
+        path = self._path(camera)
+        claim = path.with_suffix(".claim")
+        deadline = time.monotonic() + CLAIM_STALE_S
+        while True:
+            if path.exists():
+                return np.load(path, allow_pickle=False)
+            if not (wait and claim.exists() and time.monotonic() < deadline and _fresh(claim)):
+                return None
+            time.sleep(0.05)
+
+
+#: A claim on a plate older than this (seconds) is taken for one a killed process left.
+CLAIM_STALE_S = 120.0
+
+
+def _claim(path: Path) -> bool:
+    """Create ``path`` if nobody has (atomic on a local or NFS file system); whether this call made it."""
+    try:
+        fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+    except FileExistsError:
+        if _fresh(path):
+            return False
+        path.unlink(missing_ok=True)  # left by a killed process
+        return _claim(path)
+    os.close(fd)
+    return True
+
+
+def _fresh(path: Path) -> bool:
+    try:
+        return time.time() - path.stat().st_mtime < CLAIM_STALE_S
+    except FileNotFoundError:
+        return False
 
 
 #: PSNRs are capped at this in the averages, dB (identical images give inf).

@@ -44,11 +44,17 @@ class Surface:
     vertex_colors: np.ndarray | None = None
 
 
-def _noise_texture(rng, size, base, amp, blur=1.5):
+def _unit_noise(rng, size, blur):
+    """Blurred Gaussian noise of unit standard deviation, (h, w, 1) float32."""
     h, w = size
     n = rng.normal(0, 1, (h, w, 1)).astype(np.float32)
     n = cv2.GaussianBlur(n, (0, 0), blur)[..., None]
     n /= max(float(n.std()), 1e-6)
+    return n
+
+
+def _noise_texture(rng, size, base, amp, blur=1.5):
+    n = _unit_noise(rng, size, blur)
     tex = np.asarray(base, np.float32)[None, None, :] * (1 + amp * n)
     return tex
 
@@ -78,12 +84,22 @@ def _pitch(rng, res=4096):
     half_x, half_y = PITCH_HALF_X, PITCH_HALF_Y
     w = res
     h = int(res * half_y / half_x)
-    tex = _noise_texture(rng, (h, w), list(GRASS_RGB), 0.18, 1.2)
+    n = _unit_noise(rng, (h, w), 1.2)
     # mowing stripes every 5 m along x
     x = np.linspace(-half_x, half_x, w)
-    stripes = (np.floor(x / 5.0) % 2 == 0)[None, :, None]
-    tex = np.where(stripes, tex * 1.12, tex * 0.92)
-    img = np.clip(tex * 255, 0, 255).astype(np.uint8)
+    stripes = np.where(np.floor(x / 5.0) % 2 == 0, np.float32(1.12), np.float32(0.92))[None, :]
+    # per channel, in place: the values of clip(base * (1 + 0.18 n) * stripe * 255) in float32, as the
+    # whole (h, w, 3) expression gave them, without its five temporaries of 130 MB
+    m = n[..., 0] * np.float32(0.18)
+    m += np.float32(1)
+    img = np.empty((h, w, 3), np.uint8)
+    t = np.empty((h, w), np.float32)
+    for c, base in enumerate(np.asarray(GRASS_RGB, np.float32)):
+        np.multiply(m, base, out=t)
+        t *= stripes
+        t *= np.float32(255)
+        np.clip(t, 0, 255, out=t)
+        img[..., c] = t
     px, py = w / (2 * half_x), h / (2 * half_y)  # texels per metre
 
     white = (235, 235, 235)
