@@ -141,6 +141,7 @@ def plug_in_gait(root: Path, images: Path | None) -> list:
                    + ("" if res.method[i] not in ("score", "sara", "sphere") else
                       f" (generic skeleton's: {_median_mm(res.generic[:, i], P[ref]):.1f} mm)"))
     out += [f"  note: {m}" for m in res.messages]
+    out += _pig_knee_axes(sub, P)
     if images is not None:
         draw(sub, res, 100, "Movement_trial.c3d frame 100: Plug-in Gait segments, centres, skeleton",
              images / "markers_movement_trial.png")
@@ -150,6 +151,30 @@ def plug_in_gait(root: Path, images: Path | None) -> list:
     out.append(f"Static_trial.c3d: stature {rs.height_m:.3f} m (Test.vsk: 1.679 m); methods {sorted(set(rs.method))}; "
                + "; ".join(m for m in rs.messages if "no functional" in m))
     out.append("  bone lengths (m): " + ", ".join(f"{k} {v:.3f}" for k, v in rs.lengths.items()))
+    return out
+
+
+def _pig_knee_axes(sub, P) -> list:
+    """The knees' circle fits forced through every gate: their axes against the pelvis's and Plug-in Gait's."""
+    forced = joint_centres(sub, config=replace(JointCentresConfig(), max_hinge_conditioning=1.0, max_residual_m=1.0,
+                                               max_axis_spread_m=1.0))
+
+    def angle(a, b):
+        a = a / np.linalg.norm(a, axis=1, keepdims=True)
+        b = b / np.linalg.norm(b, axis=1, keepdims=True)
+        return float(np.nanmedian(np.degrees(np.arccos(np.clip(np.abs(np.sum(a * b, axis=1)), 0, 1)))))
+
+    out = []
+    for s in "LR":
+        f = forced.fits.get(f"{s.lower()}_knee")
+        if f is None or f.axis is None:
+            continue
+        pig_axis = P[f"{s}FEL"] - P[f"{s}FEO"]
+        out.append(f"  {s.lower()}_knee circle fit forced ({f.method}, axis spread {1e3 * f.axis_spread_m:.1f} mm, "
+                   f"residual {1e3 * f.residual_m:.1f} mm): median {_median_mm(f.centre, P[s + 'FEO']):.1f} mm to "
+                   f"{s}FEO; its axis {angle(f.axis, P['RASI'] - P['LASI']):.0f} deg from the ASIS line, Plug-in "
+                   f"Gait's femur axis ({s}FEL-{s}FEO) {angle(pig_axis, P['RASI'] - P['LASI']):.0f} deg, the two "
+                   f"{angle(f.axis, pig_axis):.0f} deg apart")
     return out
 
 

@@ -388,6 +388,18 @@ def _on_circles(local: np.ndarray, fit: dict) -> np.ndarray:
     return out
 
 
+def _circle_distances(local: np.ndarray, fit: dict) -> np.ndarray:
+    """Distance of each sample (T, K, 3) from its marker's circle (T, K); NaN where unseen or not fitted."""
+    out = np.full(local.shape[:2], np.nan)
+    n, c0 = fit["n"], fit["c0"]
+    for j, k in enumerate(fit["keep"]):
+        d = local[:, k] - c0
+        h = d @ n
+        rho = np.linalg.norm(d - h[:, None] * n, axis=1)
+        out[:, k] = np.hypot(h - fit["levels"][j], rho - fit["radii"][j])
+    return out
+
+
 def _kabsch_per_frame(ref: np.ndarray, pts: np.ndarray):
     """Rigid motions (T, 3, 3), (T, 3) taking per-frame references ``ref`` (T, K, 3) onto ``pts``; NaN-aware."""
     w = (np.isfinite(ref).all(axis=-1) & np.isfinite(pts).all(axis=-1)).astype(float)[..., None]
@@ -409,7 +421,7 @@ def _kabsch_per_frame(ref: np.ndarray, pts: np.ndarray):
 
 def circle_axis(rot_parent, trans_parent, points: np.ndarray, *, anchor: np.ndarray | None = None,
                 parent_reference: np.ndarray | None = None, parent_points: np.ndarray | None = None,
-                iterations: int = 5) -> CentreFit:
+                iterations: int = 5, outlier_m: float = 0.015) -> CentreFit:
     """Hinge axis from the circles that child markers describe in the parent's frame.
 
     For a child segment whose own markers give no reliable rigid motion (one
@@ -461,6 +473,10 @@ def circle_axis(rot_parent, trans_parent, points: np.ndarray, *, anchor: np.ndar
         parent's poses are refined as above.
     iterations : int
         Refinement rounds.
+    outlier_m : float
+        A child marker farther than this from its fitted circle in a frame (a
+        mislabel, a swap) after the first fit (and refinement) is left out
+        of that frame and the fit done again; 0 = keep every sample.
 
     Returns
     -------
@@ -494,14 +510,22 @@ def circle_axis(rot_parent, trans_parent, points: np.ndarray, *, anchor: np.ndar
                              f"{pref.shape}, {ppts.shape}")
     local = np.einsum("tji,tkj->tki", rp, pts - tp[:, None])  # (T, K, 3), parent's frame
     fit = _circles(local)
-    for _ in range(iterations if refine else 0):
-        targets = _on_circles(local, fit)
-        ref = np.concatenate([np.broadcast_to(pref, (len(rp), *pref.shape)), targets], axis=1)
-        r2, t2 = _kabsch_per_frame(ref, np.concatenate([ppts, pts], axis=1))
-        ok = np.isfinite(t2).all(axis=1)
-        rp, tp = np.where(ok[:, None, None], r2, rp), np.where(ok[:, None], t2, tp)
-        local = np.einsum("tji,tkj->tki", rp, pts - tp[:, None])
-        fit = _circles(local)
+    known = np.isfinite(tp).all(axis=1)  # frames the parent's own fit kept
+    use = np.isfinite(local).all(axis=-1)
+    # refined with every sample, then (outlier_m > 0) again without the samples far off their circles
+    for stage in range(2 if outlier_m > 0 else 1):
+        if stage:  # a child sample far off its circle (a mislabel, a swap) is left out
+            use = np.isfinite(local).all(axis=-1) & ~(_circle_distances(local, fit) > outlier_m)
+            fit = _circles(np.where(use[..., None], local, np.nan))
+        for _ in range(iterations if refine else 0):
+            targets = np.where(use[..., None], _on_circles(local, fit), np.nan)
+            ref = np.concatenate([np.broadcast_to(pref, (len(rp), *pref.shape)), targets], axis=1)
+            r2, t2 = _kabsch_per_frame(ref, np.concatenate([ppts, pts], axis=1))
+            ok = np.isfinite(t2).all(axis=1) & known
+            rp, tp = np.where(ok[:, None, None], r2, rp), np.where(ok[:, None], t2, tp)
+            local = np.einsum("tji,tkj->tki", rp, pts - tp[:, None])
+            fit = _circles(np.where(use[..., None], local, np.nan))
+    local = np.where(use[..., None], local, np.nan)
     n, u, v, c0, radii = fit["n"], fit["u"], fit["v"], fit["c0"], fit["radii"]
     dist, rom = [], 0.0
     for j, k in enumerate(fit["keep"]):
