@@ -9,8 +9,7 @@
    fewer than three markers borrows a marker of its parent limb segment that
    moves rigidly with it (a marker on the joint axis, e.g. Plug-in Gait's ``KNE`` for the
    shank) and, for a limb, the centre already found at its proximal joint
-   (the hip for the thigh, as Plug-in Gait chains its segments; the generic
-   skeleton's where the functional one was refused).  Without
+   (the hip for the thigh, as Plug-in Gait chains its segments).  Without
    labels, :func:`toolkit.markers.rigid.find_rigid_subsets`.
 2. **Centres of rotation** between adjacent subsets
    (:mod:`toolkit.markers.centres`): SCoRE for ball joints (hips, shoulders),
@@ -441,11 +440,8 @@ def _labelled(traj, groups, mset, config, obs) -> JointCentresResult:
         if not p_idx:
             continue
         ppos = pos[:, p_idx]
-        prox = PROXIMAL.get(parent)
-        if len(p_idx) < 3 and prox is not None:  # the proximal joint as a marker: functional, else generic
-            virtual = functional[prox] if prox in functional else generic[:, _s.J14[prox]]
-            if np.isfinite(virtual).all(axis=1).any():
-                ppos = np.concatenate([ppos, virtual[:, None]], axis=1)
+        if len(p_idx) < 3 and PROXIMAL.get(parent) in functional:
+            ppos = np.concatenate([ppos, functional[PROXIMAL[parent]][:, None]], axis=1)
         fit, why = _fit_joint(kind, ppos, pos[:, c_idx], generic[:, j], config, trusted=source[j] == "template",
                               n_own=len(groups.get(child, ())))
         if fit is not None:
