@@ -239,8 +239,14 @@ def _client(config: ParallelConfig, preload: tuple = ()):
                              f"{config.scheduler!r}: {e}") from None
     import dask
 
-    with dask.config.set(LOCAL_WORKER_SETTINGS):
-        _forkserver(preload)
+    import multiprocessing
+
+    settings = dict(LOCAL_WORKER_SETTINGS)
+    if "forkserver" not in multiprocessing.get_all_start_methods():  # Windows: fresh interpreters
+        settings["distributed.worker.multiprocessing-method"] = "spawn"
+    with dask.config.set(settings):
+        if settings["distributed.worker.multiprocessing-method"] == "forkserver":
+            _forkserver(preload)
         cluster = LocalCluster(n_workers=int(config.workers), threads_per_worker=1, processes=True,
                                dashboard_address=":0", silence_logs=40)  # a free port: never "8787 in use"
     client = Client(cluster)
