@@ -28,7 +28,7 @@ Printed, per scene and then as the median and the worst decile over scenes
   target >= 99 %);
 * the mean joint-centre error per joint over the frames (target on the ``rom``
   trials: hips, knees, ankles, shoulders and elbows within 15 mm), and the
-  method each joint got (score / sara / sphere: functional; template /
+  method each joint got (score / sara / sphere / circle: functional; template /
   anatomical: the scaled generic skeleton);
 * the share of joint-frames placed (the rest NaN: no markers, or segments
   that disagree on their common joint);
@@ -39,7 +39,9 @@ faster (:mod:`toolkit.motion.rom`), and at 240 frames of 100 fps (the
 benchmark before) the markers moved up to tens of centimetres per frame,
 16 times faster than any lab capture, which no tracker is built for.  The
 seeds (51-53, 61) differ from those the labelling was tuned on (17, 31,
-41-43) and from the earlier benchmark's (11-13, 21).
+41-43) and from the earlier benchmark's (11-13, 21); ``--seed BASE`` gives
+scenes no method was tuned on (:func:`seeded_scenes`: rom plug-in-gait BASE to
+BASE+2, rom cluster BASE+3, both walks BASE+10).
 """
 
 from __future__ import annotations

@@ -138,7 +138,7 @@ def plug_in_gait(root: Path, images: Path | None) -> list:
                    ("l_hip", "LFEP"), ("r_hip", "RFEP")):
         i = J14[j]
         out.append(f"  {j} ({res.method[i]}): median {_median_mm(res.joints[:, i], P[ref]):.1f} mm to {ref}"
-                   + ("" if res.method[i] not in ("score", "sara", "sphere") else
+                   + ("" if res.method[i] not in ("score", "sara", "sphere", "circle") else
                       f" (generic skeleton's: {_median_mm(res.generic[:, i], P[ref]):.1f} mm)"))
     out += [f"  note: {m}" for m in res.messages]
     out += _pig_knee_axes(sub, P)

@@ -22,7 +22,7 @@ DATASET is either
   without labels).
 
 Writes ``OUT/joint_centres.npz`` (``joints`` (T, 14, 3) metres, ``names`` (14,),
-``method`` per joint: score / sara / sphere (functional) or template /
+``method`` per joint: score / sara / sphere / circle (functional) or template /
 anatomical (the scaled generic skeleton), ``residual_mm``, ``rom_deg``,
 ``fps``; without labels ``pair_centres`` (P, T, 3) and ``pair_names``),
 ``OUT/joint_centres.c3d`` (the markers plus the centres as points
