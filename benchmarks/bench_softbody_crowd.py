@@ -58,9 +58,11 @@ def scene_text(seed: int, frames: int, offset: float | None) -> tuple[str, str]:
 def evaluate(name: str, text: str, root: Path) -> dict:
     """Track one scene from its true first-frame joints; per-frame MPJPE and states."""
     from toolkit.pipeline.soft_body import SoftBodyRunConfig, run
+    from toolkit.synthetic.generator import build_scene
+    from toolkit.synthetic.spec import parse_spec
 
     data = make_dataset(name, "depth", text, root / "data")
-    truth = np.load(data / "groundtruth" / "joints3d.npz")["joints"]
+    truth = build_scene(parse_spec(text, name)).joints
     init = root / f"{name}_init.npz"
     np.savez(init, joints=truth[0])
     cfg = SoftBodyRunConfig(recording=False, progress=False, replace_stale=True, global_fit=False,

@@ -35,7 +35,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from toolkit.softbody.distance import distance
+from toolkit.softbody.distance import distance, primitive_distances
 from toolkit.softbody.model import SoftBodyModel, SoftBodyParams
 
 __all__ = ["Separation", "separate_subject", "link_distance", "NEAR_PERCENTILE"]
@@ -73,6 +73,8 @@ class Separation:
         could not be told apart: all of it within the gate).
     near_points : ndarray of shape (N,), bool
         The points within ``near`` of the predicted surface (the subject's beyond doubt).
+    distance : ndarray of shape (N,)
+        Each point's distance to the predicted surface, metres (negative inside).
     """
 
     keep: np.ndarray
@@ -83,6 +85,7 @@ class Separation:
     near: float
     undecided: float
     near_points: np.ndarray
+    distance: np.ndarray
 
 
 def link_distance(points: np.ndarray, floor: float, ceiling: float = 0.1) -> float:
@@ -95,7 +98,7 @@ def link_distance(points: np.ndarray, floor: float, ceiling: float = 0.1) -> flo
 
 
 def separate_subject(model: SoftBodyModel, params: SoftBodyParams, points: np.ndarray, *, near: float,
-                     gate: float, link: float, others: np.ndarray | None = None) -> Separation:
+                     gate: float, link: float, others: np.ndarray | None = None, reach=None) -> Separation:
     """Split a cloud into the subject's points and other bodies' (see the module docstring).
 
     Parameters
@@ -115,6 +118,11 @@ def separate_subject(model: SoftBodyModel, params: SoftBodyParams, points: np.nd
         The other bodies' points of the previous frame: undecided points within ``link``
         of them count as beyond the gate (a second person standing close enough to be
         all within the gate in this frame, once seen further out).
+    reach : float or ndarray of shape (P,), optional
+        How far the subject's surface may lie beyond the near margin, per metaball
+        (the motion the prediction may have missed), metres: an undecided point
+        further than ``near + reach`` of its nearest metaball counts as beyond the
+        gate.  Default: the gate alone.
 
     Returns
     -------
@@ -123,13 +131,17 @@ def separate_subject(model: SoftBodyModel, params: SoftBodyParams, points: np.nd
     n = len(points)
     if n == 0:
         e = np.zeros(0, bool)
-        return Separation(e, e, e, 0.0, float(link), float(near), 0.0, e)
+        return Separation(e, e, e, 0.0, float(link), float(near), 0.0, e, np.zeros(0))
     d = distance(model, params, points)
     within = d < gate
     if within.any():   # a prediction off by more than the margin (a bad start, a lost track) widens it
         near = min(near + float(np.percentile(np.abs(d[within]), NEAR_PERCENTILE)), 0.5 * gate)
     subject = d < near
     seed = ~within                                    # certainly not the subject's
+    if reach is not None and (within & ~subject).any():
+        u = np.flatnonzero(within & ~subject)
+        k = np.argmin(primitive_distances(model.state(params), points[u]), axis=1)
+        seed[u[d[u] >= near + np.broadcast_to(np.asarray(reach, float), (model.n_prims,))[k]]] = True
     if others is not None and len(others) and (within & ~subject).any():
         u = np.flatnonzero(within & ~subject)
         dn, _ = cKDTree(np.asarray(others, float).reshape(-1, 3)).query(points[u], k=1, distance_upper_bound=link)
@@ -155,4 +167,4 @@ def separate_subject(model: SoftBodyModel, params: SoftBodyParams, points: np.nd
         dn, _ = cKDTree(points[other]).query(points[keep], k=1, distance_upper_bound=link)
         contact = float(np.mean(np.isfinite(dn)))
     undecided = float(np.mean(d[keep] >= near)) if keep.any() else 0.0
-    return Separation(keep, other, stray, contact, float(link), float(near), undecided, subject)
+    return Separation(keep, other, stray, contact, float(link), float(near), undecided, subject, d)

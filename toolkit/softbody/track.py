@@ -94,9 +94,17 @@ class TrackConfig:
         apart): state ``"crowded"``, and only the points within the near margin are
         fitted (the pose follows the subject by at most about that margin per frame).
     regate : int
-        Before that, up to this many times: the pose fitted to the points within the
-        near margin and the cloud separated again around it (a rough start pose
-        brings the subject's own points near; another body's stay undecided).
+        Up to this many times, while points kept are further than ``motion_floor``
+        beyond the near margin (or too many are undecided): the pose fitted to the
+        points within the near margin and the cloud separated again around it, with
+        ``motion_floor`` as the reach (the subject's own points that moved come
+        near; another body's stay where they are).
+    motion_floor, motion_gain : float
+        The separation's reach per metaball (how far beyond the near margin its
+        surface may be): ``motion_floor`` (metres) plus ``motion_gain`` times the
+        metaball's motion over the last frame (what the damped prediction may miss).
+    init_reach : float
+        The reach in the first frame, metres (the initial pose's error).
     max_points : int
         Points kept per frame (an even subsample, the cloud's order kept).
     min_points : int
@@ -136,9 +144,12 @@ class TrackConfig:
     gate: float = 0.25
     near_margin: float = 0.03
     link: float = 0.04
-    crowded_contact: float = 0.25
+    crowded_contact: float = 0.1
     crowded_undecided: float = 0.15
     regate: int = 2
+    motion_floor: float = 0.06
+    motion_gain: float = 1.0
+    init_reach: float = 0.15
     max_points: int = 1000
     min_points: int = 30
     inlier_distance: float = 0.05
@@ -320,7 +331,8 @@ class FrameFit(NamedTuple):
 
 
 def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: TrackConfig = TrackConfig(),
-                anchor: SoftBodyParams | None = None, others: np.ndarray | None = None) -> FrameFit:
+                anchor: SoftBodyParams | None = None, others: np.ndarray | None = None,
+                motion: np.ndarray | None = None) -> FrameFit:
     """Fit the pose of one frame.
 
     Parameters
@@ -337,6 +349,9 @@ def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: Trac
         (default: to ``start``).
     others : ndarray of shape (M, 3), optional
         The previous frame's points of other bodies (see :func:`~toolkit.softbody.separate.separate_subject`).
+    motion : ndarray of shape (P,), optional
+        How far each metaball moved over the last frame, metres; None when unknown (the first
+        frame): the separation then allows ``init_reach`` everywhere.
 
     Returns
     -------
@@ -345,16 +360,20 @@ def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: Trac
     nan = float("nan")
     cloud = check_points(cloud, "cloud")
     link = link_distance(cloud, config.link)
-    sep = separate_subject(model, start, cloud, near=config.near_margin, gate=config.gate, link=link, others=others)
+    reach = config.init_reach if motion is None else config.motion_floor + config.motion_gain * np.asarray(motion)
+    sep = separate_subject(model, start, cloud, near=config.near_margin, gate=config.gate, link=link, others=others,
+                           reach=reach)
     base = start
     for _ in range(config.regate):
-        if sep.undecided <= config.crowded_undecided or sep.near_points.sum() < config.min_points:
+        # another body in the cloud and kept points further from the prediction than a still body would be
+        # (or many undecided ones): the subject's own that moved (they come near once the pose is fitted to the
+        # near points) or the other's (they stay where they are)
+        far = sep.other.any() and bool(np.any(sep.keep & (sep.distance >= sep.near + config.motion_floor)))
+        if sep.near_points.sum() < config.min_points or (sep.undecided <= config.crowded_undecided and not far):
             break
-        # many points between the near margin and the gate: a rough prediction (they come near once the
-        # pose is fitted to the near points) or another body within the gate (they stay where they are)
         base = _fit_pose(model, base, subsample(cloud[sep.near_points], config.max_points), config, 0.0, anchor)
         sep = separate_subject(model, base, cloud, near=config.near_margin, gate=config.gate, link=link,
-                               others=others)
+                               others=others, reach=reach)
     mixed = sep.undecided > config.crowded_undecided   # another body within the gate: the near points only
     keep = sep.near_points if mixed else sep.keep
     # points within the gate left out as doubtful (stray pieces; undecided ones when mixed) count as outliers
@@ -402,18 +421,21 @@ def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, con
         raise InputError("params0", "a SoftBodyParams", type(params0).__name__)
     out = np.empty((len(clouds), params0.vector.size))
     fits = []
-    prev, prev2, others = params0, None, None
+    prev, prev2, others, run = params0, None, None, 0   # run: frames fitted in a row
     for t, cloud in enumerate(clouds):
         start = prev
         if prev2 is not None and config.predict > 0:
             start = prev.replace(pose=prev.pose + config.predict * (prev.pose - prev2.pose))
-        f = track_frame(model, start, cloud, config, anchor=prev, others=others)
+        # the metaballs' motion over the last frame, known after two fitted frames (not from the start pose)
+        motion = None if run < 2 else np.linalg.norm(model.state(prev).centres - model.state(prev2).centres, axis=1)
+        f = track_frame(model, start, cloud, config, anchor=prev, others=others, motion=motion)
         others = check_points(cloud, "cloud")[f.other]
         fitted = f.state in ("ok", "crowded")
         p = f.params if fitted else prev
         out[t] = p.vector
         fits.append(f)
         prev2, prev = (prev, p) if fitted else (None, p)
+        run = run + 1 if fitted else 0
         obs.report("joints3d", joints=model.joints(p), name="softbody/track/joints", frame=t)
         if f.state != "empty":
             obs.report("scalar", name="softbody/track/inlier_fraction", value=f.inlier_fraction, frame=t)
