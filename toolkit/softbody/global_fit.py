@@ -112,12 +112,13 @@ class GlobalFitConfig:
     coverage_dirs: int = 16
     viewpoints: tuple | None = None
     gate: float = 0.25
-    max_points: int = 300
+    max_points: int = 1000
     unseen_weight: float = 0.3
     part_points: int = 10
     part_distance: float = 0.06
+    root_prior_weight: float = 1.0
     smooth_weight: float = 0.02
-    width_prior_weight: float = 0.02
+    width_prior_weight: float = 0.5
     length_prior_weight: float = 0.5
     symmetry_weight: float = 2.0
     split_weight: float = 3.0
@@ -205,8 +206,8 @@ class _Problem:
             self.frames.append((t, pts, tree, samples, coverage_margin(tree, pts, config.coverage_margin)))
             missing = np.clip(1.0 - (model.subtree[model.state(p).dof_frames] @ support) / max(config.part_points, 1),
                               0.0, 1.0)
-            missing[:6] = 0.0
             self.unseen_w[t] = config.unseen_weight * missing
+            self.unseen_w[t, :6] = config.root_prior_weight
         self.n = self.T * N_POSE + _N_SHAPE
         ref = self.shape0[:13] if config.split_reference == "start" else \
             model.lengths_from_proportions(model.proportions)
