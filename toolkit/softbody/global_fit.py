@@ -5,14 +5,20 @@ pose values plus the 13 lengths and 7 widths shared by all frames.  Residual
 blocks, per frame: the robust point-to-surface distances and the coverage
 block of :mod:`toolkit.softbody.residuals`; over frames: a small term
 favouring constant angular speed (second differences of the joint angles and
-of the root rotation over consecutive frames, as in the source); and priors
-on the shape: widths and lengths near the start (stronger for the joints
-buried in the torso), left and right limbs alike, and each limb's split
-(thigh / shank, upper arm / forearm) near the anthropometric ratio, which
-the surface of a straight limb does not show.  Each frame's residuals depend
-on its own pose and the shared shape only, so the Jacobian is assembled as a
-``scipy.sparse`` matrix and ``least_squares(method="trf", tr_solver="lsmr")``
-solves it without forming a dense matrix: hundreds of frames stay tractable.
+of the root rotation over consecutive frames, as in the source); a pull of
+each frame's root (the pelvis, buried in the trunk and thighs) towards the
+tracked one; and priors on the shape: widths and lengths near the start
+(stronger for the joints buried in the torso), left and right limbs alike,
+and each limb's split (thigh / shank, upper arm / forearm) near the start's
+ratio, which the surface of a straight limb does not show.  The data are
+the same points per frame as tracking's (``max_points`` as
+:class:`~toolkit.softbody.track.TrackConfig`'s): a well-tracked pose is then
+already an optimum of the global objective's pose part and stays put.
+Each frame's residuals depend on its own pose and the shared shape only, so
+the Jacobian is assembled as a ``scipy.sparse`` matrix and
+``least_squares(method="trf", tr_solver="lsmr")`` solves it without forming a
+dense matrix: hundreds of frames stay tractable (a frame of 1000 points adds
+about 1 MB of Jacobian entries and their indices).
 """
 
 from __future__ import annotations
@@ -61,17 +67,34 @@ class GlobalFitConfig:
     gate : float
         Points further than this outside the tracked model are ignored, metres.
     max_points : int
-        Points per frame (an even subsample).
+        Points per frame (an even subsample): as many as tracking uses.  With
+        300 of about 900 stereo patch centres the tracked poses were no optimum
+        of the global objective: it moved them by 3-4 mm (on noisy model points;
+        on a trinocular wave 34.7 -> 37.2 mm MPJPE with the shape held) and the
+        widths fitted the subsample's noise.
     unseen_weight, part_points, part_distance
         As in :class:`toolkit.softbody.track.TrackConfig`: per frame, the
         angles of parts with fewer than ``part_points`` points are pulled to
         the tracked ones and those parts get no coverage block (a leg
         without points shrank by 17 cm into the thigh's points).
+    root_prior_weight : float
+        Pull of each frame's root (rotation, radians, and translation, metres)
+        towards the tracked root, metres per unit.  The mid-hip point is
+        buried: with the lengths free, the pelvis slid 15 cm up into the trunk
+        (the thighs 13 cm longer, the trunk leaning against it) on a
+        trinocular kick, and fitted the points better in every frame while the
+        hips ended 15 cm off.  At 1 m/m a root correction of a few centimetres
+        still goes through (on that kick the root rose 29 mm, where tracking
+        had the hips 21-25 mm low).
     smooth_weight : float
         Weight of the constant-angular-speed residuals, metres per radian per
         frame squared: small, so that it does not degrade the fit (source 002).
     width_prior_weight : float
-        Pull of the widths towards the start values (metres per unit multiplier).
+        Pull of the widths towards the start values (metres per unit
+        multiplier).  The reference radii match the synthetic bodies within
+        4 % (:mod:`toolkit.softbody.model`); at 0.02 the stereo noise
+        around the thin limbs blew the forearms up to 1.6-1.8 and the elbows
+        and wrists moved with them.
     length_prior_weight : float
         Pull of the lengths towards the start (metres per metre): the joints
         buried in the torso (shoulders, hips) are weakly observable from the
