@@ -9,19 +9,24 @@ reflective, analytic Jacobian, elbows and knees bounded to ``[0, pi]``).
 Each frame starts from the previous one (extrapolated by a damped constant
 velocity).  The cloud is first split into the subject's points and other
 bodies' (:func:`toolkit.softbody.separate.separate_subject`: points further
-than ``gate`` outside the start model, and the points connected to them that
-are not within ``near_margin`` of it: a second person touching the subject,
-the floor); only the subject's are fitted.  Every frame gets an explicit state:
+than ``gate`` outside the start model, or further than a reach per metaball
+(``motion_floor`` plus its motion over the last frame), and the pieces of the
+cloud connected to them that are not within ``near_margin`` of it: a second
+person touching the subject, the floor; memory of the last frame's other
+bodies); only the subject's are fitted.  Every frame gets an explicit state:
 
 * ``"ok"``: fitted, enough points near the fitted surface;
-* ``"crowded"``: fitted on the subject's points, but another body touches
-  more than ``crowded_contact`` of them: where the two meet the separation is
-  a guess (people overlapping in the view, a hug); the fitted pose is kept
-  and tracking goes on from it, the global fit leaves the frame's points out;
+* ``"crowded"``: another body touches more than ``crowded_contact`` of the
+  subject's points, or more than ``crowded_undecided`` of them lie between
+  the near margin and the gate (another body that could not be told apart):
+  where the two meet the separation is a guess (people overlapping in the
+  view, a hug); fitted on the subject's points (on the near ones only in the
+  second case), the pose is kept and tracking goes on from it, the global fit
+  leaves the frame's points out;
 * ``"empty"``: fewer than ``min_points`` points in the cloud (or after the
   separation): the pose is carried over;
-* ``"lost"``: fitted, but too few points lie near the surface: the start pose
-  is kept.
+* ``"lost"``: fitted, but too few points lie near the surface (stray pieces
+  within the gate counted as far): the start pose is kept.
 
 Silhouette observations (the source's optional term) are not implemented.
 """
@@ -372,6 +377,8 @@ def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: Trac
         if sep.near_points.sum() < config.min_points or (sep.undecided <= config.crowded_undecided and not far):
             break
         base = _fit_pose(model, base, subsample(cloud[sep.near_points], config.max_points), config, 0.0, anchor)
+        if sep.other.any():   # fitted to this frame's points: a still body's reach, other bodies being near
+            reach = config.motion_floor
         sep = separate_subject(model, base, cloud, near=config.near_margin, gate=config.gate, link=link,
                                others=others, reach=reach)
     mixed = sep.undecided > config.crowded_undecided   # another body within the gate: the near points only
