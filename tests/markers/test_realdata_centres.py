@@ -40,3 +40,19 @@ def test_unlabelled_arm_subsets_and_centres():
     assert not res.labelled
     assert sorted(len(s) for s in res.subsets.values()) == [2, 3, 4]
     assert len(res.fits) == 2 and all(f.residual_m < 0.015 for f in res.fits.values())
+
+
+def test_plug_in_gait_walk_knees_refused_and_static_trial_generic():
+    from toolkit.markers.marker_sets import get_marker_set
+
+    labels = get_marker_set("plug-in-gait").labels
+    tr = trajectories_from_c3d(_file("c3d_plugin_gait", "Movement_trial.c3d"))
+    res = joint_centres(tr.subset([lab for lab in tr.labels if lab in labels]))
+    # 2.7 s of walking: the shank markers' circles do not fix where the knee axis lies (refused, not wrong)
+    for name in ("l_knee", "r_knee"):
+        assert res.method[J14[name]] == "anatomical"
+        assert any(m.startswith(name) and "does not fix where the axis lies" in m for m in res.messages)
+    st = trajectories_from_c3d(_file("c3d_plugin_gait", "Static_trial.c3d"))
+    rs = joint_centres(st.subset([lab for lab in st.labels if lab in labels]))
+    assert set(rs.method) <= {"anatomical", "template", "none"}
+    assert any("functional centres need movement" in m for m in rs.messages)
