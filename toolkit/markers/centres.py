@@ -19,6 +19,10 @@ from :func:`toolkit.markers.rigid.rigid_motions`):
   is taken from an anatomical estimate (the scaled generic skeleton's joint,
   projected onto the axis).
 
+:func:`sphere_centre` and :func:`circle_axis` serve a child with no rigid
+motion of its own (fewer than three markers, or markers nearly on one line):
+its markers' spheres (a ball joint) or circles (a hinge) in the parent's frame.
+
 The linear algebra is numpy's (``lstsq``, ``svd``); relative orientations and
 their spread (the range of motion) use ``scipy.spatial.transform.Rotation``.
 """
