@@ -382,9 +382,12 @@ def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: Trac
         sep = separate_subject(model, base, cloud, near=config.near_margin, gate=config.gate, link=link,
                                others=others, reach=reach)
     mixed = sep.undecided > config.crowded_undecided   # another body within the gate: the near points only
-    keep = sep.near_points if mixed else sep.keep
-    # points within the gate left out as doubtful (stray pieces; undecided ones when mixed) count as outliers
-    doubt = int(sep.stray.sum() + (sep.keep & ~keep).sum())
+    # stray pieces (within the subject's reach, touching nothing: a hand that moved away from its arm's points,
+    # clutter) are fitted as before the separation; when mixed, the undecided points are left out as doubtful
+    # and count as outliers
+    mine = sep.keep | sep.stray
+    keep = sep.near_points if mixed else mine
+    doubt = int((mine & ~keep).sum())
     pts = subsample(cloud[keep], config.max_points)
     if len(pts) < config.min_points:
         return FrameFit(start, "empty", len(pts), nan, nan, keep, sep.other, sep.contact, sep.undecided)
