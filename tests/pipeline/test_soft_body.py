@@ -56,8 +56,27 @@ def test_recipe_end_to_end_on_depth_frames(depth_dataset, tmp_path, capsys):
     assert len(model["metaballs"]) > 20 and {"centre", "radii", "weight"} <= set(model["metaballs"][0])
     assert sorted(p.name for p in (out / "meshes").glob("*.ply")) == [f"{t:06d}.ply" for t in range(4)]
     assert (out / "recording.rrd").stat().st_size > 10_000
+    _layout_shows_what_was_recorded(out / "recording.rrd")
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["frames"] == 4 and sum(metrics["states"].values()) == 4
+
+
+def _layout_shows_what_was_recorded(path) -> None:
+    """The recording's soft-body layout: every view's origin holds data (no view left empty by a renamed
+    report), the lengths' bar charts among them."""
+    import rerun as rr
+
+    reader = rr.chunk.RrdReader(path)
+    (bp,) = reader.blueprints()
+    origins = set()
+    for chunk in reader.stream(store=bp):
+        rb = chunk.to_record_batch()
+        if "ViewBlueprint:space_origin" in rb.schema.names:
+            origins.add(rb.column("ViewBlueprint:space_origin").to_pylist()[-1][0].strip("/"))
+    data = {c.entity_path.strip("/") for c in rr.chunk.RrdReader(path).stream()}
+    assert "metrics/softbody/global/lengths/l_thigh" in origins and "world" in origins
+    empty = {o for o in origins if not any(d == o or d.startswith(o + "/") for d in data)}
+    assert not empty, f"views without data: {sorted(empty)}"
 
 
 def test_stereo_needs_initial_joints_and_bad_files_are_named(tmp_path, capsys):

@@ -97,3 +97,16 @@ def test_empty_entity_path_raises(parts):
 def test_bad_camera_names_raise(names):
     with pytest.raises(InputError, match="camera_names"):
         make_blueprint(names)
+
+
+def test_softbody_layout(tmp_path):
+    from toolkit.viz.blueprint import softbody_blueprint, subject_eye
+
+    path = tmp_path / "sb.rrd"
+    with RerunObserver(path=path) as obs:
+        obs.send_blueprint(softbody_blueprint(["torso", "l_thigh"], eye=subject_eye([0, 0, 1], [[0, -3, 1]])))
+    got = views(path)
+    assert got["3D"] == {"world"} and got["TextLog"] == {"logs"}
+    assert got["TimeSeries"] == {"metrics/softbody/median_residual_mm", "metrics/softbody/track"}
+    assert got["BarChart"] == {"metrics/softbody/global/cost", "metrics/softbody/global/lengths/torso",
+                               "metrics/softbody/global/lengths/l_thigh"}

@@ -469,6 +469,8 @@ def run(config: SoftBodyRunConfig, *, dataset, out, observer=None, log=print) ->
             fitted = fit_independent(source, clouds, config, obs)
         else:
             model, params0, joints0 = initial_model(config, source, n)
+            if own:
+                _send_layout(obs, joints0, source.viewpoints)
             if obs is not None:
                 obs.report("joints3d", frame=min(config.init_frame, n - 1), joints=joints0,
                            name="softbody/init_joints")
@@ -490,6 +492,17 @@ def _recording(out: Path, recording_id: str):
     from toolkit.viz import RerunObserver
 
     return RerunObserver(application_id="fit_soft_body", path=out / "recording.rrd", recording_id=recording_id)
+
+
+def _send_layout(rec, joints: np.ndarray, viewpoints: np.ndarray) -> None:
+    """The soft-body layout (:func:`toolkit.viz.blueprint.softbody_blueprint`), its 3D view framed on the
+    subject's joints (J, 3) metres, seen from the cameras' side (viewpoints (V, 3) metres)."""
+    from toolkit.softbody.model import LENGTH_NAMES
+    from toolkit.viz.blueprint import softbody_blueprint, subject_eye
+
+    ok = np.isfinite(joints).all(axis=1)
+    eye = subject_eye(joints[ok].mean(axis=0), viewpoints, distance_m=3.5, height_m=0.6) if ok.any() else None
+    rec.send_blueprint(softbody_blueprint(LENGTH_NAMES, eye=eye))
 
 
 def summary_lines(result: RunResult) -> list:

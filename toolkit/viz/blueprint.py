@@ -101,7 +101,8 @@ EYE_HEIGHT_M = 1.5
 RING_SPREAD = 0.5
 
 
-def subject_eye(target, camera_centres=None) -> tuple[list[float], list[float]]:
+def subject_eye(target, camera_centres=None, distance_m: float = EYE_DISTANCE_M,
+                height_m: float = EYE_HEIGHT_M) -> tuple[list[float], list[float]]:
     """Eye position and look target of a 3D view framed on a subject.
 
     Parameters
@@ -112,11 +113,13 @@ def subject_eye(target, camera_centres=None) -> tuple[list[float], list[float]]:
         The eye looks from their mean horizontal direction (default: from -y);
         from cameras all around the subject (their mean unit direction shorter
         than ``RING_SPREAD``), from the middle of the widest gap between them.
+    distance_m, height_m : float
+        How far from the target the eye is horizontally, and how much higher.
 
     Returns
     -------
     position, look_target : list of 3 float
-        ``EYE_DISTANCE_M`` from the target horizontally, ``EYE_HEIGHT_M`` above it.
+        ``distance_m`` from the target horizontally, ``height_m`` above it.
     """
     import numpy as np
 
@@ -133,7 +136,7 @@ def subject_eye(target, camera_centres=None) -> tuple[list[float], list[float]]:
             d = np.array([np.cos(mid), np.sin(mid)])
         elif np.linalg.norm(v.mean(axis=0)) > 1e-6:
             d = v.mean(axis=0) / np.linalg.norm(v.mean(axis=0))
-    pos = [t[0] + EYE_DISTANCE_M * d[0], t[1] + EYE_DISTANCE_M * d[1], t[2] + EYE_HEIGHT_M]
+    pos = [t[0] + distance_m * d[0], t[1] + distance_m * d[1], t[2] + height_m]
     return [float(x) for x in pos], [float(x) for x in t]
 
 
@@ -270,3 +273,51 @@ def make_blueprint(
     if len(tabs) == 1 and not names:
         return rrb.Blueprint(left_col if not right else main, *panels, collapse_panels=False)
     return rrb.Blueprint(rrb.Tabs(*tabs, active_tab=0), *panels, collapse_panels=False)
+
+
+#: Entities of a soft-body fit's recording (``recipes/fit_soft_body.py``), under :data:`METRICS`.
+SOFTBODY_LENGTHS = "softbody/global/lengths"
+SOFTBODY_COST = "softbody/global/cost"
+SOFTBODY_RESIDUAL = "softbody/median_residual_mm"
+SOFTBODY_TRACK = "softbody/track"
+
+
+def softbody_blueprint(length_names: Iterable[str], *, eye: tuple[Sequence[float], Sequence[float]] | None = None,
+                       timeline: str = "frame") -> rrb.Blueprint:
+    """The viewer layout of a soft-body fit's recording.
+
+    Left, the 3D view (framed on the subject when ``eye`` is given: the
+    clouds, patches, the model's surface, the residual-coloured points and
+    the joints, each toggled in the view's entity list) above the log; right,
+    tabs: the median residual per frame, the tracking's per-frame figures
+    (inlier fraction, median distance, points of other bodies), and the
+    global fit's lengths over its iterations (one bar chart per length, with
+    the cost).
+
+    Parameters
+    ----------
+    length_names : iterable of str
+        The model's fitted lengths, as reported (``softbody/global/lengths/<name>``).
+    eye : (position, look_target), optional
+        Metres, world frame (:func:`subject_eye`).
+    timeline : str
+
+    Returns
+    -------
+    rerun.blueprint.Blueprint
+    """
+    controls = None if eye is None else rrb.EyeControls3D(position=list(eye[0]), look_target=list(eye[1]),
+                                                         eye_up=[0.0, 0.0, 1.0])
+    left = rrb.Vertical(rrb.Spatial3DView(origin=WORLD, name="3D", eye_controls=controls),
+                        rrb.TextLogView(origin=LOGS, name="log"), row_shares=[4, 1])
+    bars = [rrb.BarChartView(origin=entity_path(METRICS, SOFTBODY_COST), name="cost")]
+    bars += [rrb.BarChartView(origin=entity_path(METRICS, SOFTBODY_LENGTHS, n), name=n) for n in length_names]
+    right = rrb.Tabs(
+        rrb.Vertical(rrb.TimeSeriesView(origin=entity_path(METRICS, SOFTBODY_RESIDUAL), name="median residual (mm)"),
+                     rrb.TimeSeriesView(origin=entity_path(METRICS, SOFTBODY_TRACK), name="tracking"),
+                     name="per frame"),
+        rrb.Grid(*bars, name="global fit: lengths over the iterations (m)"),
+        active_tab=0)
+    panels = (rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
+              rrb.TimePanel(state="expanded", timeline=timeline))
+    return rrb.Blueprint(rrb.Horizontal(left, right, column_shares=[3, 2]), *panels, collapse_panels=False)
