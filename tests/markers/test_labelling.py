@@ -192,6 +192,45 @@ def test_four_frame_window_keeps_identities_through_a_crossing_where_nearest_nei
     assert np.allclose(nearest.positions[-1, [0, 1]], X[-1, [1, 0]], atol=2e-3)
 
 
+def brushing(n_frames=40, touch=14, gap_m=0.004, step_m=0.01):
+    """A hand brushing the thigh (T, 6, 3): the thigh (``THI``, ``KNE``) moves 10 mm per frame along x until
+    frame ``touch``, where its ``THI`` comes within ``gap_m`` of the resting hand's ``FIN``, and stops; then
+    the hand (``FIN`` and the forearm's ``FRM``, ``WRA``, ``WRB``) moves on as the thigh did."""
+    f = np.arange(n_frames)
+    thigh = np.array([[0.0, 0.0, 0.8], [0.01, 0.02, 0.42]])  # THI, KNE
+    hand = np.array([[0.0, gap_m, 0.8], [0.05, 0.06, 1.1], [0.02, 0.07, 0.9], [0.07, 0.09, 0.92]])  # FIN, FRM, WRA, WRB
+    x_thigh = step_m * (np.minimum(f, touch) - touch)
+    x_hand = step_m * np.maximum(f - touch, 0)
+    X = np.concatenate([thigh[None] + (x_thigh[:, None, None] * [1, 0, 0]),
+                        hand[None] + (x_hand[:, None, None] * [1, 0, 0])], axis=1)
+    return X, ("l_thigh", "l_thigh", "l_hand", "l_forearm", "l_forearm", "l_forearm")
+
+
+def test_a_hand_brushing_the_thigh_swaps_labels_and_the_segment_check_swaps_them_back():
+    X, segments = brushing()
+    rig = ring_rig()
+    off = track(rig, X, config=TrackConfig(cross_min_m=np.inf), segments=segments)  # the check off
+    on = track(rig, X, segments=segments)
+    # a constant-velocity tracker gives the thigh's label to the finger moving on: THI and FIN swapped
+    assert np.allclose(off.positions[-1, [0, 2]], X[-1, [2, 0]], atol=EXACT_M)
+    err = np.linalg.norm(on.positions - X, axis=2)
+    assert err[:15].max() < 5e-3  # up to the touch the markers are at most 4 mm apart
+    assert err[15:].max() < EXACT_M  # swapped back, down to the first frame they moved apart
+    assert np.all(on.state == TRINOCULAR)
+    assert all(np.unique(row).size == 6 for row in on.point)  # never two labels on one marker
+
+
+def test_a_cross_segment_swap_that_leaves_a_label_off_its_mates_is_not_made():
+    X, segments = brushing()
+    X[15:, 2] += [0.0, 0.0, 0.05]  # the finger jumps 5 cm off its hand: the tracker loses it and gives
+    rig = ring_rig()               # THI's label the finger, FIN's the thigh marker
+    off = track(rig, X, config=TrackConfig(cross_min_m=np.inf), segments=segments)
+    on = track(rig, X, segments=segments)
+    # swapping THI and FIN back would leave FIN 5 cm off its forearm: not a swap the check makes
+    assert np.linalg.norm(off.positions[16:, [0, 2]] - X[16:, [2, 0]], axis=2).max() < EXACT_M
+    assert np.array_equal(on.positions, off.positions, equal_nan=True)
+
+
 def test_lost_marker_is_bridged_from_its_segment_and_recovered_after_the_gap():
     n = 40
     plate = np.array([[0.0, 0.0, 0.0], [0.08, 0.0, 0.0], [0.0, 0.09, 0.02], [0.07, 0.08, -0.03]])

@@ -102,6 +102,18 @@ class TrackConfig:
     carry_rms_m : float
         A lost marker is searched for where its segment and the adjacent
         ones carried it, when their markers moved rigidly within this residual, metres.
+    cross_min_m : float
+        Two measured markers of different segments whose labels are both
+        off their rigid mates' distances (summed median deviation, see
+        :meth:`Tracker.undo_cross_swaps`) above this, metres, ...
+    cross_fit_m : float
+        ... and each of which fits the other's mates within this, metres ...
+    cross_ratio : float
+        ... with the swapped deviations below this share of the current
+        ones, have their labels swapped.
+    cross_back_frames : int
+        The swap is carried back over at most this many earlier frames, as
+        long as it fits there better too (back to where the two passed each other).
     """
 
     window: int = 4
@@ -119,6 +131,10 @@ class TrackConfig:
     bridge_rms_m: float = 0.012
     bridge_max_frames: int = 300
     carry_rms_m: float = 0.04
+    cross_min_m: float = 0.025
+    cross_fit_m: float = 0.012
+    cross_ratio: float = 0.4
+    cross_back_frames: int = 50
 
     def __post_init__(self):
         if self.window not in (2, 3, 4):
@@ -179,16 +195,43 @@ def _segment_mates(segments) -> list[np.ndarray]:
     return out
 
 
-def reference_distances(track: TrackState) -> np.ndarray:
-    """Distances (M, M) between markers of one segment where both are measured, median over the labelled
-    frames so far (NaN for other pairs or never seen together)."""
+def rigid_mates(segments) -> list[np.ndarray]:
+    """Per marker, the markers expected to keep their distances to it: the others of its segment, or, for
+    a segment of one marker (Plug-in Gait's hand), those of the nearly rigid group it belongs to
+    (:data:`SWAP_GROUPS`, e.g. forearm and hand)."""
+    seg = np.asarray(segments)
+    out = []
+    for i, s in enumerate(seg):
+        others = np.arange(seg.size) != i
+        same = np.flatnonzero((seg == s) & others)
+        if same.size == 0:
+            joined = [x for g in SWAP_GROUPS if s in g and len(g) > 1 for x in g]
+            same = np.flatnonzero(np.isin(seg, joined) & others)
+        out.append(same)
+    return out
+
+
+def reference_distances(track: TrackState, pairs: np.ndarray | None = None) -> np.ndarray:
+    """Distances (M, M) between markers of one segment (or the ``pairs`` (M, M) bool given) where both are
+    measured, median over the labelled frames so far (NaN for other pairs or never seen together)."""
     P = track.positions[track.state.max(axis=1) > 0]
     seg = np.asarray(track.segments)
     d = np.linalg.norm(P[:, :, None] - P[:, None], axis=3)
     with warnings.catch_warnings():  # pairs never seen together: an all-NaN median, NaN is the answer
         warnings.simplefilter("ignore", RuntimeWarning)
         ref = np.nanmedian(d, axis=0) if len(P) else np.full((seg.size, seg.size), np.nan)
-    return np.where(seg[:, None] == seg[None, :], ref, np.nan)
+    return np.where(seg[:, None] == seg[None, :] if pairs is None else pairs, ref, np.nan)
+
+
+def _finite_median(dev: np.ndarray) -> np.ndarray:
+    """Median over axis 1 of the finite entries of ``dev`` (A, K, B) (inf marks none), NaN where none
+    (a sort, not ``np.nanmedian``, which is slow on the small arrays of every frame)."""
+    dev = np.sort(dev, axis=1)
+    n = np.sum(np.isfinite(dev), axis=1)  # (A, B)
+    lo = np.take_along_axis(dev, (np.maximum(n - 1, 0) // 2)[:, None], axis=1)[:, 0]
+    hi = np.take_along_axis(dev, np.minimum(n // 2, dev.shape[1] - 1)[:, None], axis=1)[:, 0]
+    with np.errstate(invalid="ignore"):
+        return np.where(n > 0, 0.5 * (lo + np.where(n > 1, hi, lo)), np.nan)
 
 
 class Tracker:
@@ -213,6 +256,14 @@ class Tracker:
         self.same = [np.flatnonzero((seg == s) & (np.arange(seg.size) != i)) for i, s in enumerate(seg)]
         self.n_same = [m.size for m in self.same]
         self.ref_dist = reference_distances(track)
+        rigid = rigid_mates(track.segments)
+        self.rigid = np.zeros((seg.size, seg.size), bool)
+        for i, m in enumerate(rigid):
+            self.rigid[i, m] = True
+        self.rigid_ref = reference_distances(track, self.rigid)
+        width = max([m.size for m in rigid] + [1])
+        self._mate_idx = np.array([np.pad(m, (0, width - m.size)) for m in rigid], int).reshape(seg.size, width)
+        self._mate_ok = np.array([np.arange(width) < m.size for m in rigid]).reshape(seg.size, width)
 
     # ------------------------------------------------------------ prediction
     def predict(self, order: list[int], k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -412,6 +463,113 @@ class Tracker:
                 return (ref - a.mean(axis=0)) @ R.T + b.mean(axis=0), t.state[r, i] in (TRINOCULAR, TWO_VIEW)
         return None
 
+    # ------------------------------------------------------------ swaps across segments
+    def deviations(self, f: int, at: np.ndarray | None = None) -> np.ndarray:
+        """How far each label would be off its rigid mates at each marker's place in frame ``f``.
+
+        Parameters
+        ----------
+        f : int
+        at : ndarray of int, optional
+            The markers whose places are tried (default: all).
+
+        Returns
+        -------
+        ndarray of shape (M, len(at))
+            Entry ``[i, x]``: the median over marker ``i``'s measured rigid
+            mates (:func:`rigid_mates`, other than ``at[x]``) of the
+            difference between their distance to marker ``at[x]``'s position
+            and their reference distance to ``i``, metres; NaN where
+            ``at[x]`` is not measured or ``i`` has no measured mate.
+        """
+        t = self.t
+        P, meas = t.positions[f], t.measured(f)
+        at = np.arange(P.shape[0]) if at is None else np.asarray(at, int)
+        mi = self._mate_idx
+        ref = np.take_along_axis(self.rigid_ref, mi, axis=1)  # (M, K)
+        ok = self._mate_ok & meas[mi] & np.isfinite(ref)
+        d = np.linalg.norm(P[mi][:, :, None, :] - P[at][None, None], axis=3)  # (M, K, X)
+        dev = np.abs(d - ref[:, :, None])
+        dev[~(ok[:, :, None] & (mi[:, :, None] != at) & meas[at])] = np.inf
+        return _finite_median(dev)
+
+    def cross_swap(self, f: int):
+        """The pair of measured markers of different segments whose swapped labels fit best, or None.
+
+        Both labels must be off (summed deviation above ``cross_min_m``),
+        each must fit at the other's place within ``cross_fit_m``, the
+        swap must cut the summed deviation below ``cross_ratio`` of it, and
+        one of the two must have at least two measured mates: one mate's
+        distance only says the marker lies on a sphere about it, and two
+        markers with a mate each (both knees, each with its ``THI``) meet
+        their spheres by chance as the legs move.
+        """
+        c, t = self.config, self.t
+        M = t.positions.shape[1]
+        own, n_mates = self.own_deviation(f)
+        if not np.nanmax(own, initial=0.0) > 0.5 * c.cross_min_m:  # nobody off: the usual frame, cheap
+            return None
+        E = self.deviations(f)
+        meas = t.measured(f)
+        now, swapped = own[:, None] + own[None], E + E.T
+        with np.errstate(invalid="ignore"):
+            ok = (meas[:, None] & meas[None] & ~self.rigid & ~self.rigid.T & ~np.eye(M, dtype=bool)
+                  & (np.maximum(n_mates[:, None], n_mates[None]) >= 2)
+                  & (now > c.cross_min_m) & (np.fmax(E, E.T) < c.cross_fit_m) & (swapped < c.cross_ratio * now))
+        if not ok.any():
+            return None
+        i, j = np.unravel_index(np.argmin(np.where(ok, swapped - now, np.inf)), ok.shape)
+        return int(i), int(j)
+
+    def own_deviation(self, f: int) -> tuple[np.ndarray, np.ndarray]:
+        """Each label's deviation (M,) from its rigid mates at its own place in frame ``f`` (the diagonal of
+        :meth:`deviations`), metres, NaN where unmeasured or without a measured mate; and the number (M,) of
+        its measured mates with a reference distance."""
+        t = self.t
+        P, meas = t.positions[f], t.measured(f)
+        mi = self._mate_idx
+        ref = np.take_along_axis(self.rigid_ref, mi, axis=1)
+        ok = self._mate_ok & meas[mi] & np.isfinite(ref) & meas[:, None]
+        dev = np.where(ok, np.abs(np.linalg.norm(P[mi] - P[:, None], axis=2) - ref), np.inf)
+        return _finite_median(dev[:, :, None])[:, 0], ok.sum(axis=1)
+
+    def _swap(self, f: int, i: int, j: int) -> None:
+        t = self.t
+        for arr in (t.positions, t.state, t.point):
+            arr[f, [i, j]] = arr[f, [j, i]]
+
+    def undo_cross_swaps(self, order: list[int], k: int) -> int:
+        """Swap back labels that two markers of different segments exchanged (a hand brushing the thigh).
+
+        The tracker's window cannot tell two markers apart that pass a few
+        millimetres from each other, and :func:`repair_swaps` only relabels
+        within a group.  Once the two have moved apart, each label sits off
+        its rigid mates' distances and fits at the other's place
+        (:meth:`cross_swap`): the labels of frame ``order[k]`` are swapped,
+        and those of the earlier frames too, back as long as the swap fits
+        there better (at most ``cross_back_frames``), so that the velocities
+        predicting the next frame are the markers' own.  Returns the number
+        of pairs swapped in ``order[k]``.
+        """
+        c, t, f = self.config, self.t, order[k]
+        n = 0
+        for _ in range(3):  # a few pairs at most in one frame
+            pair = self.cross_swap(f)
+            if pair is None:
+                break
+            i, j = pair
+            self._swap(f, i, j)
+            n += 1
+            for back in range(1, min(k, c.cross_back_frames) + 1):
+                g = order[k - back]
+                if not t.measured(g)[[i, j]].all():
+                    break
+                E = self.deviations(g)
+                if not E[i, j] + E[j, i] < E[i, i] + E[j, j]:
+                    break
+                self._swap(g, i, j)
+        return n
+
     # ------------------------------------------------------------ one frame
     def step(self, order: list[int], k: int) -> None:
         """Label frame ``order[k]`` (``order[k-1]`` already labelled)."""
@@ -440,6 +598,7 @@ class Tracker:
                 t.state[f, i] = BRIDGED
             else:  # never measured: the template's prediction, a hint only
                 t.hint[i], t.hint_frame[i] = X, f
+        self.undo_cross_swaps(order, k)
         labelled = t.point[f][t.point[f] >= 0]
         assert np.unique(labelled).size == labelled.size, "two labels on one reconstructed marker"
 
