@@ -22,7 +22,14 @@ previous ones:
 * **bridging** with the skeleton: a marker still lost is carried by the rigid
   motion (Kabsch) of the other markers of its segment since it was last
   measured (state ``BRIDGED``); its bridged position is the prediction of the
-  next frame, so its identity comes back when it reappears.
+  next frame, so its identity comes back when it reappears;
+* **swaps across segments**: two markers of different segments that pass a
+  few millimetres apart (a hand brushing the thigh) can leave with each
+  other's labels, which no window tells apart.  Once they have moved apart,
+  each label sits off the distances to its rigid mates (its segment's other
+  markers; a hand's one marker: its forearm's) and fits at the other's place:
+  the labels are swapped back in this frame and the earlier ones where that
+  fits better (:meth:`Tracker.undo_cross_swaps`).
 
 Every candidate and every blob goes to at most one marker (Hungarian
 assignment, blobs marked used), so two labels never share a marker; this is
