@@ -54,7 +54,7 @@ def test_global_fit_keeps_well_tracked_poses(tracked):
 def test_global_fit_with_shape_stays_near_a_good_tracking(tracked):
     """Lengths and widths free: the noise may not buy a fatter or longer body
     (measured: widths within 0.02 of the truth, MPJPE +0.6 to +1.0 mm over tracking that started from
-    the true lengths; old settings: forearm widths up to 1.06-1.23, +1.5 to +2.3 mm)."""
+    the true lengths; old settings: forearm widths up to 1.06, +1.5 to +2.3 mm)."""
     model, joints, clouds, track = tracked
     fit = global_fit(model, track, clouds)
     assert np.abs(fit.widths - 1.0).max() < 0.05
