@@ -83,3 +83,18 @@ def test_real_plug_in_gait_file():
     i = p.labels.index("LKNE")
     d = np.nanmedian(np.linalg.norm(p.positions[:, i] - p.positions[:, p.labels.index("LFEO")], axis=1))
     assert abs(d - 0.079) < 0.002  # (knee width 144 mm + 14 mm) / 2 in metres
+
+
+def test_subject_measurements_read_from_the_processing_group(tmp_path):
+    path = _ezc3d_file(tmp_path / "m.c3d", ["LKNE", "RKNE"])
+    import ezc3d
+
+    c = ezc3d.c3d(str(path))
+    c.add_parameter("PROCESSING", "LKneeWidth", [144.0])
+    c.add_parameter("PROCESSING", "MarkerDiameter", [14.0])
+    c.add_parameter("PROCESSING", "LHandWidth", [-17.9])  # not a width a body has: left out
+    c.add_parameter("PROCESSING", "Bodymass", [70.0])  # not a width
+    c.write(str(path))
+    m = read_c3d(path).measurements
+    assert m == pytest.approx({"LKneeWidth": 0.144, "MarkerDiameter": 0.014})
+    assert read_c3d(_ezc3d_file(tmp_path / "none.c3d", ["A"])).measurements == {}

@@ -56,3 +56,24 @@ def test_plug_in_gait_walk_knees_refused_and_static_trial_generic():
     rs = joint_centres(st.subset([lab for lab in st.labels if lab in labels]))
     assert set(rs.method) <= {"anatomical", "template", "none"}
     assert any("functional centres need movement" in m for m in rs.messages)
+
+
+def test_plug_in_gait_knees_and_ankles_by_the_chord_with_the_measured_widths():
+    """Where the functional knee is refused (the walk above), the knee and ankle come from Plug-in Gait's own
+    chord rule with the file's ``PROCESSING`` knee and ankle widths: near Plug-in Gait's outputs in the file
+    (their hips differ: Harrington's regression here)."""
+    from toolkit.markers.skeleton_fit import anatomical_joints
+
+    tr = trajectories_from_c3d(_file("c3d_plugin_gait", "Movement_trial.c3d"))
+    assert tr.measurements["LKneeWidth"] == pytest.approx(0.144)
+    P = {lab: tr.positions[:, i] for i, lab in enumerate(tr.labels)}
+    a = anatomical_joints(tr.labels, tr.positions, measurements=tr.measurements)
+    for s in "LR":
+        knee = np.nanmedian(np.linalg.norm(a[:, J14[f"{s.lower()}_knee"]] - P[s + "FEO"], axis=1))
+        ankle = np.nanmedian(np.linalg.norm(a[:, J14[f"{s.lower()}_ankle"]] - P[s + "TIO"], axis=1))
+        assert knee < 0.012 and ankle < 0.005, (s, knee, ankle)
+    # with Plug-in Gait's own hip centre (LFEP) the chord gives its knee exactly
+    from toolkit.markers.skeleton_fit import chord
+
+    k = chord(P["LFEP"], P["LTHI"], P["LKNE"], tr.measurements["LKneeWidth"] / 2 + 0.007)
+    assert np.nanmax(np.linalg.norm(k - P["LFEO"], axis=1)) < 1e-4

@@ -16,7 +16,7 @@ convention of some exporters) becomes NaN.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +47,12 @@ class C3DPoints:
         Whether the file gave a label to every point.
     source : str
         The file's path.
+    measurements : dict of str to float
+        The subject's measurements in the ``PROCESSING`` group (Plug-in Gait's
+        ``LKneeWidth``, ``RAnkleWidth``, ``MarkerDiameter`` ...: every positive
+        single number whose name ends in ``Width`` or ``Diameter``), metres
+        (the group holds millimetres whatever ``POINT:UNITS`` says); empty
+        when the file has none.
     """
 
     labels: tuple
@@ -55,6 +61,7 @@ class C3DPoints:
     units: str
     labelled: bool
     source: str
+    measurements: dict = field(default_factory=dict)
 
 
 def _param(params, group: str, name: str, where: str, default=None):
@@ -129,7 +136,22 @@ def read_c3d(path: str | os.PathLike, *, require_labels: bool = False) -> C3DPoi
         pos[res < 0] = np.nan
     pos[np.all(pos == 0, axis=-1)] = np.nan
     return C3DPoints(labels=tuple(labels), positions=pos, fps=fps, units=units, labelled=labelled,
-                     source=str(path))
+                     source=str(path), measurements=_measurements(params))
+
+
+def _measurements(params) -> dict:
+    """Positive single-number widths and diameters of the ``PROCESSING`` group, millimetres to metres."""
+    out = {}
+    for name, entry in (params.get("PROCESSING") or {}).items():
+        if not isinstance(entry, dict) or not (name.endswith("Width") or name.endswith("Diameter")):
+            continue
+        try:
+            v = np.asarray(entry.get("value"), dtype=float).ravel()
+        except (TypeError, ValueError):
+            continue
+        if v.size == 1 and np.isfinite(v[0]) and v[0] > 0:
+            out[str(name)] = float(v[0]) * 1e-3
+    return out
 
 
 def write_c3d(path: str | os.PathLike, labels, positions: np.ndarray, fps: float, *,

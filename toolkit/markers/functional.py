@@ -420,7 +420,8 @@ def _labelled(traj, groups, mset, config, obs) -> JointCentresResult:
         from toolkit.anthropometry.proportions import BodyProportions
         tm, tj, _ = _s.template_frames(mset, BodyProportions.from_height(height), labels)
         generic, _ = _s.template_joints(pos, ext, tm, tj)
-    anat = _s.anatomical_joints(traj.labels, pos, height_m=height if height > 0 else 1.75)
+    anat = _s.anatomical_joints(traj.labels, pos, height_m=height if height > 0 else 1.75,
+                                measurements=traj.measurements)
     has_t = np.isfinite(generic).all(axis=-1).any(axis=0)
     has_a = np.isfinite(anat).all(axis=-1).any(axis=0)
     use_t = has_t & (template_first | ~has_a)
@@ -587,4 +588,4 @@ def trajectories_from_c3d(path, *, require_labels: bool = False):
     seen = np.isfinite(pts.positions).all(axis=-1)
     pos = np.where(seen[..., None], pts.positions, np.nan)
     return MarkerTrajectories(pts.labels, pos, np.where(seen, FROM_FILE, MISSING).astype(np.int8), pts.fps,
-                              None, str(path))
+                              None, str(path), dict(pts.measurements))

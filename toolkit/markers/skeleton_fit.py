@@ -117,14 +117,59 @@ def _across(P, joint, s, other, pig):
     return None
 
 
-def anatomical_joints(labels, positions: np.ndarray, *, height_m: float = 1.75) -> np.ndarray:
+#: Plug-in Gait's marker radius where the file does not give ``MarkerDiameter``, metres.
+MARKER_RADIUS_M = 0.007
+
+
+def chord(proximal: np.ndarray, wand: np.ndarray, lateral: np.ndarray, offset_m: float) -> np.ndarray:
+    """Plug-in Gait's chord rule: a joint centre from the joint above it, a wand marker and the lateral marker.
+
+    The centre ``X`` lies in the plane of ``proximal``, ``wand`` and
+    ``lateral``, on the side away from the wand, ``offset_m`` from ``lateral``
+    (half the joint's width plus the marker radius), with the angle
+    ``proximal - X - lateral`` a right angle (Davis et al. 1991, "A gait
+    analysis data collection and reduction technique", *Hum Mov Sci*
+    10:575-587; Vicon's Plug-in Gait knee and ankle).
+
+    Parameters
+    ----------
+    proximal, wand, lateral : ndarray of shape (T, 3)
+        Metres: e.g. the hip centre, ``THI`` and ``KNE`` for the knee; the knee
+        centre, ``TIB`` and ``ANK`` for the ankle.
+    offset_m : float
+
+    Returns
+    -------
+    ndarray of shape (T, 3)
+        Metres; NaN where a point is missing or the geometry is degenerate.
+    """
+    a = np.asarray(proximal, float) - lateral
+    length = np.linalg.norm(a, axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ah = a / length
+        t = np.asarray(wand, float) - lateral
+        n = t - np.sum(t * ah, axis=-1, keepdims=True) * ah
+        n /= np.linalg.norm(n, axis=-1, keepdims=True)
+        cos = offset_m / length
+        sin = np.sqrt(1.0 - cos ** 2)  # NaN where the joint above is closer than the offset
+    out = lateral + offset_m * (cos * ah - sin * n)
+    out[~np.isfinite(out).all(axis=-1)] = np.nan
+    return out
+
+
+def anatomical_joints(labels, positions: np.ndarray, *, height_m: float = 1.75,
+                      measurements: dict | None = None) -> np.ndarray:
     """Joint estimates from anatomical landmarks named in the labels.
 
     Hips: :func:`harrington_hips` (``LASI/RASI/LPSI/RPSI`` or ``*ASIS/*PSIS``);
-    knees: midpoint of ``LFE/MFE`` epicondyles, else the Plug-in Gait lateral
-    marker ``KNE`` moved medially (along the pelvis's left-right axis) by half a generic
-    knee width (0.057 x stature) plus the marker radius; ankles likewise from
-    ``LM/SPH`` (or ``MM``) or ``ANK`` (0.040 x stature); elbows from ``LHE/MHE``
+    knees: midpoint of ``LFE/MFE`` epicondyles, else Plug-in Gait's
+    :func:`chord` from the hip centre, ``THI`` and ``KNE`` (the measured
+    ``LKneeWidth``/``RKneeWidth`` of ``measurements`` or a generic 0.057 x
+    stature; ``MarkerDiameter`` or :data:`MARKER_RADIUS_M`), else ``KNE``
+    moved medially (along the pelvis's left-right axis) by half that width
+    plus the marker radius; ankles likewise from ``LM/SPH`` (or ``MM``), the
+    chord from the knee centre, ``TIB`` and ``ANK``, or ``ANK`` (0.040 x
+    stature, ``*AnkleWidth``); elbows from ``LHE/MHE``
     or ``ELB`` (0.040 x stature); wrists: midpoint of ``WRA/WRB`` or ``US/RS``;
     shoulders: the acromion marker (``SHO`` or ``A``) 0.025 x stature below;
     neck: midpoint of ``C7`` and ``CLAV`` (or ``SUP``); head: mean of the head
@@ -137,6 +182,9 @@ def anatomical_joints(labels, positions: np.ndarray, *, height_m: float = 1.75) 
         Metres.
     height_m : float
         Stature for the generic widths.
+    measurements : dict of str to float, optional
+        The subject's measured widths, metres (``LKneeWidth``, ``RAnkleWidth``,
+        ``MarkerDiameter`` ...: :attr:`toolkit.io.c3d.C3DPoints.measurements`).
 
     Returns
     -------
@@ -153,17 +201,28 @@ def anatomical_joints(labels, positions: np.ndarray, *, height_m: float = 1.75) 
         psis = [sacr, sacr]
     if all(a is not None for a in asis + psis):
         out[:, J14["l_hip"]], out[:, J14["r_hip"]] = harrington_hips(asis[0], asis[1], psis[0], psis[1])
+    measured = dict(measurements or {})
+    radius = measured.get("MarkerDiameter", 2 * MARKER_RADIUS_M) / 2
     widths = {"knee": 0.057, "ankle": 0.040, "elbow": 0.040}
     pairs = {"knee": (("LFE", "MFE"), "KNE"), "ankle": (("LM", "SPH"), "ANK"), "elbow": (("LHE", "MHE"), "ELB")}
+    #: the chord's joint above and wand marker per joint (Plug-in Gait's lower limb)
+    chords = {"knee": ("hip", "THI"), "ankle": ("knee", "TIB")}
     for s in "LR":
         other = "R" if s == "L" else "L"
         for joint, ((lat, med), pig) in pairs.items():
             j = J14[f"{s.lower()}_{joint}"]
+            width = measured.get(f"{s}{joint.capitalize()}Width", widths[joint] * height_m)
             m = _mid(_p(P, s + lat), _p(P, s + med, s + "MM" if joint == "ankle" else s + med))
             across = _across(P, joint, s, other, pig)
             if m is None and (s + pig) in P and across is not None:
-                medial = across
-                m = P[s + pig] + medial * (widths[joint] * height_m / 2 + 0.007)
+                m = P[s + pig] + across * (width / 2 + radius)
+            if m is None and (s + pig) in P:
+                m = np.full_like(P[s + pig], np.nan)
+            if m is not None and joint in chords and (s + pig) in P and (s + chords[joint][1]) in P:
+                above = out[:, J14[f"{s.lower()}_{chords[joint][0]}"]]
+                c = chord(above, P[s + chords[joint][1]], P[s + pig], width / 2 + radius)
+                if _mid(_p(P, s + lat), _p(P, s + med)) is None:  # epicondyles/malleoli, where given, come first
+                    m = np.where(np.isfinite(c), c, m)
             if m is not None:
                 out[:, j] = m
         w = _mid(_p(P, s + "WRA", s + "US"), _p(P, s + "WRB", s + "RS"))

@@ -54,6 +54,10 @@ class MarkerTrajectories:
         :data:`toolkit.markers.marker_sets.SEGMENTS`) when known.
     source : str
         Where the trajectories come from (file, capture folder), for messages.
+    measurements : dict of str to float
+        The subject's measured widths, metres (a C3D's ``PROCESSING`` group:
+        :attr:`toolkit.io.c3d.C3DPoints.measurements`); not kept by
+        :meth:`save_npz`.
     """
 
     labels: tuple[str, ...]
@@ -62,6 +66,7 @@ class MarkerTrajectories:
     fps: float
     segments: tuple[str, ...] | None = None
     source: str = field(default="<trajectories>")
+    measurements: dict = field(default_factory=dict)
 
     def __post_init__(self):
         self.labels = tuple(str(x) for x in self.labels)
@@ -129,7 +134,7 @@ class MarkerTrajectories:
         idx = [self.index(x) for x in labels]
         segs = None if self.segments is None else tuple(self.segments[i] for i in idx)
         return MarkerTrajectories(labels, self.positions[:, idx].copy(), self.state[:, idx].copy(), self.fps,
-                                  segs, self.source)
+                                  segs, self.source, dict(self.measurements))
 
     def save_npz(self, path: str | Path) -> Path:
         """Write ``labels``, ``positions``, ``state``, ``fps``, ``segments`` (may be empty), ``source`` atomically."""
