@@ -117,8 +117,8 @@ class GlobalFitConfig:
         people differ from it by up to 10 %: measured thigh / shank 0.90-1.02
         against 0.98).
     buried_prior_weight : float
-        Pull of the lengths of joints buried in the torso (neck to head,
-        shoulder width and drop, hip width) towards the start, replacing
+        Pull of the lengths of joints buried in the torso (shoulder width
+        and drop, hip width; not neck to head) towards the start, replacing
         ``length_prior_weight`` for them (metres per metre): the coverage
         block otherwise widened the shoulders into the arms' points.
     fit_lengths, fit_widths : bool
