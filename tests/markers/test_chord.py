@@ -48,3 +48,13 @@ def test_anatomical_knee_and_ankle_use_the_measured_widths():
         # a right angle at the knee between the hip and KNE
         hip = out[:, J14["l_hip"]]
         np.testing.assert_allclose(np.sum((hip - k) * (legs["LKNE"] - k), axis=1), 0.0, atol=1e-12)
+
+
+def test_malleoli_where_given_come_before_the_chord():
+    t = 3
+    pts = {"LASI": [0.12, 0.1, 1.0], "RASI": [-0.12, 0.1, 1.0], "LPSI": [0.05, -0.08, 1.02], "RPSI": [-0.05, -0.08, 1.02],
+           "LTHI": [0.16, 0.02, 0.75], "LKNE": [0.15, 0.0, 0.5], "LTIB": [0.15, 0.02, 0.3], "LANK": [0.14, 0.0, 0.08],
+           "LLM": [0.14, 0.0, 0.08], "LMM": [0.07, 0.0, 0.09]}
+    pos = np.repeat(np.array(list(pts.values()), float)[None], t, axis=0)
+    out = anatomical_joints(tuple(pts), pos, measurements={"LAnkleWidth": 0.085})
+    np.testing.assert_allclose(out[:, J14["l_ankle"]], [[0.105, 0.0, 0.085]] * t, atol=1e-12)

@@ -3,16 +3,15 @@
 import numpy as np
 import pytest
 
-from toolkit.anthropometry.proportions import BodyProportions
 from toolkit.cameras import Camera
 from toolkit.errors import InputError
-from toolkit.motion import generate_motion, inverse_kinematics
 from toolkit.observe import RecordingObserver
-from toolkit.softbody import (LENGTH_NAMES, SoftBodyModel, distance, init_from_2d, model_from_joints,
-                              params_from_pose14)
+from toolkit.softbody import LENGTH_NAMES, distance, init_from_2d, model_from_joints
 from toolkit.softbody.global_fit import GlobalFitConfig, global_fit
-from toolkit.softbody.mesh import sample_surface, surface_mesh
+from toolkit.softbody.mesh import surface_mesh
 from toolkit.softbody.track import TrackConfig, track_sequence
+
+from tests.softbody.conftest import model_walk
 
 N_FRAMES = 6
 N_POINTS = 300
@@ -24,15 +23,7 @@ EXACT_MM = 3.0
 
 @pytest.fixture(scope="module")
 def scene():
-    prop = BodyProportions.sample(1.72, rng=2)
-    model = SoftBodyModel(prop)
-    joints = generate_motion("walk", prop, N_FRAMES, 25.0, rng=0)
-    pose = inverse_kinematics(joints)
-    lengths = model.lengths_from_proportions(prop)
-    truth = [params_from_pose14(pose, t, lengths) for t in range(N_FRAMES)]
-    rng = np.random.default_rng(0)
-    clouds = [sample_surface(model, p, N_POINTS, rng) for p in truth]
-    return model, truth, joints, clouds, lengths
+    return model_walk(N_FRAMES, N_POINTS, seed=0)[:5]
 
 
 def _mpjpe_mm(a, b):

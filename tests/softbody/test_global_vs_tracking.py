@@ -10,12 +10,10 @@ fit worse than tracking (docs/benchmarks.md, issue 18).
 import numpy as np
 import pytest
 
-from toolkit.anthropometry.proportions import BodyProportions
-from toolkit.motion import generate_motion, inverse_kinematics
-from toolkit.softbody import SoftBodyModel, params_from_pose14
 from toolkit.softbody.global_fit import GlobalFitConfig, global_fit
-from toolkit.softbody.mesh import sample_surface
 from toolkit.softbody.track import TrackConfig, track_sequence
+
+from tests.softbody.conftest import model_walk
 
 N_FRAMES = 5
 N_POINTS = 900  # about a trinocular frame's patch centres
@@ -24,14 +22,7 @@ NOISE_M = 0.008
 
 @pytest.fixture(scope="module")
 def tracked():
-    prop = BodyProportions.sample(1.72, rng=2)
-    model = SoftBodyModel(prop)
-    joints = generate_motion("walk", prop, N_FRAMES, 25.0, rng=0)
-    pose = inverse_kinematics(joints)
-    lengths = model.lengths_from_proportions(prop)
-    truth = [params_from_pose14(pose, t, lengths) for t in range(N_FRAMES)]
-    rng = np.random.default_rng(1)
-    clouds = [sample_surface(model, p, N_POINTS, rng) for p in truth]
+    model, truth, joints, clouds, _, rng = model_walk(N_FRAMES, N_POINTS, seed=1)
     clouds = [c + rng.normal(0, NOISE_M, c.shape) for c in clouds]
     track = track_sequence(model, truth[0], clouds, config=TrackConfig())
     return model, joints, clouds, track

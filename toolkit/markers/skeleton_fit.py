@@ -213,15 +213,13 @@ def anatomical_joints(labels, positions: np.ndarray, *, height_m: float = 1.75,
             j = J14[f"{s.lower()}_{joint}"]
             width = measured.get(f"{s}{joint.capitalize()}Width", widths[joint] * height_m)
             m = _mid(_p(P, s + lat), _p(P, s + med, s + "MM" if joint == "ankle" else s + med))
-            across = _across(P, joint, s, other, pig)
-            if m is None and (s + pig) in P and across is not None:
-                m = P[s + pig] + across * (width / 2 + radius)
-            if m is None and (s + pig) in P:
-                m = np.full_like(P[s + pig], np.nan)
-            if m is not None and joint in chords and (s + pig) in P and (s + chords[joint][1]) in P:
-                above = out[:, J14[f"{s.lower()}_{chords[joint][0]}"]]
-                c = chord(above, P[s + chords[joint][1]], P[s + pig], width / 2 + radius)
-                if _mid(_p(P, s + lat), _p(P, s + med)) is None:  # epicondyles/malleoli, where given, come first
+            if m is None and (s + pig) in P:  # the Plug-in Gait lateral marker: chord, else moved medially
+                offset = width / 2 + radius
+                across = _across(P, joint, s, other, pig)
+                m = P[s + pig] + across * offset if across is not None else np.full_like(P[s + pig], np.nan)
+                if joint in chords and (s + chords[joint][1]) in P:
+                    above = out[:, J14[f"{s.lower()}_{chords[joint][0]}"]]
+                    c = chord(above, P[s + chords[joint][1]], P[s + pig], offset)
                     m = np.where(np.isfinite(c), c, m)
             if m is not None:
                 out[:, j] = m

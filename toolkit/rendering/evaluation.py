@@ -18,6 +18,7 @@ import numpy as np
 
 from toolkit.cameras import Camera
 from toolkit.errors import InputError
+from toolkit.io import atomic_write_bytes
 
 
 #: Background plates :class:`BackgroundPlates` keeps (~11 MB each at 1280x720).
@@ -65,7 +66,7 @@ class BackgroundPlates:
         key = (camera.K.tobytes(), camera.cam_from_world.tobytes())
         plate = self._kept.pop(key, None)
         if plate is None:
-            plate = self._stored(camera, wait=True) if self._store is not None else None
+            plate = self._stored(camera) if self._store is not None else None
             if plate is None:
                 plate = self._renderer.background_plate(camera, keep=False)
             plate.flags.writeable = False
@@ -94,8 +95,6 @@ class BackgroundPlates:
                 plate = self._renderer.background_plate(cam, keep=False)
                 buf = io.BytesIO()
                 np.save(buf, plate, allow_pickle=False)
-                from toolkit.io import atomic_write_bytes
-
                 atomic_write_bytes(path, buf.getvalue())
                 drawn += 1
             finally:
@@ -108,7 +107,7 @@ class BackgroundPlates:
             h.update(np.ascontiguousarray(a, np.float64).tobytes())
         return self._store / f"{h.hexdigest()}.npy"
 
-    def _stored(self, camera: Camera, wait: bool) -> np.ndarray | None:
+    def _stored(self, camera: Camera) -> np.ndarray | None:
         """The stored plate of ``camera``; while another process draws it (its claim is fresh), waited for."""
         path = self._path(camera)
         claim = path.with_suffix(".claim")
@@ -116,7 +115,7 @@ class BackgroundPlates:
         while True:
             if path.exists():
                 return np.load(path, allow_pickle=False)
-            if not (wait and claim.exists() and time.monotonic() < deadline and _fresh(claim)):
+            if not (claim.exists() and time.monotonic() < deadline and _fresh(claim)):
                 return None
             time.sleep(0.05)
 
