@@ -99,6 +99,7 @@ def log_scene(obs, rig: Rig, rng: np.random.Generator) -> dict:
                        name="joints")
             obs.report("points2d", camera=cam.name, points=[[10.0, 10.0], [np.nan, 3.0]], name="features")
             obs.report("lines2d", camera=cam.name, strips=[[[0, 0], [10, 10], [20, 0]]], name="contour")
+            obs.report("silhouette", camera=cam.name, points=[[12.0, 9.0], [14.0, 9.5]], residuals=[0.004, np.nan])
             obs.report("boxes2d", camera=cam.name, mins=[[5, 6]], sizes=[[20, 30]], labels=["subject"],
                        name="bbox")
         obs.report("joints3d", joints=J, skeleton=SKELETON_14, name="joints")

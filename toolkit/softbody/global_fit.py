@@ -37,6 +37,7 @@ from toolkit.softbody.model import LENGTH_NAMES, N_PARAMS, N_POSE, SoftBodyModel
 from toolkit.softbody.residuals import (LOSSES, CoverageSamples, coverage_residuals, coverage_samples, data_residuals, gate_points,
                                         coverage_margin,
                                         one_blas_thread)
+from toolkit.softbody.silhouette import SilhouetteBlock
 from toolkit.softbody.track import SoftBodyTrack, part_support, subsample
 
 __all__ = ["GlobalFitConfig", "SoftBodyFit", "global_fit"]
@@ -125,6 +126,9 @@ class GlobalFitConfig:
         Which shape blocks are free.
     max_nfev : int
         Evaluations of the whole problem.
+    silhouette_weight : float
+        Weight of the silhouette blocks (:mod:`toolkit.softbody.silhouette`) of the
+        frames with masks given; 0: not used.
     """
 
     loss: str = "soft_l1"
@@ -150,6 +154,7 @@ class GlobalFitConfig:
     fit_lengths: bool = True
     fit_widths: bool = True
     max_nfev: int = 40
+    silhouette_weight: float = 0.0
 
     def __post_init__(self):
         if self.loss not in LOSSES:
@@ -203,8 +208,11 @@ class SoftBodyFit:
 class _Problem:
     """Residuals and sparse Jacobian of the global fit."""
 
-    def __init__(self, model, track: SoftBodyTrack, clouds, config: GlobalFitConfig):
+    def __init__(self, model, track: SoftBodyTrack, clouds, config: GlobalFitConfig, silhouettes=None):
         self.model, self.config = model, config
+        self.sil = {} if silhouettes is None or config.silhouette_weight <= 0 else {
+            t: SilhouetteBlock(model, SoftBodyParams(track.params[t]), v) for t, v in enumerate(silhouettes)
+            if v and track.states[t] == "ok"}
         self.T = len(track.params)
         self.shape0 = track.params[0, N_POSE:].copy()
         self.free_shape = np.r_[np.full(13, config.fit_lengths), np.full(7, config.fit_widths)]
@@ -258,6 +266,10 @@ class _Problem:
                 w = np.sqrt(c.coverage_weight)
                 rr.append(w * rc)
                 JJ.append(None if Jc is None else w * Jc)
+            if t in self.sil:
+                rs, Js = self.sil[t].residuals(p, st, allc, with_jac)
+                rr.append(np.sqrt(c.silhouette_weight) * rs)
+                JJ.append(None if Js is None else np.sqrt(c.silhouette_weight) * Js)
             r = np.concatenate(rr)
             res.append(r)
             if with_jac:
@@ -336,7 +348,7 @@ class _Problem:
 
 
 def global_fit(model: SoftBodyModel, track: SoftBodyTrack, clouds, *, config: GlobalFitConfig = GlobalFitConfig(),
-               observer: Observer | None = None) -> SoftBodyFit:
+               observer: Observer | None = None, silhouettes=None) -> SoftBodyFit:
     """Refine all postures and the shared lengths and widths against all clouds at once.
 
     Parameters
@@ -347,6 +359,8 @@ def global_fit(model: SoftBodyModel, track: SoftBodyTrack, clouds, *, config: Gl
     clouds : sequence of array_like of shape (N_t, 3)
         The clouds tracked, metres, world.
     config : GlobalFitConfig
+    silhouettes : sequence of (list of SilhouetteView or None), optional
+        Per frame, the cameras' silhouettes (used with ``config.silhouette_weight > 0``).
     observer : Observer, optional
         Receives ``series`` reports ``softbody/global/lengths/<name>`` (each
         length over the iterations, metres), ``softbody/global/cost`` and a ``text`` summary.
@@ -363,7 +377,9 @@ def global_fit(model: SoftBodyModel, track: SoftBodyTrack, clouds, *, config: Gl
     obs = as_observer(observer)
     if len(clouds) != len(track.params):
         raise InputError("clouds", f"{len(track.params)} clouds (one per tracked frame)", f"{len(clouds)}")
-    prob = _Problem(model, track, clouds, config)
+    if silhouettes is not None and len(silhouettes) != len(track.params):
+        raise InputError("silhouettes", f"{len(track.params)} entries (one per tracked frame)", f"{len(silhouettes)}")
+    prob = _Problem(model, track, clouds, config, silhouettes)
     z0 = np.r_[track.params[:, :N_POSE].ravel(), prob.shape0] if len(track.params) else np.zeros(0)
     hist_len, hist_cost = [], []
     if not prob.frames:

@@ -28,7 +28,9 @@ bodies); only the subject's are fitted.  Every frame gets an explicit state:
 * ``"lost"``: fitted, but too few points lie near the surface (stray pieces
   within the gate counted as far): the start pose is kept.
 
-Silhouette observations (the source's optional term) are not implemented.
+Silhouette observations (the source's optional term): with ``silhouette_weight > 0``
+and the cameras' masks given per frame, the outline and mask blocks of
+:mod:`toolkit.softbody.silhouette` join the fit.
 """
 
 from __future__ import annotations
@@ -48,6 +50,7 @@ from toolkit.softbody.residuals import (LOSSES, CoverageSamples, coverage_residu
                                        coverage_margin,
                                        one_blas_thread)
 from toolkit.softbody.separate import link_distance, separate_subject
+from toolkit.softbody.silhouette import SilhouetteBlock
 
 __all__ = ["TrackConfig", "SoftBodyTrack", "FrameFit", "track_sequence", "track_frame", "FRAME_STATES", "subsample"]
 
@@ -137,6 +140,9 @@ class TrackConfig:
         Fraction of the last frame-to-frame change added to the start pose.
     max_nfev : int
         Evaluations per frame.
+    silhouette_weight : float
+        Weight of the silhouette blocks (:mod:`toolkit.softbody.silhouette`) when
+        masks are given; 0: not used.
     """
 
     loss: str = "soft_l1"
@@ -165,6 +171,7 @@ class TrackConfig:
     part_distance: float = 0.06
     predict: float = 0.5
     max_nfev: int = 40
+    silhouette_weight: float = 0.0
 
     def __post_init__(self):
         if self.loss not in LOSSES:
@@ -172,6 +179,8 @@ class TrackConfig:
         for name in ("f_scale", "coverage_scale", "gate", "near_margin", "link", "inlier_distance"):
             if not getattr(self, name) > 0:
                 raise InputError(f"TrackConfig.{name}", "a positive distance in metres", repr(getattr(self, name)))
+        if not self.silhouette_weight >= 0:
+            raise InputError("TrackConfig.silhouette_weight", "a weight >= 0", repr(self.silhouette_weight))
         if self.near_margin >= self.gate:
             raise InputError("TrackConfig.near_margin", f"a distance below gate ({self.gate} m)",
                              repr(self.near_margin))
@@ -260,7 +269,7 @@ def _pose_prior_weights(model, st, support: np.ndarray, config: TrackConfig) -> 
 
 
 def _fit_pose(model, start: SoftBodyParams, pts: np.ndarray, config: TrackConfig,
-              coverage_weight: float, anchor: SoftBodyParams | None = None) -> SoftBodyParams:
+              coverage_weight: float, anchor: SoftBodyParams | None = None, silhouettes=None) -> SoftBodyParams:
     cols = np.arange(N_POSE)
     tree = cKDTree(pts)
     margin = coverage_margin(tree, pts, config.coverage_margin)
@@ -278,6 +287,7 @@ def _fit_pose(model, start: SoftBodyParams, pts: np.ndarray, config: TrackConfig
         unseen = wp > config.prior_weight
         xa[unseen] = np.clip(anchor.pose, lo + 1e-9, hi - 1e-9)[unseen]
     wc = np.sqrt(coverage_weight)
+    sil = SilhouetteBlock(model, start, silhouettes) if silhouettes and config.silhouette_weight > 0 else None
     cache = {}
 
     def evaluate(x):
@@ -292,6 +302,9 @@ def _fit_pose(model, start: SoftBodyParams, pts: np.ndarray, config: TrackConfig
                 rc, Jc = coverage_residuals(model, st, samples, tree, pts, cols, "cauchy", config.coverage_scale,
                                             margin)
                 r, J = r + [wc * rc], J + [wc * Jc]
+            if sil is not None:
+                rs, Js = sil.residuals(p, st, cols)
+                r, J = r + [np.sqrt(config.silhouette_weight) * rs], J + [np.sqrt(config.silhouette_weight) * Js]
             cache[key] = (np.concatenate(r), np.vstack(J))
         return cache[key]
 
@@ -337,7 +350,7 @@ class FrameFit(NamedTuple):
 
 def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: TrackConfig = TrackConfig(),
                 anchor: SoftBodyParams | None = None, others: np.ndarray | None = None,
-                motion: np.ndarray | None = None) -> FrameFit:
+                motion: np.ndarray | None = None, silhouettes=None) -> FrameFit:
     """Fit the pose of one frame.
 
     Parameters
@@ -357,6 +370,8 @@ def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: Trac
     motion : ndarray of shape (P,), optional
         How far each metaball moved over the last frame, metres; None when unknown (the first
         frame): the separation then allows ``init_reach`` everywhere.
+    silhouettes : list of SilhouetteView, optional
+        The frame's camera silhouettes (used with ``config.silhouette_weight > 0``).
 
     Returns
     -------
@@ -376,7 +391,8 @@ def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: Trac
         far = sep.other.any() and bool(np.any(sep.keep & (sep.distance >= sep.near + config.motion_floor)))
         if sep.near_points.sum() < config.min_points or (sep.undecided <= config.crowded_undecided and not far):
             break
-        base = _fit_pose(model, base, subsample(cloud[sep.near_points], config.max_points), config, 0.0, anchor)
+        base = _fit_pose(model, base, subsample(cloud[sep.near_points], config.max_points), config, 0.0, anchor,
+                         silhouettes)
         if sep.other.any():   # fitted to this frame's points: a still body's reach, other bodies being near
             reach = config.motion_floor
         sep = separate_subject(model, base, cloud, near=config.near_margin, gate=config.gate, link=link,
@@ -391,10 +407,10 @@ def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: Trac
     pts = subsample(cloud[keep], config.max_points)
     if len(pts) < config.min_points:
         return FrameFit(start, "empty", len(pts), nan, nan, keep, sep.other, sep.contact, sep.undecided)
-    fitted = _fit_pose(model, base, pts, config, 0.0, anchor)
+    fitted = _fit_pose(model, base, pts, config, 0.0, anchor, silhouettes)
     if config.coverage_weight > 0:
         fitted = _fit_pose(model, fitted, pts, config, config.coverage_weight, anchor if anchor is not None
-                           else start)
+                           else start, silhouettes)
     d = np.abs(distance(model, fitted, pts))
     n_keep = int(keep.sum())
     inl, med = float(np.mean(d < config.inlier_distance)) * n_keep / (n_keep + doubt), float(np.median(d))
@@ -406,7 +422,7 @@ def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: Trac
 
 
 def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, config: TrackConfig = TrackConfig(),
-                   observer: Observer | None = None) -> SoftBodyTrack:
+                   observer: Observer | None = None, silhouettes=None) -> SoftBodyTrack:
     """Track the pose through a sequence of clouds, each frame started from the previous one.
 
     Parameters
@@ -417,6 +433,8 @@ def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, con
     clouds : sequence of array_like of shape (N_t, 3)
         Metres, world, z up; empty arrays allowed.
     config : TrackConfig
+    silhouettes : sequence of (list of SilhouetteView or None), optional
+        Per frame, the cameras' silhouettes (:func:`toolkit.softbody.silhouette.silhouette_views`).
     observer : Observer, optional
         Receives per frame ``joints3d`` (``softbody/track/joints``) and
         ``scalar`` reports (``softbody/track/inlier_fraction``, ``.../median_distance_m``,
@@ -429,6 +447,8 @@ def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, con
     obs = as_observer(observer)
     if not isinstance(params0, SoftBodyParams):
         raise InputError("params0", "a SoftBodyParams", type(params0).__name__)
+    if silhouettes is not None and len(silhouettes) != len(clouds):
+        raise InputError("silhouettes", f"one entry per cloud ({len(clouds)})", f"{len(silhouettes)}")
     out = np.empty((len(clouds), params0.vector.size))
     fits = []
     prev, prev2, others, run = params0, None, None, 0   # run: frames fitted in a row
@@ -438,7 +458,8 @@ def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, con
             start = prev.replace(pose=prev.pose + config.predict * (prev.pose - prev2.pose))
         # the metaballs' motion over the last frame, known after two fitted frames (not from the start pose)
         motion = None if run < 2 else np.linalg.norm(model.state(prev).centres - model.state(prev2).centres, axis=1)
-        f = track_frame(model, start, cloud, config, anchor=prev, others=others, motion=motion)
+        f = track_frame(model, start, cloud, config, anchor=prev, others=others, motion=motion,
+                        silhouettes=None if silhouettes is None else silhouettes[t])
         others = check_points(cloud, "cloud")[f.other]
         fitted = f.state in ("ok", "crowded")
         p = f.params if fitted else prev

@@ -169,7 +169,7 @@ class RerunObserver:
             "rays": self._rays, "lines2d": self._lines2d, "lines3d": self._lines3d,
             "scalar": self._scalar, "series": self._series, "text": self._text, "mesh": self._mesh, "boxes2d": self._boxes2d,
             "quads": self._quads, "depth_energy": self._depth_energy, "depth_move": self._depth_move,
-            "depth_radial": self._depth_radial,
+            "depth_radial": self._depth_radial, "silhouette": self._silhouette,
         }
         self._log(WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         if camera_names is not None:
@@ -848,6 +848,17 @@ class RerunObserver:
         self._log(entity_path(METRICS, kind, "distances"), rr.BarChart(distances), static=static)
         self._log(entity_path(LOGS, kind), rr.TextLog("peaks at " + ", ".join(f"{angles[i]:.0f} deg" for i in peaks)
                                                        if peaks.size else "no peaks", level="DEBUG"), static=static)
+
+    def _silhouette(self, kind, data, static):
+        """Outline points over the camera's image, coloured by |residual|: blue 0 to red 3 cm and more (grey: none)."""
+        pts = _array(kind, data, "points", (None, 2))
+        res = _array(kind, data, "residuals", (len(pts),))
+        a = np.clip(np.abs(np.nan_to_num(res, nan=0.0)) / 0.03, 0, 1)[:, None]
+        colors = np.round(255 * ((1 - a) * [0.1, 0.3, 1.0] + a * [1.0, 0.15, 0.1])).astype(np.uint8)
+        colors[~np.isfinite(res)] = 128
+        ok = np.all(np.isfinite(pts), axis=1)
+        self._log(self._image_path(kind, data, "silhouette"),
+                  rr.Points2D(pts[ok], colors=colors[ok], radii=self.config.keypoint_radius_px), static=static)
 
     def _text(self, kind, data, static):
         text = _field(kind, data, "text")
