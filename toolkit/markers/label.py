@@ -28,12 +28,12 @@ import numpy as np
 
 from toolkit.anthropometry.proportions import BodyProportions
 from toolkit.errors import InputError
-from toolkit.markers.identify import (IdentifyConfig, Identification, fit_template, identify_from_labelling,
+from toolkit.markers.identify import (IdentifyConfig, Identification, fit_template, identify_from_labelling, kabsch,
                                       read_labelling)
 from toolkit.markers.marker_sets import MarkerSet
 from toolkit.markers.reconstruct import (FrameMarkers, ReconstructionConfig, RigGeometry, normalise_blobs,
                                          reconstruct_frame)
-from toolkit.markers.track import TrackConfig, Tracker, TrackState, repair_swaps
+from toolkit.markers.track import TrackConfig, Tracker, TrackState, repair_swaps, rigid_mates
 from toolkit.markers.trajectories import STATE_NAMES, TRINOCULAR, MarkerTrajectories
 from toolkit.observe import as_observer
 
@@ -142,6 +142,43 @@ def _identify(points, marker_set, config, labelling, frame) -> Identification:
     return Identification(match, fitted, ident.residual_m, ident.scale, ident.heading_deg, ident.rejected)
 
 
+def local_hints(fitted: np.ndarray, measured: np.ndarray, segments) -> np.ndarray:
+    """Where the markers not identified should be: the fitted template's marker moved with its rigid mates.
+
+    The template is fitted to the whole body at once (one scale and rigid
+    motion), so a limb posed otherwise than the template's (an arm swinging
+    in a walk) puts its unseen markers far off: a hand's by 14 cm in the walk
+    of seed 101, beyond any tracking gate, so it was never found.  Each marker
+    whose rigid mates (:func:`~toolkit.markers.track.rigid_mates`: its
+    segment's other markers, a one-marker hand's forearm) are measured, at
+    least three, is placed by the rigid motion (Kabsch) taking their fitted
+    template positions to their measured ones.
+
+    Parameters
+    ----------
+    fitted : ndarray of shape (M, 3)
+        The fitted template's markers, metres.
+    measured : ndarray of shape (M, 3)
+        The identification frame's labelled markers, NaN where not identified.
+    segments : sequence of str (M,)
+
+    Returns
+    -------
+    ndarray of shape (M, 3)
+        ``fitted`` with each marker placed from its measured rigid mates where it has three.
+    """
+    out = np.asarray(fitted, float).copy()
+    seen = np.isfinite(measured).all(axis=1) & np.isfinite(out).all(axis=1)
+    for i, mates in enumerate(rigid_mates(segments)):
+        mates = mates[seen[mates]]
+        if seen[i] or mates.size < 3 or not np.isfinite(out[i]).all():
+            continue
+        a, b = out[mates], measured[mates]
+        R = kabsch(a, b)
+        out[i] = (out[i] - a.mean(axis=0)) @ R.T + b.mean(axis=0)
+    return out
+
+
 def label_capture(capture, marker_set: MarkerSet, *, config: LabelConfig = LabelConfig(), labelling=None,
                   observer=None) -> MarkerTrajectories:
     """Labelled 3D marker trajectories of a capture.
@@ -209,7 +246,7 @@ def label_capture(capture, marker_set: MarkerSet, *, config: LabelConfig = Label
     track.point[f0] = ident.point_of_marker
     track.positions[f0, found] = recon[f0].points[ident.point_of_marker[found]]
     track.state[f0, found] = recon[f0].state[ident.point_of_marker[found]]
-    track.hint[~found] = ident.fitted[~found]
+    track.hint[~found] = local_hints(ident.fitted, track.positions[f0], marker_set.segments)[~found]
     track.hint_frame[~found] = f0
     hint, hint_frame = track.hint.copy(), track.hint_frame.copy()
     tracker = Tracker(geom, lambda f: blobs[f], lambda f: recon[f], track, config.track)

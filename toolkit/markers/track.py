@@ -121,6 +121,14 @@ class TrackConfig:
     cross_back_frames : int
         The swap is carried back over at most this many earlier frames, as
         long as it fits there better too (back to where the two passed each other).
+    hint_reach_m : float
+        A marker never measured yet (identification missed it; its
+        prediction is the fitted template's, carried by its segment) takes a
+        trinocular reconstruction no label took within this of the
+        prediction, metres, when the window continues it into the next two
+        frames and no other label's prediction is within ``gate_m`` of it
+        (:meth:`Tracker.claim_from_hints`): the template's generic limb
+        puts a hand's marker up to 15 cm off.
     """
 
     window: int = 4
@@ -142,6 +150,7 @@ class TrackConfig:
     cross_fit_m: float = 0.012
     cross_ratio: float = 0.4
     cross_back_frames: int = 50
+    hint_reach_m: float = 0.25
 
     def __post_init__(self):
         if self.window not in (2, 3, 4):
@@ -285,10 +294,22 @@ class Tracker:
             vel[:] = 0.0
         pred = prev + vel
         gate = np.where(have2 | (c.window == 2), c.gate_m, c.gate_m + c.gap_gate_growth_m)
+        if c.window > 2 and k == 1:  # the first step: no marker has a velocity yet, a limb may move fast
+            gate[:] = c.max_gate_m
+        elif c.window > 2:  # found again one frame ago: its segment's velocity
+            for i in np.flatnonzero(have1 & ~have2):
+                moving = self.same[i][have2[self.same[i]]]
+                if moving.size:
+                    vel[i] = np.median(vel[moving], axis=0)
+                    pred[i] = prev[i] + vel[i]
+                    gate[i] = c.gate_m
         gate = np.minimum(gate + c.speed_gate * np.linalg.norm(vel, axis=1), c.max_gate_m)
+        self.hinted = np.zeros(pred.shape[0], bool)  # predicted from the template's hint (never measured)
         for i in np.flatnonzero(~have1):  # lost: the last position (or the template hint), a growing gate
             last, gap = self._last_known(order, k, i)
             if last is not None:
+                r = order[k - gap]
+                self.hinted[i] = r == t.hint_frame[i] and not np.isfinite(t.positions[r, i]).all()
                 pred[i] = last
                 gate[i] = min(c.gate_m + c.gap_gate_growth_m * gap, c.max_gate_m)
                 carried = self._carried(order, k, i, gap, last)
@@ -384,6 +405,56 @@ class Tracker:
             if not self.fits_segment(i, rec.points[out[i]], rec.points, out):
                 out[i] = -1
         return out
+
+    def claim_from_hints(self, order, k, pred, point) -> np.ndarray:
+        """Markers never measured yet take free trinocular reconstructions near their hint; ``point`` (M,) updated.
+
+        A marker the identification missed is predicted from the fitted
+        template, carried by its segment; the generic template can be far
+        from the performer's limb (a walk's swinging hand 14 cm off), beyond
+        any tracking gate.  Such a marker takes a trinocular reconstruction
+        that no label took, within ``hint_reach_m`` of its prediction (one
+        assignment over all of them, nearest first), when the window
+        continues the reconstruction into the next two frames (a ghost is
+        not seen again) and no other label's prediction lies within
+        ``gate_m`` of it (it may be a lost marker's).  Its reference
+        distances to its rigid mates are then taken from this frame.
+        """
+        c, t = self.config, self.t
+        want = np.flatnonzero(self.hinted & (point < 0) & np.isfinite(pred).all(axis=1))
+        if want.size == 0:
+            return point
+        rec = self.recon(order[k])
+        free = np.flatnonzero((rec.state == TRINOCULAR) & ~np.isin(np.arange(len(rec)), point))
+        if free.size == 0:
+            return point
+        cand = rec.points[free]
+        others = np.flatnonzero(np.isfinite(pred).all(axis=1) & ~self.hinted)
+        clear = np.linalg.norm(cand[:, None] - pred[others][None], axis=2).min(axis=1, initial=np.inf) > c.gate_m
+        d = np.linalg.norm(pred[want][:, None] - cand[None], axis=2)
+        inside = (d < c.hint_reach_m) & clear[None]
+        pi, pk = np.nonzero(inside)
+        if pi.size == 0:
+            return point
+        cont = self._window_cost(order, k, cand, None, want[pi], pk)
+        inside[pi, pk] = cont < c.continuation_cap_m  # seen again near where its motion leads
+        rows, cols = linear_sum_assignment(np.where(inside, d, _FAR))
+        point = point.copy()
+        for r, col in zip(rows, cols):
+            if inside[r, col]:
+                i = want[r]
+                point[i] = free[col]
+                self._learn_references(i, order[k], cand[col])
+        return point
+
+    def _learn_references(self, i: int, f: int, X: np.ndarray) -> None:
+        """Marker ``i``'s reference distances to its rigid and segment mates measured in frame ``f`` (it at ``X``)."""
+        t = self.t
+        meas = t.measured(f) & np.isfinite(t.positions[f]).all(axis=1)
+        for table, mask in ((self.rigid_ref, self.rigid[i]), (self.ref_dist, np.isin(np.arange(len(meas)),
+                                                                                      self.same[i]))):
+            m = np.flatnonzero(mask & meas & ~np.isfinite(table[i]))
+            table[i, m] = table[m, i] = np.linalg.norm(t.positions[f, m] - X, axis=1)
 
     def fits_segment(self, i: int, X: np.ndarray, points: np.ndarray, point_of: np.ndarray) -> bool:
         """Whether ``X`` keeps marker ``i``'s distances to its labelled segment mates (reference: ``ref_dist``)."""
@@ -540,6 +611,60 @@ class Tracker:
         dev = np.where(ok, np.abs(np.linalg.norm(P[mi] - P[:, None], axis=2) - ref), np.inf)
         return _finite_median(dev[:, :, None])[:, 0], ok.sum(axis=1)
 
+    def off_mates(self, f: int, i: int, X: np.ndarray) -> tuple[float, int]:
+        """How far ``X`` would put label ``i`` off its rigid mates measured in frame ``f`` (median deviation from
+        their reference distances, metres, NaN if none) and the number of those mates."""
+        t = self.t
+        mates = self._mate_idx[i][self._mate_ok[i]]
+        mates = mates[t.measured(f)[mates] & np.isfinite(self.rigid_ref[i, mates])]
+        if mates.size == 0:
+            return float("nan"), 0
+        dev = np.abs(np.linalg.norm(t.positions[f, mates] - X, axis=1) - self.rigid_ref[i, mates])
+        return float(np.median(dev)), int(mates.size)
+
+    def cross_claim(self, order: list[int], k: int):
+        """A measured marker whose label is off its rigid mates and that fits an unmeasured label of another
+        segment, as ``(i, j)`` (the marker labelled ``i`` belongs to ``j``), or None.
+
+        Label ``i`` must be off by more than ``cross_min_m`` with at least two
+        measured mates (one mate's distance is only a sphere); label ``j``
+        (bridged or missing, of a segment not rigid with ``i``'s) must fit
+        at the marker's place within ``cross_fit_m`` and below
+        ``cross_ratio`` of ``i``'s deviation, and its bridged (or last
+        known) place must lie within ``max_gate_m`` of the marker.  This is
+        a swap whose other half was never measured: the hand's label took
+        the thigh marker while the finger itself went unseen, and the thigh's
+        label was bridged beside it.
+        """
+        c, t, f = self.config, self.t, order[k]
+        own, n_mates = self.own_deviation(f)
+        with np.errstate(invalid="ignore"):
+            off = np.flatnonzero((own > c.cross_min_m) & (n_mates >= 2))
+        free = np.flatnonzero(~t.measured(f))
+        if off.size == 0 or free.size == 0:
+            return None
+        E = self.deviations(f, at=off)  # (M, len(off)): each label at each off marker's place
+        best = None
+        for x, i in enumerate(off):
+            with np.errstate(invalid="ignore"):
+                fit = free[~self.rigid[i, free] & (E[free, x] < c.cross_fit_m)
+                           & (E[free, x] < c.cross_ratio * own[i])]
+            for j in fit[np.argsort(E[fit, x])]:
+                near = t.positions[f, j] if np.isfinite(t.positions[f, j]).all() else \
+                    self._last_known(order, k, j)[0]
+                if near is not None and np.linalg.norm(near - t.positions[f, i]) < c.max_gate_m:
+                    if best is None or E[j, x] < best[0]:
+                        best = (E[j, x], int(i), int(j))
+                    break
+        return None if best is None else best[1:]
+
+    def _give(self, f: int, i: int, j: int) -> None:
+        """The marker labelled ``i`` in frame ``f`` goes to label ``j``; ``i`` becomes missing."""
+        t = self.t
+        for arr in (t.positions, t.state, t.point):
+            arr[f, j] = arr[f, i]
+        t.positions[f, i], t.state[f, i], t.point[f, i] = np.nan, MISSING, -1
+
     def _swap(self, f: int, i: int, j: int) -> None:
         t = self.t
         for arr in (t.positions, t.state, t.point):
@@ -575,6 +700,32 @@ class Tracker:
                 if not E[i, j] + E[j, i] < E[i, i] + E[j, j]:
                     break
                 self._swap(g, i, j)
+        for _ in range(3):  # swaps whose other half was never measured
+            claim = self.cross_claim(order, k)
+            if claim is None:
+                break
+            i, j = claim
+            self._give(f, i, j)
+            n += 1
+            carried = []  # frames where i was bridged from the measurement before them
+            for back in range(1, min(k, c.cross_back_frames) + 1):
+                g = order[k - back]
+                if t.state[g, i] == BRIDGED:
+                    carried.append(g)
+                    continue
+                meas = t.measured(g)
+                if not meas[i]:
+                    continue
+                if meas[j] or not self.off_mates(g, j, t.positions[g, i])[0] < \
+                        self.off_mates(g, i, t.positions[g, i])[0]:
+                    break
+                self._give(g, i, j)
+                for h in carried:  # carried from a place that was not its own
+                    t.positions[h, i], t.state[h, i], t.point[h, i] = np.nan, MISSING, -1
+                carried = []
+            out = self.bridge(order, k, i)  # from its last measurement before the claim
+            if out is not None and out[1]:
+                t.positions[f, i], t.state[f, i] = out[0], BRIDGED
         return n
 
     # ------------------------------------------------------------ one frame
@@ -583,6 +734,7 @@ class Tracker:
         t, f = self.t, order[k]
         pred, gate, vel = self.predict(order, k)
         point = self.assign_candidates(order, k, pred, gate, vel)
+        point = self.claim_from_hints(order, k, pred, point)
         rec = self.recon(f)
         ok = point >= 0
         t.point[f] = point
@@ -600,6 +752,8 @@ class Tracker:
             if out is None:
                 continue
             X, seen_before = out
+            if seen_before and self.off_mates(f, i, X)[0] > self.config.cross_min_m:
+                continue  # carried from a place that was not its own: nowhere its mates allow
             if seen_before:
                 t.positions[f, i] = X
                 t.state[f, i] = BRIDGED

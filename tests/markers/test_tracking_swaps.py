@@ -1,0 +1,98 @@
+"""Tracking: swaps whose other half is unmeasured, one-mate swaps, fast feet (issue 17, rom seed 91, walks at 50 fps)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tests.markers.test_labelling import blobs_of, ring_rig
+from toolkit.markers.reconstruct import RigGeometry, reconstruct_frame
+from toolkit.markers.track import TrackConfig, Tracker, TrackState
+from toolkit.markers.trajectories import BRIDGED, MISSING, TRINOCULAR
+
+#: Reconstruction error without noise, metres.
+EXACT_M = 1e-6
+
+
+def hand_leaving_the_thigh(n_frames=36, leave=12, gap_m=0.015, step_m=0.01):
+    """The right thigh (``RTHI``, ``RKNE``) at rest with the hand (``RFIN`` and the forearm's ``RFRM``,
+    ``RWRA``, ``RWRB``) resting ``gap_m`` from ``RTHI``; from frame ``leave`` the hand moves away
+    ``step_m`` per frame.  (T, 6, 3) metres and the segments."""
+    f = np.arange(n_frames)
+    thigh = np.array([[0.0, 0.0, 0.8], [0.01, 0.02, 0.42]])
+    hand = np.array([[0.0, gap_m, 0.8], [0.05, 0.06, 1.1], [0.02, 0.07, 0.9], [0.07, 0.09, 0.92]])
+    away = step_m * np.maximum(f - leave, 0)
+    X = np.concatenate([np.broadcast_to(thigh, (n_frames, 2, 3)),
+                        hand[None] + away[:, None, None] * np.array([0.0, 1.0, 0.3])], axis=1)
+    return X, ("r_thigh", "r_thigh", "r_hand", "r_forearm", "r_forearm", "r_forearm")
+
+
+def tracker_with_fin_on_the_thigh(X, segments, *, hidden=lambda f: (2,) if f >= 6 else (), wrong_from=6, wrong_to=10,
+                                  config=TrackConfig()):
+    """A tracker whose frames ``0..wrong_to`` are labelled as the tracker of rom seed 91 left them: right up to
+    ``wrong_from``, then ``RFIN``'s label on ``RTHI``'s marker (the finger unseen: ``hidden(f)``, the markers no
+    camera sees in frame ``f``) and ``RTHI``'s label bridged 12 mm off its marker.  Returns the tracker, its
+    state and the frame order."""
+    rig = ring_rig()
+    rng = np.random.default_rng(3)
+    geom = RigGeometry.of(rig)
+    blobs = [blobs_of(rig, X[f], rng, hidden={(c, i) for c in range(len(rig)) for i in hidden(f)})
+             for f in range(len(X))]
+    recon = [reconstruct_frame(geom, b) for b in blobs]
+    st = TrackState.empty(len(X), segments)
+
+    def label(f, where):  # label i -> the reconstruction nearest to X[f, where[i]]
+        d = np.linalg.norm(recon[f].points[:, None] - X[f][where][None], axis=2)
+        st.point[f] = np.argmin(d, axis=0)
+        st.positions[f] = recon[f].points[st.point[f]]
+        st.state[f] = TRINOCULAR
+
+    label(0, [0, 1, 2, 3, 4, 5])
+    tracker = Tracker(geom, lambda f: blobs[f], lambda f: recon[f], st, config)  # references from frame 0
+    for f in range(1, wrong_to + 1):
+        label(f, [0, 1, 2, 3, 4, 5] if f < wrong_from else [0, 1, 0, 3, 4, 5])
+        if f >= wrong_from:
+            st.positions[f, 0], st.state[f, 0], st.point[f, 0] = X[f, 0] + [0.012, 0.0, 0.0], BRIDGED, -1
+    order = list(range(len(X)))
+    return tracker, st, order
+
+
+def test_a_measured_label_on_another_segments_marker_gives_it_back_when_the_hand_leaves():
+    """Rom seed 91: the finger unseen beside the thigh, its label on the thigh marker, the thigh's bridged."""
+    X, segments = hand_leaving_the_thigh()
+    results = {}
+    for name, cfg in (("off", TrackConfig(cross_min_m=np.inf)), ("on", TrackConfig())):
+        tracker, st, order = tracker_with_fin_on_the_thigh(X, segments, config=cfg)
+        for k in range(11, len(order)):
+            tracker.step(order, k)
+        results[name] = st
+    off, on = results["off"], results["on"]
+    # without the check the finger's label follows the thigh marker away from its hand to the end
+    assert np.linalg.norm(off.positions[11:, 2] - X[11:, 0], axis=1).max() < EXACT_M
+    # with it: the thigh's label gets its marker back, down to the first frame the finger's label took it
+    assert np.all(on.state[6:, 0] == TRINOCULAR)
+    assert np.linalg.norm(on.positions[6:, 0] - X[6:, 0], axis=1).max() < EXACT_M
+    # the finger's label never on the thigh marker again: missing, or bridged with its forearm near its marker
+    fin = on.state[6:, 2]
+    assert set(np.unique(fin)) <= {MISSING, BRIDGED}
+    bridged = np.flatnonzero(on.state[:, 2] == BRIDGED)
+    assert bridged.size > 10  # carried by the forearm from its last measurement (frame 5)
+    assert np.linalg.norm(on.positions[bridged, 2] - X[bridged, 2], axis=1).max() < 1e-3
+    assert all(np.unique(row[row >= 0]).size == (row >= 0).sum() for row in on.point)
+
+
+def test_a_bridge_carried_from_a_place_its_mates_refuse_is_not_made():
+    """A label last measured on another segment's marker (the hand 5 cm away by then) is not carried on from
+    there: bridged, it would sit 5 cm off its forearm, where no finger can be."""
+    X, segments = hand_leaving_the_thigh(leave=6)
+    hidden = lambda f: (2,) if f < 12 and f >= 6 else (0, 2) if f >= 12 else ()  # noqa: E731
+    results = {}
+    for name, cfg in (("off", TrackConfig(cross_min_m=np.inf)), ("on", TrackConfig())):
+        tracker, st, order = tracker_with_fin_on_the_thigh(X, segments, hidden=hidden, wrong_from=11, wrong_to=11,
+                                                           config=cfg)
+        assert tracker.off_mates(11, 2, st.positions[11, 2])[0] > 0.03  # frame 11: the label 5 cm off its hand
+        tracker.step(order, 12)
+        results[name] = st
+    off, on = results["off"], results["on"]
+    assert off.state[12, 2] == BRIDGED and np.linalg.norm(off.positions[12, 2] - X[12, 2]) > 0.03
+    assert on.state[12, 2] == MISSING
+    assert np.array_equal(on.state[12, 3:], off.state[12, 3:])  # the forearm itself tracked the same
