@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tests.markers.test_labelling import blobs_of, ring_rig
+from tests.markers.test_labelling import blobs_of, ring_rig, track
 from toolkit.markers.reconstruct import RigGeometry, reconstruct_frame
 from toolkit.markers.track import TrackConfig, Tracker, TrackState
 from toolkit.markers.trajectories import BRIDGED, MISSING, TRINOCULAR
@@ -96,3 +96,52 @@ def test_a_bridge_carried_from_a_place_its_mates_refuse_is_not_made():
     assert off.state[12, 2] == BRIDGED and np.linalg.norm(off.positions[12, 2] - X[12, 2]) > 0.03
     assert on.state[12, 2] == MISSING
     assert np.array_equal(on.state[12, 3:], off.state[12, 3:])  # the forearm itself tracked the same
+
+
+def swinging_leg(n_frames=20, step_m=0.08):
+    """A shank and a foot cluster (4 markers each) swinging forwards ``step_m`` per frame from frame 0 (a
+    walk at 50 fps), beside a standing leg's 4 markers 15 cm away.  (T, 12, 3) metres and the segments."""
+    f = np.arange(n_frames)
+    cluster = np.array([[0.0, 0.0, 0.0], [0.05, 0.01, 0.0], [0.0, 0.05, 0.03], [0.04, 0.06, -0.03]])
+    shank, foot = cluster + [0.0, 0.15, 0.4], cluster[[1, 0, 3, 2]] + [0.05, 0.15, 0.05]
+    standing = cluster + [0.0, -0.0, 0.3]
+    x = (step_m * f)[:, None, None] * np.array([1.0, 0.0, 0.0])
+    X = np.concatenate([np.broadcast_to(standing, (n_frames, 4, 3)), shank[None] + x, foot[None] + 1.2 * x], axis=1)
+    return X, ("r_shank",) * 4 + ("l_shank",) * 4 + ("l_foot",) * 4
+
+
+def test_a_leg_swinging_8_cm_per_frame_is_tracked_from_the_first_frame():
+    """A walk at 50 fps: no marker has a velocity in the first step; gated as a tracked one it is lost."""
+    X, segments = swinging_leg()
+    rig = ring_rig()
+    narrow = track(rig, X, config=TrackConfig(first_gate_m=0.06), segments=segments)
+    wide = track(rig, X, segments=segments)
+    assert np.mean(np.linalg.norm(narrow.positions[:, 4:] - X[:, 4:], axis=2) < 1e-3) < 0.5  # lost or swapped
+    assert np.linalg.norm(wide.positions - X, axis=2).max() < EXACT_M
+    assert np.all(wide.state == TRINOCULAR)
+
+
+def test_a_marker_identification_missed_is_found_near_its_hint():
+    """A hand's marker unseen in the labelled frame, the template's hint 12 cm off (walk plug-in-gait 101)."""
+    X, segments = hand_leaving_the_thigh(n_frames=20, leave=0)
+    X, segments = X[:, 2:], segments[2:]  # the hand alone: RFIN, RFRM, RWRA, RWRB
+    rig = ring_rig()
+    rng = np.random.default_rng(4)
+    geom = RigGeometry.of(rig)
+    blobs = [blobs_of(rig, X[f], rng, ghosts=3, hidden={(c, 0) for c in range(len(rig))} if f == 0 else set())
+             for f in range(len(X))]
+    recon = [reconstruct_frame(geom, b) for b in blobs]
+    results = {}
+    for name, cfg in (("off", TrackConfig(hint_reach_m=0.0)), ("on", TrackConfig())):
+        st = TrackState.empty(len(X), segments)
+        d = np.linalg.norm(recon[0].points[:, None] - X[0, 1:][None], axis=2)
+        st.point[0, 1:] = np.argmin(d, axis=0)
+        st.positions[0, 1:] = recon[0].points[st.point[0, 1:]]
+        st.state[0, 1:] = TRINOCULAR
+        st.hint[0], st.hint_frame[0] = X[0, 0] + [0.08, -0.08, 0.04], 0
+        Tracker(geom, lambda f: blobs[f], lambda f: recon[f], st, cfg).run(list(range(len(X))))
+        results[name] = st
+    assert np.all(results["off"].state[:, 0] == MISSING)  # the hint is 12 cm off: beyond every gate
+    on = results["on"]
+    assert np.all(on.state[1:, 0] == TRINOCULAR)
+    assert np.linalg.norm(on.positions[1:] - X[1:], axis=2).max() < EXACT_M

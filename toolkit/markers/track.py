@@ -129,6 +129,11 @@ class TrackConfig:
         frames and no other label's prediction is within ``gate_m`` of it
         (:meth:`Tracker.claim_from_hints`): the template's generic limb
         puts a hand's marker up to 15 cm off.
+    first_gate_m : float
+        The gate of the first step after the labelled frame, where no marker
+        has a velocity yet, metres (the window's continuation tells the
+        candidates apart): a swinging foot filmed at 50 fps moves 8 cm per
+        frame, beyond ``gate_m + gap_gate_growth_m``.
     """
 
     window: int = 4
@@ -151,6 +156,7 @@ class TrackConfig:
     cross_ratio: float = 0.4
     cross_back_frames: int = 50
     hint_reach_m: float = 0.25
+    first_gate_m: float = 0.15
 
     def __post_init__(self):
         if self.window not in (2, 3, 4):
@@ -295,7 +301,7 @@ class Tracker:
         pred = prev + vel
         gate = np.where(have2 | (c.window == 2), c.gate_m, c.gate_m + c.gap_gate_growth_m)
         if c.window > 2 and k == 1:  # the first step: no marker has a velocity yet, a limb may move fast
-            gate[:] = c.max_gate_m
+            gate[:] = c.first_gate_m
         elif c.window > 2:  # found again one frame ago: its segment's velocity
             for i in np.flatnonzero(have1 & ~have2):
                 moving = self.same[i][have2[self.same[i]]]
