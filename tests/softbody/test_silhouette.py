@@ -16,7 +16,7 @@ from toolkit.softbody import (GlobalFitConfig, SoftBodyModel, SoftBodyParams, So
                               track_sequence)
 from toolkit.softbody.distance import primitive_distances
 from toolkit.softbody.model import FRAMES, LENGTH_NAMES
-from toolkit.softbody.silhouette import (SilhouetteBlock, SilhouetteView, model_mask, ray_minimum,
+from toolkit.softbody.silhouette import (SilhouetteBlock, SilhouetteConfig, SilhouetteView, model_mask, ray_minimum,
                                          report_silhouettes, silhouette_views)
 
 SIZE = (160, 120)
@@ -56,7 +56,7 @@ def test_jacobian_matches_finite_differences():
     model = SoftBodyModel()
     p = posed(model)
     cams = ring(p.vector[3:6], 2)
-    views = silhouette_views(cams, [model_mask(model, p, c) for c in cams])
+    views = silhouette_views(cams, [model_mask(model, p, c) for c in cams], SilhouetteConfig(ray_tol=1e-6))
     rng = np.random.default_rng(4)
     x = p.vector.copy()
     x[6:27] += rng.normal(0, 0.05, 21)

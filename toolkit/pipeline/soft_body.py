@@ -365,21 +365,26 @@ def _with_viewpoints(cfg, viewpoints):
     return cfg
 
 
-def fit_clouds(model, params0, clouds, config: SoftBodyRunConfig, viewpoints=None, observer=None) -> Fitted:
+def fit_clouds(model, params0, clouds, config: SoftBodyRunConfig, viewpoints=None, observer=None,
+               silhouettes=None) -> Fitted:
     """Track, then (with ``config.global_fit``) fit globally (:mod:`toolkit.softbody`).
 
     ``viewpoints`` (V, 3): the cameras' centres, so that the tracker expects data only
-    on the model's side facing them.
+    on the model's side facing them; ``silhouettes``: per frame, the cameras' silhouettes
+    (:func:`silhouettes_of`), or None.
     """
     from toolkit.softbody import global_fit, track_sequence
+    from toolkit.softbody.silhouette import report_silhouettes
 
     track = track_sequence(model, params0, clouds, config=_with_viewpoints(config.track, viewpoints),
-                           observer=observer)
+                           observer=observer, silhouettes=silhouettes)
     final = track
     if config.global_fit:
         # the global fit sees the subject's points only (the tracker left other bodies' out)
         final = global_fit(model, track, track.subject_clouds(clouds), config=_with_viewpoints(config.fit, viewpoints),
-                           observer=observer)
+                           observer=observer, silhouettes=silhouettes)
+    for t, views in enumerate(silhouettes if observer is not None and silhouettes is not None else []):
+        report_silhouettes(observer, model, _params(final.params[t]), views, t)
     return Fitted([model] * len(clouds), np.asarray(final.params), np.asarray(track.params), final.joints,
                   track.joints, list(track.states), config.global_fit)
 
@@ -412,6 +417,24 @@ def fit_independent(source, clouds, config: SoftBodyRunConfig, observer=None) ->
     P = np.stack(params)
     J = np.stack([m.joints(_params(v)) for m, v in zip(models, P)])
     return Fitted(models, P, P, J, J, states, False)
+
+
+def wants_silhouettes(config: SoftBodyRunConfig) -> bool:
+    """Whether the fit uses the cameras' silhouettes (a silhouette weight above 0 where it runs)."""
+    return not config.independent and (config.track.silhouette_weight > 0
+                                       or (config.global_fit and config.fit.silhouette_weight > 0))
+
+
+def silhouettes_of(source, n: int) -> list:
+    """Per frame ``0..n-1``, the source's cameras' silhouettes (:func:`toolkit.softbody.silhouette.silhouette_views`)
+    from the masks its foreground step found (kept by ``source.cloud`` when ``source.keep_masks``)."""
+    from toolkit.softbody.silhouette import silhouette_views
+
+    out = []
+    for t in range(n):
+        pairs = source.silhouettes(t)
+        out.append(silhouette_views([c for c, _ in pairs], [m for _, m in pairs]))
+    return out
 
 
 def _params(vector):
@@ -462,8 +485,10 @@ def run(config: SoftBodyRunConfig, *, dataset, out, observer=None, log=print) ->
     own = observer is None and config.recording
     obs = _recording(out, run_recording(out, False)[1]) if own else observer
     t0 = time.perf_counter()
+    source.keep_masks = wants_silhouettes(config)
     try:
         clouds, raws, stats = build_clouds(source, n, config.patches, obs, config.progress)
+        silhouettes = silhouettes_of(source, n) if source.keep_masks else None
         t1 = time.perf_counter()
         if config.independent:
             fitted = fit_independent(source, clouds, config, obs)
@@ -474,7 +499,8 @@ def run(config: SoftBodyRunConfig, *, dataset, out, observer=None, log=print) ->
             if obs is not None:
                 obs.report("joints3d", frame=min(config.init_frame, n - 1), joints=joints0,
                            name="softbody/init_joints")
-            fitted = fit_clouds(model, params0, clouds, config, source.viewpoints, observer=obs)
+            fitted = fit_clouds(model, params0, clouds, config, source.viewpoints, observer=obs,
+                                silhouettes=silhouettes)
         t2 = time.perf_counter()
         metrics = _write(out, fitted, n, dataset)
         _surfaces(out, fitted, clouds, raws, config, source.forward, obs)

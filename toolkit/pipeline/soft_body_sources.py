@@ -55,9 +55,25 @@ class DepthClouds:
         self.input = open_depth_input(dataset)
         self.background = None if self.input.background is None else BackgroundModel(self.input.background)
         self.mask_config = mask_config or MaskConfig()
+        self.keep_masks, self._masks = False, {}  # keep_masks: cloud() keeps each frame's mask for silhouettes()
 
     def __len__(self) -> int:
         return len(self.input)
+
+    def silhouettes(self, t: int) -> list:
+        """The camera in the run's world frame and frame ``t``'s foreground mask, ``[(Camera, (H, W) bool)]``."""
+        from toolkit.pointcloud import foreground_mask
+
+        cam = self.input.camera
+        if not self.input.pose_known:  # the level frame: world = LEVEL_FROM_CAMERA @ camera
+            T = np.eye(4)
+            T[:3, :3] = LEVEL_FROM_CAMERA.T
+            cam = cam.replace(cam_from_world=T)
+        m = self._masks.pop(t, None)
+        if m is None:
+            m = foreground_mask(self.input.read(t), self.input.camera, background=self.background,
+                                config=self.mask_config)
+        return [(cam, m)]
 
     @property
     def forward(self) -> np.ndarray:
@@ -82,6 +98,8 @@ class DepthClouds:
 
         d = self.input.read(t)
         m = foreground_mask(d, self.input.camera, background=self.background, config=self.mask_config)
+        if self.keep_masks:
+            self._masks[t] = m
         if not m.any():
             return np.zeros((0, 3))
         pts, _, _ = depth_to_points(d, self.input.camera, m)
@@ -105,6 +123,7 @@ class StereoClouds:
         self.config = stereo or StereoConfig()
         self.foreground = self._choose(foreground)
         self._plates = {}
+        self.keep_masks, self._masks = False, {}  # keep_masks: cloud() keeps the masks for silhouettes()
 
     def _choose(self, foreground: str) -> str:
         d, first = self.data, self.data.camera_names[0]
@@ -151,6 +170,14 @@ class StereoClouds:
                                                                        np.float32))
         return clean_mask(self._plates[camera].foreground(image))
 
+    def silhouettes(self, t: int) -> list:
+        """Each head's reference camera with the subject's mask in frame ``t`` (the masks the clouds were
+        limited by: kept by :meth:`cloud` when ``keep_masks``), ``[(Camera, (H, W) bool)]``."""
+        kept = self._masks.pop(t, None)
+        if kept is not None:
+            return kept
+        return [(h[0], self.mask(h[0].name, t, self.data.frame(h[0].name, t))) for h in self.heads]
+
     def cloud(self, t: int) -> np.ndarray:
         """The heads' points of frame ``t``, (N, 3) metres (empty when nothing matched)."""
         from toolkit.pointcloud.stereo import head_cloud
@@ -159,6 +186,8 @@ class StereoClouds:
         for head, pairs in zip(self.heads, self.pairs):
             images = [self.data.frame(c.name, t) for c in head]
             masks = [self.mask(c.name, t, im) if k == 0 else None for k, (c, im) in enumerate(zip(head, images))]
+            if self.keep_masks:
+                self._masks.setdefault(t, []).append((head[0], masks[0]))
             out.append(head_cloud(images, head, masks, self.config, pairs).points)
         return np.concatenate(out) if out else np.zeros((0, 3))
 

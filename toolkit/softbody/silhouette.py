@@ -81,6 +81,8 @@ class SilhouetteConfig:
         Model points projecting less than this outside the mask count as inside (the mask's noise), pixels.
     sample_dirs : int
         Surface points per metaball considered for the mask block.
+    ray_tol : float
+        Precision of each ray's least distance along the ray, metres (:func:`ray_minimum`).
     """
 
     step_px: float = 3.0
@@ -92,6 +94,7 @@ class SilhouetteConfig:
     mask_weight: float = 1.0
     mask_margin_px: float = 1.0
     sample_dirs: int = 16
+    ray_tol: float = 1e-4
 
     def __post_init__(self):
         for name in ("step_px", "gate", "scale"):
@@ -206,13 +209,14 @@ def _ray_candidates(st: ModelState, o: np.ndarray, d: np.ndarray, n: int) -> np.
 
 
 def ray_minimum(model: SoftBodyModel, params: SoftBodyParams, origins, directions, *,
-                state: ModelState | None = None, candidates: int = 3, tol: float = 2e-5, max_iter: int = 30):
+                state: ModelState | None = None, candidates: int = 3, tol: float = 2e-5, max_iter: int = 30,
+                start: np.ndarray | None = None, spacing: float = 0.02):
     """The minimum of the model's distance along each ray.
 
     Started at the points nearest to the ``candidates`` closest metaballs (in
-    their scaled axes), refined by parabolic steps on the distance sampled along
-    the ray, the spacing (2 cm at first) shrinking once the minimum lies within
-    it, down to ``tol``.
+    their scaled axes), or at ``start``, refined by parabolic steps on the
+    distance sampled along the ray, the spacing (``spacing`` at first)
+    shrinking once the minimum lies within it, down to ``tol``.
 
     Parameters
     ----------
@@ -225,6 +229,10 @@ def ray_minimum(model: SoftBodyModel, params: SoftBodyParams, origins, direction
         Last sampling spacing, metres.
     max_iter : int
         Parabolic steps at most.
+    start : ndarray of shape (K,), optional
+        Ray parameters to start from (a previous minimum: a fit's next evaluation), metres.
+    spacing : float
+        First sampling spacing, metres.
 
     Returns
     -------
@@ -237,12 +245,12 @@ def ray_minimum(model: SoftBodyModel, params: SoftBodyParams, origins, direction
     st = model.state(params) if state is None else state
     if len(o) == 0:
         return np.zeros(0), np.zeros(0)
-    s = _ray_candidates(st, o, d, candidates)
+    s = _ray_candidates(st, o, d, candidates) if start is None else np.asarray(start, float).reshape(-1, 1).copy()
     k = len(o)
     val = distance(model, params, (o[:, None] + s[..., None] * d[:, None]).reshape(-1, 3), state=st).reshape(k, -1)
     i = np.argmin(val, axis=1)
     s, f0 = s[np.arange(k), i], val[np.arange(k), i]
-    h = np.full(k, 0.02)
+    h = np.full(k, float(spacing))
     act = np.arange(k)  # rays still refined
     for _ in range(max_iter):
         oa, da, sa, ha, fa = o[act], d[act], s[act], h[act], f0[act]
@@ -354,9 +362,10 @@ class SilhouetteBlock:
         o = np.concatenate(o) if o else np.zeros((0, 3))
         d = np.concatenate(d) if d else np.zeros((0, 3))
         st = model.state(start)
-        _, r0 = ray_minimum(model, start, o, d, state=st)
+        s0, r0 = ray_minimum(model, start, o, d, state=st, tol=config.ray_tol)
         keep = np.abs(r0) < config.gate
         self.origins, self.directions = o[keep], d[keep]
+        self._s = s0[keep]  # each ray's last minimum: the next evaluation starts there
         self.n_rays = int(keep.sum())
         self.samples = coverage_samples(model, start, n_dirs=config.sample_dirs) if self.views \
             else CoverageSamples(np.zeros(0, int), np.zeros((0, 3)))
@@ -377,7 +386,9 @@ class SilhouetteBlock:
         with_jac : bool
         """
         c = self.config
-        s, r = ray_minimum(self.model, params, self.origins, self.directions, state=st)
+        s, r = ray_minimum(self.model, params, self.origins, self.directions, state=st, tol=c.ray_tol,
+                           start=self._s, spacing=0.005)
+        self._s = s
         J = None
         if with_jac:
             x = self.origins + s[:, None] * self.directions
