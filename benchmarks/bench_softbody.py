@@ -152,8 +152,10 @@ def bone_error_mm(joints: np.ndarray, truth: np.ndarray) -> float:
     return 1000 * float(np.mean(np.abs(lf - lt)))
 
 
-def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool = True) -> dict:
-    """Run one scene through the pipeline and score it."""
+def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool = True,
+             silhouette_weight: float | None = None) -> dict:
+    """Run one scene through the pipeline and score it (``silhouette_weight``: tracking's and the global
+    fit's, None: the defaults)."""
     from toolkit.anthropometry import BodyProportions
     from toolkit.pipeline.soft_body import SoftBodyRunConfig, run
     from toolkit.softbody import SoftBodyModel, SoftBodyParams
@@ -163,6 +165,9 @@ def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool 
     data = make_dataset(name, kind, text, root / "data")
     scene = build_scene(parse_spec(text, name))
     cfg = SoftBodyRunConfig(recording=False, progress=False, replace_stale=True, global_fit=global_fit)
+    if silhouette_weight is not None:
+        cfg = replace(cfg, track=replace(cfg.track, silhouette_weight=silhouette_weight),
+                      fit=replace(cfg.fit, silhouette_weight=silhouette_weight))
     if kind == "trinocular":
         cfg = replace(cfg, foreground="plate", clicks=write_clicks(data, scene, root / f"{name}_clicks.npz", rng))
     res = run(cfg, dataset=data, out=root / "runs" / name, log=None)
@@ -224,6 +229,9 @@ def main(argv=None) -> int:
                     help="folder for the rendered scenes and the runs (scenes are reused)")
     ap.add_argument("--tracking-only", action="store_true", help="no global fit (its columns repeat tracking)")
     ap.add_argument("--json", type=Path, default=None, help="also write the per-scene rows here")
+    ap.add_argument("--silhouette-weight", type=float, default=None,
+                    help="weight of the cameras' silhouettes in tracking and the global fit (0: none; "
+                         "default: the configs')")
     args = ap.parse_args(argv)
     n, frames = (1, 12) if args.quick else (args.scenes, args.frames)
     kinds = set(args.sources.split(","))
@@ -233,7 +241,7 @@ def main(argv=None) -> int:
     for name, kind, text in scene_specs(n, frames, args.seed):
         if kind not in kinds:
             continue
-        rows.append(evaluate(name, kind, text, args.cache, rng, not args.tracking_only))
+        rows.append(evaluate(name, kind, text, args.cache, rng, not args.tracking_only, args.silhouette_weight))
         print(f"{name}: MPJPE {rows[-1]['mpjpe_track']:.1f} -> {rows[-1]['mpjpe_global']:.1f} mm, bones "
               f"{rows[-1]['bone_track']:.1f} -> {rows[-1]['bone_global']:.1f} mm ({time.perf_counter() - t0:.0f} s)",
               flush=True)
