@@ -145,3 +145,32 @@ def test_a_marker_identification_missed_is_found_near_its_hint():
     on = results["on"]
     assert np.all(on.state[1:, 0] == TRINOCULAR)
     assert np.linalg.norm(on.positions[1:] - X[1:], axis=2).max() < EXACT_M
+
+
+def knees_brushing(n_frames=45, touch=14, gap_m=0.004, step_m=0.01):
+    """Two thighs of Plug-in Gait (``THI``, ``KNE`` each: one rigid mate per marker): the left moves 10 mm
+    per frame along x until frame ``touch``, where its ``KNE`` comes within ``gap_m`` of the resting right
+    ``KNE``, and stops; then the right thigh moves on as the left did, rising."""
+    f = np.arange(n_frames)
+    left = np.array([[0.0, 0.0, 0.8], [0.0, 0.0, 0.45]])  # LTHI, LKNE
+    right = np.array([[0.02, gap_m + 0.12, 0.78], [0.0, gap_m, 0.45]])  # RTHI, RKNE
+    x_left = step_m * (np.minimum(f, touch) - touch)
+    x_right = step_m * np.maximum(f - touch, 0)
+    X = np.concatenate([left[None] + x_left[:, None, None] * [1, 0, 0],
+                        right[None] + x_right[:, None, None] * np.array([1, 0, 0.5])], axis=1)
+    return X, ("l_thigh", "l_thigh", "r_thigh", "r_thigh")
+
+
+def test_a_swap_of_two_one_mate_labels_is_undone_once_it_persists():
+    X, segments = knees_brushing()
+    rig = ring_rig()
+    never = track(rig, X, config=TrackConfig(cross_persist_frames=10 ** 6), segments=segments)  # one-mate pairs
+    on = track(rig, X, segments=segments)                                                         # never checked
+    # the window gives the left knee's label to the right knee moving on: LKNE and RKNE swapped
+    assert np.allclose(never.positions[-1, [1, 3]], X[-1, [3, 1]], atol=EXACT_M)
+    err = np.linalg.norm(on.positions - X, axis=2)
+    assert err[:15].max() < 5e-3
+    assert err[-10:].max() < EXACT_M  # swapped back
+    swapped = np.flatnonzero(np.linalg.norm(on.positions[:, 1] - X[:, 3], axis=1) < 1e-3)
+    assert swapped.size == 0 or swapped.max() < 15 + 2 * TrackConfig().cross_persist_frames
+    assert all(np.unique(row).size == 4 for row in on.point)

@@ -121,6 +121,10 @@ class TrackConfig:
     cross_back_frames : int
         The swap is carried back over at most this many earlier frames, as
         long as it fits there better too (back to where the two passed each other).
+    cross_persist_frames : int
+        Two markers of which neither has two measured rigid mates have their
+        labels swapped only when the swap fitted in this many frames before
+        as well (a single mate's distance fits by chance now and then).
     hint_reach_m : float
         A marker never measured yet (identification missed it; its
         prediction is the fitted template's, carried by its segment) takes a
@@ -155,6 +159,7 @@ class TrackConfig:
     cross_fit_m: float = 0.012
     cross_ratio: float = 0.4
     cross_back_frames: int = 50
+    cross_persist_frames: int = 5
     hint_reach_m: float = 0.25
     first_gate_m: float = 0.15
 
@@ -286,6 +291,7 @@ class Tracker:
         width = max([m.size for m in rigid] + [1])
         self._mate_idx = np.array([np.pad(m, (0, width - m.size)) for m in rigid], int).reshape(seg.size, width)
         self._mate_ok = np.array([np.arange(width) < m.size for m in rigid]).reshape(seg.size, width)
+        self._weak, self._weak_frame = {}, -10  # swaps of one-mate labels: frames in a row they fitted
 
     # ------------------------------------------------------------ prediction
     def predict(self, order: list[int], k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -581,25 +587,40 @@ class Tracker:
         """The pair of measured markers of different segments whose swapped labels fit best, or None.
 
         Both labels must be off (summed deviation above ``cross_min_m``),
-        each must fit at the other's place within ``cross_fit_m``, the
-        swap must cut the summed deviation below ``cross_ratio`` of it, and
-        one of the two must have at least two measured mates: one mate's
-        distance only says the marker lies on a sphere about it, and two
-        markers with a mate each (both knees, each with its ``THI``) meet
-        their spheres by chance as the legs move.
+        each must fit at the other's place within ``cross_fit_m``, and the
+        swap must cut the summed deviation below ``cross_ratio`` of it.  When
+        neither has two measured mates (Plug-in Gait's thighs, shanks, feet
+        and upper arms: one mate each), one mate's distance only says the
+        marker lies on a sphere about it, and two such markers (both knees,
+        each with its ``THI``) meet their spheres by chance as the legs
+        move, for a frame or two: their swap must also have fitted in each
+        of the ``cross_persist_frames`` frames before (a swap persists, a
+        chance meeting does not).
         """
         c, t = self.config, self.t
         M = t.positions.shape[1]
+        first = f != self._weak_frame  # once per frame: the weak pairs' counts
+        if first:
+            if abs(f - self._weak_frame) != 1:
+                self._weak = {}
+            self._weak_frame = f
         own, n_mates = self.own_deviation(f)
         if not np.nanmax(own, initial=0.0) > 0.5 * c.cross_min_m:  # nobody off: the usual frame, cheap
+            if first:
+                self._weak = {}
             return None
         E = self.deviations(f)
         meas = t.measured(f)
         now, swapped = own[:, None] + own[None], E + E.T
         with np.errstate(invalid="ignore"):
             ok = (meas[:, None] & meas[None] & ~self.rigid & ~self.rigid.T & ~np.eye(M, dtype=bool)
-                  & (np.maximum(n_mates[:, None], n_mates[None]) >= 2)
                   & (now > c.cross_min_m) & (np.fmax(E, E.T) < c.cross_fit_m) & (swapped < c.cross_ratio * now))
+        weak = ok & (np.maximum(n_mates[:, None], n_mates[None]) < 2)
+        if first:
+            self._weak = {(int(i), int(j)): self._weak.get((int(i), int(j)), 0) + 1
+                          for i, j in zip(*np.nonzero(np.triu(weak)))}
+        for i, j in zip(*np.nonzero(weak)):
+            ok[i, j] = self._weak.get((min(i, j), max(i, j)), 0) > c.cross_persist_frames
         if not ok.any():
             return None
         i, j = np.unravel_index(np.argmin(np.where(ok, swapped - now, np.inf)), ok.shape)
