@@ -56,11 +56,12 @@ def test_silhouettes_are_the_masks_the_clouds_used(stereo_dataset):
 @pytest.mark.slow
 def test_run_fits_with_silhouettes_and_records_them(stereo_dataset, tmp_path):
     root, scene = stereo_dataset
-    base = SoftBodyRunConfig(foreground="groundtruth", init_joints=root / "init_joints.npz", recording=False,
-                             progress=False)
-    assert not wants_silhouettes(base)
-    cfg = replace(base, track=TrackConfig(silhouette_weight=1.0), fit=GlobalFitConfig(silhouette_weight=1.0))
-    assert wants_silhouettes(cfg) and not wants_silhouettes(replace(cfg, independent=True))
+    cfg = SoftBodyRunConfig(foreground="groundtruth", init_joints=root / "init_joints.npz", recording=False,
+                            progress=False)
+    assert wants_silhouettes(cfg) and not wants_silhouettes(replace(cfg, independent=True))  # on by default
+    assert not wants_silhouettes(replace(cfg, track=TrackConfig(silhouette_weight=0.0),
+                                         fit=GlobalFitConfig(silhouette_weight=0.0)))
+    assert wants_silhouettes(replace(cfg, track=TrackConfig(silhouette_weight=0.0)))  # the global fit's
     obs = RecordingObserver()
     res = run(cfg, dataset=root, out=tmp_path / "fit", observer=obs, log=None)
     assert res.metrics["states"] == {"ok": 2}

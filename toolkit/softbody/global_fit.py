@@ -154,7 +154,7 @@ class GlobalFitConfig:
     fit_lengths: bool = True
     fit_widths: bool = True
     max_nfev: int = 40
-    silhouette_weight: float = 0.0
+    silhouette_weight: float = 1.0
 
     def __post_init__(self):
         if self.loss not in LOSSES:

@@ -171,7 +171,7 @@ class TrackConfig:
     part_distance: float = 0.06
     predict: float = 0.5
     max_nfev: int = 40
-    silhouette_weight: float = 0.0
+    silhouette_weight: float = 1.0
 
     def __post_init__(self):
         if self.loss not in LOSSES:
