@@ -428,12 +428,17 @@ class Tracker:
         that no label took, within ``hint_reach_m`` of its prediction (one
         assignment over all of them, nearest first), when the window
         continues the reconstruction into the next two frames (a ghost is
-        not seen again) and no other label's prediction lies within
-        ``gate_m`` of it (it may be a lost marker's).  Its reference
+        not seen again), none of its rigid mates is lost in this frame and no
+        other label's prediction lies within ``gate_m`` of it (it may be a
+        lost marker's).  Its reference
         distances to its rigid mates are then taken from this frame.
         """
         c, t = self.config, self.t
-        want = np.flatnonzero(self.hinted & (point < 0) & np.isfinite(pred).all(axis=1))
+        want = self.hinted & (point < 0) & np.isfinite(pred).all(axis=1)
+        if not want.any():
+            return point
+        lost = (point < 0) & ~self.hinted  # tracked before, not found in this frame (yet)
+        want = np.flatnonzero(want & ~(self.rigid & lost[None]).any(axis=1))  # a free point may be a lost mate's
         if want.size == 0:
             return point
         rec = self.recon(order[k])
