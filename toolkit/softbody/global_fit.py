@@ -65,6 +65,13 @@ class GlobalFitConfig:
         Robust loss of the point-to-surface block and its scale (metres).
     coverage_weight, coverage_scale, coverage_margin, coverage_dirs, viewpoints
         The coverage block, as in :class:`toolkit.softbody.track.TrackConfig`.
+    coverage_allowance : bool
+        Each coverage sample may stay as far from the cloud as it was in the
+        tracked pose (:meth:`toolkit.softbody.residuals.CoverageSamples.allowing`):
+        surface the cameras gave no points for (the hands' skin in stereo) is
+        not pulled into the nearest points.  Without it the coverage of the
+        hands shortened the arms (trinocular scenes: upper arms and forearms
+        30-50 mm shorter than at the start).
     gate : float
         Points further than this outside the tracked model are ignored, metres.
     max_points : int
@@ -137,6 +144,7 @@ class GlobalFitConfig:
     coverage_scale: float = 0.05
     coverage_margin: float = 0.03
     coverage_dirs: int = 16
+    coverage_allowance: bool = True
     viewpoints: tuple | None = None
     gate: float = 0.25
     max_points: int = 1000
@@ -234,6 +242,8 @@ class _Problem:
                 keep = support[model.prim_frame[samples.prims]] >= config.part_points
                 samples = CoverageSamples(samples.prims[keep], samples.dirs[keep])
             tree = cKDTree(pts)
+            if samples is not None and config.coverage_allowance:  # surface without points is not pulled in
+                samples = samples.allowing(model.state(p), tree)
             self.frames.append((t, pts, tree, samples, coverage_margin(tree, pts, config.coverage_margin)))
             missing = np.clip(1.0 - (model.subtree[model.state(p).dof_frames] @ support) / max(config.part_points, 1),
                               0.0, 1.0)

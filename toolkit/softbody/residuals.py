@@ -8,7 +8,11 @@
   cannot drift into a region without points, nor the body shrink or slip out
   of the cloud.  Which model points count is fixed per frame: those on the
   outer surface and, when viewpoints are given, facing one of them (the far
-  side of the body has no points to be close to).
+  side of the body has no points to be close to).  The global fit gives each
+  sample an allowance, its distance to the cloud in the tracked pose
+  (:meth:`CoverageSamples.allowing`): a sample far from every point there (a
+  hand or a face a stereo matcher found no texture on) may stay as far, but
+  is not pulled into the nearest points, which shortened the limbs.
 
 Robust losses are applied per block by the square-root trick: a residual
 ``r`` with loss ``rho`` becomes ``sign(r) sqrt(2 rho(r))`` and its Jacobian
@@ -106,12 +110,36 @@ class CoverageSamples:
         Unit direction of each sample in its primitive's axes.
     """
 
-    def __init__(self, prims: np.ndarray, dirs: np.ndarray):
+    def __init__(self, prims: np.ndarray, dirs: np.ndarray, allowance: np.ndarray | None = None):
         self.prims = np.asarray(prims, int)
         self.dirs = np.asarray(dirs, float)
+        self.allowance = np.zeros(len(self.prims)) if allowance is None else np.asarray(allowance, float)
+        if self.allowance.shape != self.prims.shape:
+            raise InputError("CoverageSamples.allowance", f"shape {self.prims.shape}", f"shape {self.allowance.shape}")
 
     def __len__(self) -> int:
         return len(self.prims)
+
+    def allowing(self, st: ModelState, tree: cKDTree) -> "CoverageSamples":
+        """The same samples, each allowed its present distance to the cloud (metres).
+
+        ``st`` is the model state the samples were taken in (the tracked
+        pose), ``tree`` the cloud's KD-tree.  :func:`coverage_residuals` then
+        counts only what a sample moves further away than that: the block
+        still holds the model inside the cloud where it had points, but no
+        longer pulls surface that had none into the nearest points.  On a
+        stereo cloud the skin of the hands has few points (trinocular wave
+        3100: 5-7 per hand and frame against 20-80 per arm segment; SGBM
+        finds little texture on skin), and the coverage of the model's hands
+        pulled them into the forearms' points: with the hands' points taken
+        out of a walk of the model's own surface, the global fit shortened
+        the upper arms and forearms by 19-21 mm each, by 3.5-4.8 mm with the
+        allowance (``tests/softbody/test_arm_lengths.py``).
+        """
+        if len(self) == 0:
+            return self
+        d, _ = tree.query(self.points(st))
+        return CoverageSamples(self.prims, self.dirs, d)
 
     def points(self, st: ModelState) -> np.ndarray:
         """World positions (S, 3) for a model state."""
@@ -175,8 +203,10 @@ def coverage_residuals(model: SoftBodyModel, st: ModelState, samples: CoverageSa
                        with_jac: bool = True):
     """Robust distances from the samples to their nearest cloud points, (S,), (S, len(columns)).
 
-    Distances below ``margin`` (metres: the spacing of the cloud's points)
-    count as zero, so the block vanishes on a model that lies in its cloud.
+    Distances below ``margin`` (metres: the spacing of the cloud's points),
+    or below a sample's own ``allowance`` where that is larger
+    (:meth:`CoverageSamples.allowing`), count as zero, so the block vanishes
+    on a model that lies in its cloud.
     """
     if len(samples) == 0:
         return np.zeros(0), np.zeros((0, len(columns)))
@@ -184,7 +214,7 @@ def coverage_residuals(model: SoftBodyModel, st: ModelState, samples: CoverageSa
     _, nn = tree.query(y)
     diff = y - cloud[nn]
     dist = np.sqrt((diff * diff).sum(1) + 1e-12)
-    r = np.maximum(dist - margin, 0.0)
+    r = np.maximum(dist - np.maximum(margin, samples.allowance), 0.0)
     J = None
     if with_jac:
         u = diff / dist[:, None] * (r > 0)[:, None]
@@ -210,4 +240,3 @@ def gate_points(model: SoftBodyModel, params: SoftBodyParams, points: np.ndarray
     if len(points) == 0:
         return np.zeros(0, int)
     return np.flatnonzero(distance(model, params, points) < gate)
-
