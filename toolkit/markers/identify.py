@@ -16,8 +16,20 @@ one frame by an articulated iterative-closest-point loop:
    coarse pose: each segment, parent before child, is rotated about its
    proximal joint (Kabsch on the markers of the segment and its descendants),
    carrying its descendants;
-3. the heading with the smallest truncated residual wins; its final
-   assignment gives the labels.
+3. the heading with the smallest truncated residual wins;
+4. each segment of 3 to 5 markers is then placed as a whole
+   (:func:`register_segment`): every one-to-one pairing of its markers with
+   the free points near it is fitted rigidly, the best fit wins and, among
+   nearly equal ones, the one turning the segment least from its coarse pose
+   (a cluster plate is nearly planar and nearly symmetric: turned over it
+   fits within millimetres).  Pairing marker by marker with the nearest
+   points leaves a plate that sits a marker spacing away from the
+   template's (a shank cluster placed higher than the generic one) with two
+   of its markers on the other two's points, and those unlabelled; the
+   whole shape has one place.  This is done once, after the heading is
+   chosen: inside the heading loop it lets a wrong heading fit as well as the
+   right one, since the left and right arms' plates are congruent;
+5. the final assignment gives the labels.
 
 The labels are then checked with the distances between markers of one
 segment (rigid on the body): a marker whose distances to its segment mates
@@ -90,6 +102,19 @@ class IdentifyConfig:
         Relative tolerance of the within-segment distance check ...
     distance_floor_m : float
         ... plus this absolute slack (soft tissue, marker placement), metres.
+    segment_reach_m : float
+        Points offered to a segment's registration (:func:`register_segment`):
+        within this distance of one of its markers, metres ...
+    segment_candidates : int
+        ... at most this many more than the segment has markers, the nearest.
+    segment_gate_m : float
+        A marker's cost in a pairing is its squared distance to its partner,
+        capped at this (also the cost of a marker without one), metres.
+    segment_slack_m : float
+        Pairings within ``k * segment_slack_m ** 2`` of the best cost (k
+        markers) count as equal; the one turning the segment least wins.
+    register_rounds : int
+        Passes of the registration over all segments.
     """
 
     headings: int = 8
@@ -101,6 +126,11 @@ class IdentifyConfig:
     refine_reach_m: float = 0.1
     distance_tolerance: float = 0.2
     distance_floor_m: float = 0.02
+    segment_reach_m: float = 0.15
+    segment_candidates: int = 3
+    segment_gate_m: float = 0.03
+    segment_slack_m: float = 0.005
+    register_rounds: int = 2
 
 
 @dataclass(frozen=True)
@@ -174,9 +204,11 @@ class _Body:
 
     def __init__(self, template, joints, segments):
         self.markers = np.array(template, float)
+        self.coarse = self.markers.copy()  # where the coarse pose put them (set by the fit)
         self.joints = np.array(joints, float)
         names = [s if s in SEGMENT_TREE else "pelvis" for s in segments]
         self.order = [s for s in SEGMENT_TREE if SEGMENT_TREE[s][0] is not None]  # parents first
+        self.order_all = [s for s in SEGMENT_TREE if s in set(names)]  # the root too
         desc = {s: {s} for s in SEGMENT_TREE}
         for s in reversed(list(SEGMENT_TREE)):
             parent = SEGMENT_TREE[s][1]
@@ -252,6 +284,130 @@ class _Body:
             self.markers[sel] = (self.markers[sel] - a.mean(axis=0)) @ R.T + b.mean(axis=0)
         else:
             self.markers[sel] += (b - a).mean(axis=0)
+
+    def register_segment(self, segment: str, target: np.ndarray, match: np.ndarray,
+                         config: "IdentifyConfig") -> None:
+        """Place a segment of 3 to 5 markers where its whole shape fits the free points best.
+
+        See :func:`register_segment`; the points held by other segments'
+        markers are not offered; turns are measured from the coarse pose
+        (``self.coarse``, before the per-segment refinement, which may have
+        turned a symmetric segment over).  Segments of other sizes are left as
+        they are.
+        """
+        sel = np.flatnonzero(self.segment_of == segment)
+        if not 3 <= sel.size <= 5:
+            return
+        outside = np.delete(match, sel)
+        free = np.setdiff1d(np.arange(target.shape[0]), outside[outside >= 0])
+        moved = register_segment(self.markers[sel], target[free], config, coarse=self.coarse[sel])
+        if moved is not None:
+            self.markers[sel] = moved
+
+
+def _batched_kabsch(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rotations and translations of many rigid fits: ``b[p] ~ a[p] @ R[p].T + t[p]``.
+
+    Parameters
+    ----------
+    a, b : ndarray of shape (P, k, 3)
+
+    Returns
+    -------
+    R : ndarray of shape (P, 3, 3)
+    t : ndarray of shape (P, 3)
+    residual : ndarray of shape (P, k)
+        Distance of each fitted point to its partner, metres.
+    """
+    ca, cb = a.mean(axis=1, keepdims=True), b.mean(axis=1, keepdims=True)
+    H = np.einsum("pki,pkj->pij", a - ca, b - cb)
+    U, _, Vt = np.linalg.svd(H)
+    d = np.sign(np.linalg.det(U @ Vt))
+    D = np.ones((H.shape[0], 3))
+    D[:, 2] = np.where(d == 0, 1.0, d)
+    R = np.einsum("pji,pj,pkj->pik", Vt, D, U)  # V D U^T
+    t = cb[:, 0] - np.einsum("pij,pj->pi", R, ca[:, 0])
+    fitted = np.einsum("pij,pkj->pki", R, a) + t[:, None]
+    return R, t, np.linalg.norm(fitted - b, axis=2)
+
+
+def _pairings(k: int, n: int, min_pairs: int) -> np.ndarray:
+    """Every one-to-one pairing (P, k) of k markers with n points (-1: no partner), >= min_pairs pairs."""
+    from itertools import combinations
+
+    rows = []
+    for m in range(min(k, n), min_pairs - 1, -1):
+        for markers in combinations(range(k), m):
+            for pts in permutations(range(n), m):
+                row = [-1] * k
+                for i, j in zip(markers, pts):
+                    row[i] = j
+                rows.append(row)
+    return np.array(rows, int).reshape(-1, k)
+
+
+_PAIRINGS: dict = {}
+
+
+def register_segment(markers: np.ndarray, points: np.ndarray, config: "IdentifyConfig", *,
+                     coarse: np.ndarray | None = None) -> np.ndarray | None:
+    """The rigid placement of one segment's template markers that fits the nearby points best.
+
+    Every one-to-one pairing of the segment's k markers (3 <= k <= 5) with
+    the ``config.segment_candidates + k`` points nearest them (within
+    ``config.segment_reach_m``), with at most one marker left without a
+    partner, is fitted rigidly (batched Kabsch).  Its cost is the sum over
+    the markers of the squared distance to the partner, capped at
+    ``config.segment_gate_m``, and that cap for a marker without one.
+    Among the pairings within ``k * config.segment_slack_m ** 2`` of the
+    lowest cost the one turning the markers least wins: a plate's markers lie
+    nearly in a plane and a few of them nearly symmetric, so the plate turned
+    over (or about its normal) fits almost as well, and the coarse pose, which
+    the skeleton and the neighbouring segments placed, is the nearer one.
+
+    Parameters
+    ----------
+    markers : ndarray of shape (k, 3)
+        The segment's template markers in their current place, metres.
+    points : ndarray of shape (n, 3)
+        The points not held by other segments' markers, metres.
+    config : IdentifyConfig
+    coarse : ndarray of shape (k, 3), optional
+        The markers where the skeleton's coarse pose put them (the turns are
+        measured from there); by default ``markers``.
+
+    Returns
+    -------
+    ndarray of shape (k, 3) or None
+        The markers moved rigidly; None when fewer than 3 points are near.
+    """
+    k = markers.shape[0]
+    d = np.linalg.norm(points[:, None] - markers[None], axis=2).min(axis=1)
+    near = np.flatnonzero(d <= config.segment_reach_m)
+    near = near[np.argsort(d[near])][:k + config.segment_candidates]
+    if near.size < 3:
+        return None
+    key = (k, near.size, max(3, k - 1))
+    if key not in _PAIRINGS:
+        _PAIRINGS[key] = _pairings(*key)
+    pairs = _PAIRINGS[key]
+    b = points[near]
+    cost = np.zeros(len(pairs))
+    turn = np.zeros(len(pairs))
+    Rs, ts = np.zeros((len(pairs), 3, 3)), np.zeros((len(pairs), 3))
+    g2 = config.segment_gate_m ** 2
+    for m in np.unique((pairs >= 0).sum(axis=1)):  # one batch per number of pairs
+        rows = np.flatnonzero((pairs >= 0).sum(axis=1) == m)
+        mk = np.argsort(pairs[rows] < 0, axis=1, kind="stable")[:, :m]  # the paired markers, in order
+        pk = np.take_along_axis(pairs[rows], mk, axis=1)
+        R, t, res = _batched_kabsch(markers[mk], b[pk])
+        cost[rows] = np.minimum(res ** 2, g2).sum(axis=1) + (k - m) * g2
+        total = R if coarse is None else R @ kabsch(coarse, markers)  # from the coarse pose
+        turn[rows] = np.degrees(np.arccos(np.clip((np.trace(total, axis1=1, axis2=2) - 1) / 2, -1, 1)))
+        Rs[rows], ts[rows] = R, t
+    close = np.flatnonzero(cost <= cost.min() + k * config.segment_slack_m ** 2)
+    best = close[np.argmin(turn[close])]
+    return markers @ Rs[best].T + ts[best]
 
 
 def _best_permutation(a: np.ndarray, b: np.ndarray, slack_m: float = 0.005) -> tuple:
@@ -329,6 +485,7 @@ def fit_template(points: np.ndarray, template: np.ndarray, joints: np.ndarray, s
                 for seg in body.order:
                     body.rotate_segment(seg, points, match, max(gate, config.reach_m))
                     match = assign(body.markers, points, gate)
+        body.coarse = body.markers.copy()
         for _ in range(config.refine_rounds):
             match = assign(body.markers, points, gates[-1])
             for seg in np.unique(body.segment_of):
@@ -339,6 +496,10 @@ def fit_template(points: np.ndarray, template: np.ndarray, joints: np.ndarray, s
         if best is None or cost < best[0]:
             best = (cost, h, body, match)
     _, h, body, match = best
+    for _ in range(config.register_rounds):  # each segment's shape as a whole (not done per heading: see above)
+        for seg in body.order_all:
+            body.register_segment(seg, points, match, config)
+            match = assign(body.markers, points, gates[-1])
     scale = float(np.linalg.norm(body.joints[0] - body.joints[JOINTS_14.index("l_ankle")])
                   / max(np.linalg.norm(joints[0] - joints[JOINTS_14.index("l_ankle")]), 1e-9))
     res = np.full(M, np.nan)
