@@ -430,10 +430,12 @@ class Tracker:
         continues the reconstruction into the next two frames (a ghost is
         not seen again), none of its rigid mates is lost in this frame and no
         other label's prediction lies within ``gate_m`` of it (it may be a
-        lost marker's).  Its reference
-        distances to its rigid mates are then taken from this frame.
+        lost marker's).  Its reference distances to its rigid mates are then
+        taken from this frame (:meth:`step`, once the frame is labelled);
+        the markers that claimed are in ``self.claimed``.
         """
         c, t = self.config, self.t
+        self.claimed = []
         want = self.hinted & (point < 0) & np.isfinite(pred).all(axis=1)
         if not want.any():
             return point
@@ -461,7 +463,7 @@ class Tracker:
             if inside[r, col]:
                 i = want[r]
                 point[i] = free[col]
-                self._learn_references(i, order[k], cand[col])
+                self.claimed.append(int(i))
         return point
 
     def _learn_references(self, i: int, f: int, X: np.ndarray) -> None:
@@ -779,6 +781,8 @@ class Tracker:
         for i, X, n_views in self.track_2d(f, pred, gate, ~ok, used):
             t.positions[f, i] = X
             t.state[f, i] = TRINOCULAR if n_views >= 3 else TWO_VIEW
+        for i in self.claimed:  # first measured: its distances to its mates from now on
+            self._learn_references(i, f, t.positions[f, i])
         for i in np.flatnonzero(t.state[f] == MISSING):
             out = self.bridge(order, k, i)
             if out is None:
