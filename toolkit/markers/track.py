@@ -29,7 +29,20 @@ previous ones:
   each label sits off the distances to its rigid mates (its segment's other
   markers; a hand's one marker: its forearm's) and fits at the other's place:
   the labels are swapped back in this frame and the earlier ones where that
-  fits better (:meth:`Tracker.undo_cross_swaps`).
+  fits better (:meth:`Tracker.undo_cross_swaps`).  Two labels with one
+  measured mate each (a sphere, met by chance) must fit swapped for a few
+  frames in a row; a measured label off its mates whose marker fits an
+  unmeasured label of another segment (the finger unseen, its label on the
+  thigh marker, the thigh's bridged beside it) gives that label the marker
+  (:meth:`Tracker.cross_claim`), and a bridge carried from a place the
+  label's mates refuse is not made;
+* **markers never measured** (missed by the identification) are predicted
+  from the fitted template carried by their segment and take a free
+  reconstruction near it that the window continues
+  (:meth:`Tracker.claim_from_hints`); the first step after the labelled
+  frame, where no marker has a velocity, gates at ``first_gate_m`` (a foot
+  at 50 fps moves 8 cm per frame), and a marker found again takes its
+  segment's velocity.
 
 Every candidate and every blob goes to at most one marker (Hungarian
 assignment, blobs marked used), so two labels never share a marker; this is
