@@ -174,3 +174,42 @@ def test_a_swap_of_two_one_mate_labels_is_undone_once_it_persists():
     swapped = np.flatnonzero(np.linalg.norm(on.positions[:, 1] - X[:, 3], axis=1) < 1e-3)
     assert swapped.size == 0 or swapped.max() < 15 + 2 * TrackConfig().cross_persist_frames
     assert all(np.unique(row).size == 4 for row in on.point)
+
+
+def still_arm(n_frames=30):
+    """A still left arm: the upper arm's ``UPA``, ``ELB`` and the forearm's ``FRM`` within 1 mm of one line,
+    the wrist bar's ``WRA``, ``WRB`` 27 cm along it, 7 cm apart across it (rom seed 112).  (T, 5, 3) metres
+    and the segments."""
+    P = np.array([[-0.15, 0.0, 1.2], [0.0, 0.001, 1.2], [0.13, 0.0, 1.2], [0.27, 0.035, 1.22], [0.27, -0.035, 1.18]])
+    return np.broadcast_to(P, (n_frames, 5, 3)).copy(), ("l_upperarm",) * 2 + ("l_forearm",) * 3
+
+
+def test_wrist_markers_lost_together_are_not_carried_by_nearly_collinear_mates():
+    """Rom seed 112: both wrist markers unseen for 10 frames, the forearm's one other marker and the upper
+    arm's two carry them; 4 mm of noise turns the three nearly collinear mates anywhere about their line,
+    the carried wrist 3-8 cm off, and ``WRB`` seen again first takes ``WRA``'s label.  The rotation they
+    leave undetermined (:meth:`Tracker.rigid_carry`) must not carry the wrist."""
+    X, segments = still_arm()
+    rig = ring_rig()
+    geom = RigGeometry.of(rig)
+    hidden = lambda f: (3, 4) if 5 <= f < 15 else (3,) if 15 <= f < 17 else ()  # noqa: E731
+    wrong = {}
+    for name, cfg in (("off", TrackConfig(carry_noise_m=0.0)), ("on", TrackConfig())):
+        wrong[name] = []
+        for seed in range(6):
+            rng = np.random.default_rng(seed)
+            blobs = [blobs_of(rig, X[f], rng, noise=1.0, hidden={(c, i) for c in range(len(rig)) for i in hidden(f)})
+                     for f in range(len(X))]
+            recon = [reconstruct_frame(geom, b) for b in blobs]
+            st = TrackState.empty(len(X), segments)
+            st.point[0] = np.argmin(np.linalg.norm(recon[0].points[:, None] - X[0][None], axis=2), axis=0)
+            st.positions[0], st.state[0] = recon[0].points[st.point[0]], TRINOCULAR
+            tracker = Tracker(geom, lambda f: blobs[f], lambda f: recon[f], st, cfg)
+            tracker.run(list(range(len(X))))
+            wrong[name].append(int(np.sum(np.linalg.norm(st.positions[:, 3:] - X[:, 3:], axis=2) > 0.02)))
+            if name == "on":
+                assert np.all(st.state[17:, 3:] == TRINOCULAR)
+                a = st.positions[0, :3]
+                assert not tracker.rigid_carry(a, a, X[0, 3], np.inf)[1]  # 27 cm from mates 1 mm across
+    assert max(wrong["off"]) > 10  # a swap of the wrist labels to the end
+    assert wrong["on"] == [0] * 6

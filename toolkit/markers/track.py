@@ -22,7 +22,11 @@ previous ones:
 * **bridging** with the skeleton: a marker still lost is carried by the rigid
   motion (Kabsch) of the other markers of its segment since it was last
   measured (state ``BRIDGED``); its bridged position is the prediction of the
-  next frame, so its identity comes back when it reappears;
+  next frame, so its identity comes back when it reappears.  Mates nearly
+  collinear and far from the marker (a forearm's ``FRM`` with the upper
+  arm's two, 27 cm from the wrist) leave their rotation about their line to
+  the noise: such a motion neither bridges a marker nor carries a lost one
+  beyond the mates' translation (:meth:`Tracker.rigid_carry`);
 * **swaps across segments**: two markers of different segments that pass a
   few millimetres apart (a hand brushing the thigh) can leave with each
   other's labels, which no window tells apart.  Once they have moved apart,
@@ -122,6 +126,12 @@ class TrackConfig:
     carry_rms_m : float
         A lost marker is searched for where its segment and the adjacent
         ones carried it, when their markers moved rigidly within this residual, metres.
+    carry_noise_m : float
+        Noise of the mates that carry or bridge a marker, metres: their
+        rotation carries a marker only when this noise, levered to the
+        marker, stays within ``gate_m`` (:meth:`Tracker.rigid_carry`);
+        otherwise a lost marker is carried by their translation and not
+        bridged.
     cross_min_m : float
         Two measured markers of different segments whose labels are both
         off their rigid mates' distances (summed median deviation, see
@@ -168,6 +178,7 @@ class TrackConfig:
     bridge_rms_m: float = 0.012
     bridge_max_frames: int = 300
     carry_rms_m: float = 0.04
+    carry_noise_m: float = 0.003
     cross_min_m: float = 0.025
     cross_fit_m: float = 0.012
     cross_ratio: float = 0.4
@@ -356,11 +367,32 @@ class Tracker:
         if ok.sum() < c.bridge_min_mates:
             return None
         a, b = t.positions[r, mates[ok]], t.positions[p, mates[ok]]
+        X, determined = self.rigid_carry(a, b, last, c.carry_rms_m)
+        if X is None or determined:
+            return X
+        return last + b.mean(axis=0) - a.mean(axis=0)  # the rotation undetermined: their translation only
+
+    def rigid_carry(self, a: np.ndarray, b: np.ndarray, x: np.ndarray, max_rms_m: float):
+        """Point ``x`` (3,) moved by the rigid motion taking mates ``a`` (K, 3) to ``b`` (K, 3), metres.
+
+        Returns ``(X, determined)``: ``X`` is None when the mates moved less
+        rigidly than ``max_rms_m`` (rms residual); ``determined`` is False
+        when the rotation is too poorly fixed to carry ``x``: its error
+        grows with ``x``'s distance from the mates (the lever) over their
+        spread across their main axis (second singular value), and the
+        mates' noise of ``carry_noise_m`` would move ``x`` by more than
+        ``gate_m``.  Three nearly collinear mates (a forearm's ``FRM`` with
+        the upper arm's ``UPA`` and ``ELB``: 3 mm across, the wrist 27 cm
+        away) turn 5 mm of noise into 5-9 cm at the wrist (rom seed 112).
+        """
+        c = self.config
+        ca, cb = a.mean(axis=0), b.mean(axis=0)
         R = kabsch(a, b)
-        moved = (a - a.mean(axis=0)) @ R.T + b.mean(axis=0)
-        if np.sqrt(np.mean(np.sum((moved - b) ** 2, axis=1))) > c.carry_rms_m:
-            return None
-        return (last - a.mean(axis=0)) @ R.T + b.mean(axis=0)
+        if np.sqrt(np.mean(np.sum(((a - ca) @ R.T + cb - b) ** 2, axis=1))) > max_rms_m:
+            return None, False
+        spread = np.linalg.svd(a - ca, compute_uv=False)[1] / np.sqrt(a.shape[0])
+        determined = bool(c.carry_noise_m * np.linalg.norm(x - ca) <= c.gate_m * spread)
+        return (x - ca) @ R.T + cb, determined
 
     def _last_known(self, order, k, i):
         t = self.t
@@ -565,12 +597,10 @@ class Tracker:
                     same = same if same.size >= c.bridge_min_mates else usable
                 if same.size < c.bridge_min_mates:
                     return None
-                a, b = t.positions[r, same], t.positions[f, same]
-                R = kabsch(a, b)
-                moved = (a - a.mean(axis=0)) @ R.T + b.mean(axis=0)
-                if np.sqrt(np.mean(np.sum((moved - b) ** 2, axis=1))) > c.bridge_rms_m:
+                X, determined = self.rigid_carry(t.positions[r, same], t.positions[f, same], ref, c.bridge_rms_m)
+                if X is None or not determined:  # bent, or nearly collinear mates far from it: no bridge
                     return None
-                return (ref - a.mean(axis=0)) @ R.T + b.mean(axis=0), t.state[r, i] in (TRINOCULAR, TWO_VIEW)
+                return X, t.state[r, i] in (TRINOCULAR, TWO_VIEW)
         return None
 
     # ------------------------------------------------------------ swaps across segments
