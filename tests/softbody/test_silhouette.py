@@ -122,7 +122,9 @@ def test_silhouettes_hold_an_arm_without_points(walk_without_a_forearm):
     wr = SKELETON_14.joint_names.index("l_wrist")
     err, length = {}, {}
     for w in (0.0, 1.0):
-        fit = global_fit(model, tr, clouds, config=GlobalFitConfig(silhouette_weight=w, max_nfev=25), silhouettes=sil)
+        # the start's split and no proportion prior: those alone now fix a forearm short against its upper arm
+        cfg = GlobalFitConfig(silhouette_weight=w, max_nfev=25, split_reference="start", proportion_weight=0.0)
+        fit = global_fit(model, tr, clouds, config=cfg, silhouettes=sil)
         err[w] = 1000 * np.linalg.norm(fit.joints[:, wr] - joints[:, wr], axis=1).mean()
         length[w] = 1000 * np.abs(fit.lengths[li[0]] - lengths[li[0]])
     assert err[0.0] > 15.0          # without: the short forearm's wrist

@@ -50,6 +50,11 @@ _SYM = np.array([[LENGTH_NAMES.index(f"l_{n}"), LENGTH_NAMES.index(f"r_{n}")]
 #: Proximal and distal segment of each limb (indices into LENGTH_NAMES) tied by the split prior.
 _SPLIT = np.array([[LENGTH_NAMES.index(f"{s}_{a}"), LENGTH_NAMES.index(f"{s}_{b}")]
                    for s in ("l", "r") for a, b in (("upper_arm", "forearm"), ("thigh", "shank"))])
+#: Upper arm and forearm of each arm (indices into LENGTH_NAMES) tied to the stature chain by the proportion prior.
+_ARMS = np.array([[LENGTH_NAMES.index(f"{s}_upper_arm"), LENGTH_NAMES.index(f"{s}_forearm")] for s in ("l", "r")])
+#: The stature chain (torso, neck to head, the mean of the two legs): weights on LENGTH_NAMES.
+_CHAIN = np.array([1.0 if n in ("torso", "neck_to_head") else 0.5 if n.endswith(("thigh", "shank")) else 0.0
+                   for n in LENGTH_NAMES])
 #: Lengths of joints buried in the torso (shoulders, hips): seen through the surface only weakly.
 _BURIED = np.array([LENGTH_NAMES.index(n) for n in ("shoulder_half_width", "shoulder_drop",
                                                       "hip_half_width")])
@@ -124,6 +129,17 @@ class GlobalFitConfig:
         body's of the model's stature (:class:`toolkit.anthropometry.BodyProportions`;
         people differ from it by up to 10 %: measured thigh / shank 0.90-1.02
         against 0.98).
+    proportion_weight : float
+        Pull of each arm's length (upper arm + forearm) towards the
+        anthropometric share of the stature chain (torso, neck to head, mean
+        leg; :data:`toolkit.anthropometry.STATURE_RATIOS`), on the residual
+        ``arm - ratio * chain`` (metres per metre; 0: none).  Stereo clouds
+        have almost no points on the hands: nothing in the points holds the
+        wrist, the model's hand slides back over the last forearm points at no
+        cost and the arms came out 40-76 mm short; the chain is seen densely
+        (trunk, legs) and holds them.  People differ from the median ratio by
+        a few per cent (about 2-3 cm of arm); where the points are dense
+        (depth) they outweigh it.
     buried_prior_weight : float
         Pull of the lengths of joints buried in the torso (shoulder width
         and drop, hip width; not neck to head) towards the start, replacing
@@ -157,7 +173,8 @@ class GlobalFitConfig:
     length_prior_weight: float = 0.5
     symmetry_weight: float = 2.0
     split_weight: float = 3.0
-    split_reference: str = "start"
+    split_reference: str = "anthropometric"
+    proportion_weight: float = 1.0
     buried_prior_weight: float = 3.0
     fit_lengths: bool = True
     fit_widths: bool = True
@@ -253,6 +270,8 @@ class _Problem:
         ref = self.shape0[:13] if config.split_reference == "start" else \
             model.lengths_from_proportions(model.proportions)
         self.split_ratio = ref[_SPLIT[:, 0]] / ref[_SPLIT[:, 1]]
+        anth = model.lengths_from_proportions(model.proportions)
+        self.arm_ratio = anth[_ARMS].sum(1) / (_CHAIN @ anth)  # (2,) arm length per metre of stature chain
         self.len_w = np.full(13, config.length_prior_weight)
         self.len_w[_BURIED] = config.buried_prior_weight
 
@@ -321,6 +340,10 @@ class _Problem:
         res.append(wr * (shape[_SPLIT[:, 0]] - self.split_ratio * shape[_SPLIT[:, 1]]))
         split_rows = rows + np.arange(len(_SPLIT))
         rows += len(_SPLIT)
+        wa = c.proportion_weight if c.fit_lengths else 0.0
+        res.append(wa * (shape[_ARMS].sum(1) - self.arm_ratio * (_CHAIN @ shape[:13])))
+        prop_rows = rows + np.arange(len(_ARMS))
+        rows += len(_ARMS)
         r = np.concatenate(res)
         if not with_jac:
             return r, None
@@ -353,6 +376,12 @@ class _Problem:
             ri += [split_rows, split_rows]
             ci += [self.T * N_POSE + _SPLIT[:, 0], self.T * N_POSE + _SPLIT[:, 1]]
             vals += [np.full(len(_SPLIT), wr), -wr * self.split_ratio]
+        if wa > 0:
+            dp = -wa * self.arm_ratio[:, None] * _CHAIN[None]  # (2, 13)
+            dp[np.arange(len(_ARMS))[:, None], _ARMS] += wa
+            ri.append(np.repeat(prop_rows, 13))
+            ci.append(np.tile(self.T * N_POSE + np.arange(13), len(_ARMS)))
+            vals.append(dp.ravel())
         J = sp.csr_matrix((np.concatenate(vals), (np.concatenate(ri), np.concatenate(ci))), shape=(rows, self.n))
         return r, J
 
