@@ -9,8 +9,10 @@ of the root rotation over consecutive frames, as in the source); a pull of
 each frame's root (the pelvis, buried in the trunk and thighs) towards the
 tracked one; and priors on the shape: widths and lengths near the start
 (stronger for the joints buried in the torso), left and right limbs alike,
-and each limb's split (thigh / shank, upper arm / forearm) near the start's
-ratio, which the surface of a straight limb does not show.  The data are
+each limb's split (thigh / shank, upper arm / forearm) near the median
+body's ratio, which the surface of a straight limb does not show, and each
+arm near its anthropometric share of the stature chain, which stereo points
+without hands do not show.  The data are
 the same points per frame as tracking's (``max_points`` as
 :class:`~toolkit.softbody.track.TrackConfig`'s): a well-tracked pose is then
 already an optimum of the global objective's pose part and stays put.
