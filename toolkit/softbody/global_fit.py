@@ -25,6 +25,7 @@ about 1 MB of Jacobian entries and their indices).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,7 +36,8 @@ from scipy.spatial import cKDTree
 from toolkit.errors import InputError
 from toolkit.observe import Observer, as_observer
 from toolkit.softbody.distance import check_points
-from toolkit.softbody.model import LENGTH_NAMES, N_PARAMS, N_POSE, SoftBodyModel, SoftBodyParams, pose_bounds
+from toolkit.softbody.model import (LENGTH_NAMES, N_PARAMS, N_POSE, SoftBodyModel, SoftBodyParams, continuous_poses,
+                                    pose_bounds)
 from toolkit.softbody.residuals import (LOSSES, CoverageSamples, coverage_residuals, coverage_samples, data_residuals, gate_points,
                                         coverage_margin,
                                         one_blas_thread)
@@ -420,6 +422,10 @@ def global_fit(model: SoftBodyModel, track: SoftBodyTrack, clouds, *, config: Gl
         raise InputError("clouds", f"{len(track.params)} clouds (one per tracked frame)", f"{len(clouds)}")
     if silhouettes is not None and len(silhouettes) != len(track.params):
         raise InputError("silhouettes", f"{len(track.params)} entries (one per tracked frame)", f"{len(silhouettes)}")
+    if len(track.params) > 1:  # no 2 pi jumps between frames: the constant-speed term acts on differences
+        params = track.params.copy()
+        params[:, :N_POSE] = continuous_poses(params[:, :N_POSE])
+        track = dataclasses.replace(track, params=params)
     prob = _Problem(model, track, clouds, config, silhouettes)
     z0 = np.r_[track.params[:, :N_POSE].ravel(), prob.shape0] if len(track.params) else np.zeros(0)
     hist_len, hist_cost = [], []

@@ -49,6 +49,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from toolkit.anthropometry.proportions import BodyProportions
 from toolkit.errors import InputError
@@ -56,7 +57,7 @@ from toolkit.skeleton import SKELETON_14
 
 __all__ = ["FRAMES", "DOF_NAMES", "LENGTH_NAMES", "WIDTH_GROUPS", "N_POSE", "N_PARAMS", "POSE", "LENGTHS",
            "WIDTHS", "SoftBodyParams", "SoftBodyModel", "ModelState", "BLEND_M", "pose_bounds",
-           "attached_points_jacobian", "rotvec_to_matrix"]
+           "attached_points_jacobian", "rotvec_to_matrix", "canonical_pose", "pose_step", "continuous_poses"]
 
 _J = {n: i for i, n in enumerate(SKELETON_14.joint_names)}
 PELVIS = 14  #: node index of the mid-hip point (the 15th node after the 14 joints)
@@ -508,3 +509,103 @@ def pose_bounds() -> tuple[np.ndarray, np.ndarray]:
         if name.endswith(("_elbow", "_knee")):
             lo[k], hi[k] = 0.0, FLEXION_LIMITS[name.split("_")[1]]
     return lo, hi
+
+
+def _free_angles() -> np.ndarray:
+    """Indices of the pose entries that are unbounded angles (every joint angle but elbows and knees)."""
+    lo, hi = pose_bounds()
+    return np.array([k for k in range(6, N_POSE) if np.isinf(lo[k]) and np.isinf(hi[k])], int)
+
+
+def _wrap(a):
+    return (np.asarray(a, float) + np.pi) % (2 * np.pi) - np.pi
+
+
+def canonical_pose(pose: np.ndarray) -> np.ndarray:
+    """The same pose with its angles in their principal ranges.
+
+    The root rotation vector of angle ``theta > pi`` becomes the equivalent one
+    of angle ``2 pi - theta`` about the opposite axis, and every unbounded joint
+    angle (an Euler angle: each is ``2 pi``-periodic on its own) is wrapped to
+    ``[-pi, pi)``.  The model's joints and surface do not change; the
+    parameterisation stays away from ``|r| = 2 pi``, where the rotation
+    vector's derivative is singular and a least-squares step can throw the
+    body over (a trinocular kick whose root drifted to ``|r| = 6.3`` was lost
+    in its third frame).
+
+    Parameters
+    ----------
+    pose : ndarray of shape (27,) or (T, 27)
+        Root rotation vector (rad), root translation (m), joint angles (rad).
+
+    Returns
+    -------
+    ndarray, same shape
+    """
+    p = np.array(pose, float)
+    one = p.ndim == 1
+    p = np.atleast_2d(p)
+    r = p[:, 0:3]
+    th = np.linalg.norm(r, axis=1)
+    big = th > np.pi
+    r[big] *= ((th[big] - 2 * np.pi) / th[big])[:, None]
+    free = _free_angles()
+    p[:, free] = _wrap(p[:, free])
+    return p[0] if one else p
+
+
+def pose_step(pose: np.ndarray, previous: np.ndarray, factor: float) -> np.ndarray:
+    """``pose`` moved on by ``factor`` times its change from ``previous`` (constant-speed prediction).
+
+    The root rotation is extrapolated as a rotation (the relative rotation
+    ``R(pose) R(previous)^T`` scaled by ``factor``), the free joint angles by
+    their wrapped differences, so that two frames on either side of a
+    ``2 pi`` or ``pi`` wrap do not predict a turn of a whole revolution.
+
+    Parameters
+    ----------
+    pose, previous : ndarray of shape (27,)
+    factor : float
+
+    Returns
+    -------
+    ndarray of shape (27,)
+    """
+    pose, previous = np.array(pose, float), np.array(previous, float)
+    d = pose - previous
+    free = _free_angles()
+    d[free] = _wrap(d[free])
+    out = pose + factor * d
+    rel = Rotation.from_rotvec(pose[0:3]) * Rotation.from_rotvec(previous[0:3]).inv()
+    out[0:3] = (Rotation.from_rotvec(factor * rel.as_rotvec()) * Rotation.from_rotvec(pose[0:3])).as_rotvec()
+    return out
+
+
+def continuous_poses(poses: np.ndarray) -> np.ndarray:
+    """A sequence of poses with no ``2 pi`` jumps between consecutive frames (for terms on their differences).
+
+    Each free joint angle is unwrapped along time (``numpy.unwrap``); each
+    frame's root rotation vector is replaced by the equivalent one (angle
+    ``theta - 2 pi k`` about the same axis) nearest the previous frame's.
+
+    Parameters
+    ----------
+    poses : ndarray of shape (T, 27)
+
+    Returns
+    -------
+    ndarray of shape (T, 27)
+    """
+    p = np.array(poses, float)
+    if len(p) < 2:
+        return p
+    free = _free_angles()
+    p[:, free] = np.unwrap(p[:, free], axis=0)
+    for t in range(1, len(p)):
+        r = p[t, 0:3]
+        th = np.linalg.norm(r)
+        if th < 1e-9:
+            continue
+        cands = [r * (th + 2 * np.pi * k) / th for k in (-1, 0, 1)]
+        p[t, 0:3] = min(cands, key=lambda c: float(np.linalg.norm(c - p[t - 1, 0:3])))
+    return p

@@ -45,7 +45,7 @@ from scipy.spatial import cKDTree
 from toolkit.errors import InputError
 from toolkit.observe import Observer, as_observer
 from toolkit.softbody.distance import check_points, distance, primitive_distances
-from toolkit.softbody.model import N_POSE, SoftBodyModel, SoftBodyParams, pose_bounds
+from toolkit.softbody.model import N_POSE, SoftBodyModel, SoftBodyParams, canonical_pose, pose_bounds, pose_step
 from toolkit.softbody.residuals import (LOSSES, CoverageSamples, coverage_residuals, coverage_samples, data_residuals,
                                        coverage_margin,
                                        one_blas_thread)
@@ -451,18 +451,19 @@ def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, con
         raise InputError("silhouettes", f"one entry per cloud ({len(clouds)})", f"{len(silhouettes)}")
     out = np.empty((len(clouds), params0.vector.size))
     fits = []
-    prev, prev2, others, run = params0, None, None, 0   # run: frames fitted in a row
+    # angles kept in their principal ranges (the root's rotation vector far from |r| = 2 pi, where it is singular)
+    prev, prev2, others, run = params0.replace(pose=canonical_pose(params0.pose)), None, None, 0   # run: fitted in a row
     for t, cloud in enumerate(clouds):
         start = prev
         if prev2 is not None and config.predict > 0:
-            start = prev.replace(pose=prev.pose + config.predict * (prev.pose - prev2.pose))
+            start = prev.replace(pose=pose_step(prev.pose, prev2.pose, config.predict))
         # the metaballs' motion over the last frame, known after two fitted frames (not from the start pose)
         motion = None if run < 2 else np.linalg.norm(model.state(prev).centres - model.state(prev2).centres, axis=1)
         f = track_frame(model, start, cloud, config, anchor=prev, others=others, motion=motion,
                         silhouettes=None if silhouettes is None else silhouettes[t])
         others = check_points(cloud, "cloud")[f.other]
         fitted = f.state in ("ok", "crowded")
-        p = f.params if fitted else prev
+        p = f.params.replace(pose=canonical_pose(f.params.pose)) if fitted else prev
         out[t] = p.vector
         fits.append(f)
         prev2, prev = (prev, p) if fitted else (None, p)
