@@ -7,6 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from benchmarks.bench_softbody import TRINOCULAR_SPEC
 from toolkit.observe import RecordingObserver
 from toolkit.pipeline.soft_body import SoftBodyRunConfig, run, wants_silhouettes
 from toolkit.pipeline.soft_body_sources import StereoClouds
@@ -14,21 +15,8 @@ from toolkit.softbody import GlobalFitConfig, TrackConfig
 from toolkit.synthetic.generator import build_scene, generate_scene
 from toolkit.synthetic.spec import parse_spec
 
-SPEC = """seed = 3
-frames = 2
-fps = 25
-[subject]
-height_m = 1.72
-motion = "wave"
-pattern = "checks_all"
-[cameras]
-count = 6
-layout = "trinocular"
-heads = 2
-baseline_m = [0.25, 0.35]
-spacing_deg = [80, 110]
-resolution = [320, 240]
-"""
+# the benchmark's trinocular scene (two heads, checked clothes), 2 frames of a wave
+SPEC = TRINOCULAR_SPEC.format(seed=3, frames=2, height=1.72, motion="wave")
 
 
 @pytest.fixture(scope="module")

@@ -36,3 +36,33 @@ def model_walk(n_frames: int, n_points: int, seed: int):
     rng = np.random.default_rng(seed)
     clouds = [sample_surface(model, p, n_points, rng) for p in truth]
     return model, truth, joints, clouds, lengths, rng
+
+
+def without_hands(model, truth, clouds, rng, noise_m: float) -> list:
+    """The clouds less their points nearest the hands' metaballs (stereo finds few there), plus noise.
+
+    Parameters
+    ----------
+    model : SoftBodyModel
+    truth : list of SoftBodyParams
+        The pose of each cloud.
+    clouds : list of ndarray (N_t, 3)
+        Metres.
+    rng : numpy.random.Generator
+    noise_m : float
+        Standard deviation of the Gaussian noise added to every kept point, metres.
+
+    Returns
+    -------
+    list of ndarray (M_t, 3)
+    """
+    from toolkit.softbody.distance import primitive_distances
+    from toolkit.softbody.model import FRAMES
+
+    forearms = [FRAMES.index("l_forearm"), FRAMES.index("r_forearm")]
+    hands = np.flatnonzero(~model.prim_axial & np.isin(model.prim_frame, forearms))
+    out = []
+    for p, c in zip(truth, clouds):
+        c = c[~np.isin(primitive_distances(model.state(p), c).argmin(axis=1), hands)]
+        out.append(c + rng.normal(0, noise_m, c.shape))
+    return out

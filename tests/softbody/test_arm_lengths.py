@@ -12,12 +12,11 @@ global fit's.
 import numpy as np
 import pytest
 
-from toolkit.softbody.distance import primitive_distances
 from toolkit.softbody.global_fit import GlobalFitConfig, global_fit
-from toolkit.softbody.model import FRAMES, LENGTH_NAMES
+from toolkit.softbody.model import LENGTH_NAMES
 from toolkit.softbody.track import TrackConfig, track_sequence
 
-from tests.softbody.conftest import model_walk
+from tests.softbody.conftest import model_walk, without_hands
 
 N_FRAMES = 4
 N_POINTS = 1200
@@ -28,13 +27,7 @@ ARMS = [LENGTH_NAMES.index(n) for n in ("l_upper_arm", "l_forearm", "r_upper_arm
 @pytest.fixture(scope="module")
 def handless():
     model, truth, _, clouds, lengths, rng = model_walk(N_FRAMES, N_POINTS, seed=1)
-    forearms = [FRAMES.index("l_forearm"), FRAMES.index("r_forearm")]
-    hands = np.flatnonzero(~model.prim_axial & np.isin(model.prim_frame, forearms))
-    out = []
-    for p, c in zip(truth, clouds):
-        nearest = primitive_distances(model.state(p), c).argmin(axis=1)
-        c = c[~np.isin(nearest, hands)]  # no points on the hands
-        out.append(c + rng.normal(0, NOISE_M, c.shape))
+    out = without_hands(model, truth, clouds, rng, NOISE_M)
     track = track_sequence(model, truth[0], out, config=TrackConfig())
     return model, out, lengths, track
 

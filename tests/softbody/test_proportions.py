@@ -13,12 +13,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from toolkit.softbody.distance import primitive_distances
 from toolkit.softbody.global_fit import GlobalFitConfig, _Problem, global_fit
-from toolkit.softbody.model import FRAMES, LENGTH_NAMES, N_POSE
+from toolkit.softbody.model import LENGTH_NAMES, N_POSE
 from toolkit.softbody.track import TrackConfig, track_sequence
 
-from tests.softbody.conftest import model_walk
+from tests.softbody.conftest import model_walk, without_hands
 
 N_FRAMES = 3
 N_POINTS = 900
@@ -29,12 +28,7 @@ ARMS = [LENGTH_NAMES.index(n) for n in ("l_upper_arm", "l_forearm", "r_upper_arm
 @pytest.fixture(scope="module")
 def short_arms():
     model, truth, _, clouds, lengths, rng = model_walk(N_FRAMES, N_POINTS, seed=3)
-    forearms = [FRAMES.index("l_forearm"), FRAMES.index("r_forearm")]
-    hands = np.flatnonzero(~model.prim_axial & np.isin(model.prim_frame, forearms))
-    out = []
-    for p, c in zip(truth, clouds):
-        c = c[~np.isin(primitive_distances(model.state(p), c).argmin(axis=1), hands)]  # no points on the hands
-        out.append(c + rng.normal(0, 0.005, c.shape))
+    out = without_hands(model, truth, clouds, rng, 0.005)
     start = truth[0].lengths.copy()
     start[ARMS] -= SHORT_M  # the start's arms 50 mm short (each segment 25 mm)
     track = track_sequence(model, truth[0].replace(lengths=start), out, config=TrackConfig())
