@@ -6,6 +6,7 @@ Usage::
     python -m benchmarks.bench_softbody                    # 2 depth + 2 trinocular scenes x 12 frames
     python -m benchmarks.bench_softbody --quick            # 1 + 1 scenes x 12 frames
     python -m benchmarks.bench_softbody --scenes 3 --frames 20 --seed 2600   # docs/benchmarks.md
+    python -m benchmarks.bench_softbody --sources trinocular --click-draws 4  # sensitivity to the clicks
 
 Seeded synthetic sequences, each a random person (1.60-1.90 m, random
 outfit, checked shirt and trousers for the stereo scenes) doing one of several
@@ -34,8 +35,10 @@ median and worst decile over scenes:
   rendered from) to the fitted model's surface mesh, every 4th frame;
 * time per frame (s) of the clouds and of the fit (tracking + global fit).
 
-Targets (issue 18): after the global fit MPJPE <= 35 mm and bone lengths within
-15 mm on average; the global fit better than tracking alone.
+Targets (issue 18), checked per source (depth and trinocular each on their own,
+the median over its scenes): after the global fit MPJPE <= 35 mm and bone
+lengths within 15 mm on average; the global fit better than tracking alone in
+every scene.
 """
 
 from __future__ import annotations
@@ -153,9 +156,14 @@ def bone_error_mm(joints: np.ndarray, truth: np.ndarray) -> float:
 
 
 def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool = True,
-             silhouette_weight: float | None = None) -> dict:
-    """Run one scene through the pipeline and score it (``silhouette_weight``: tracking's and the global
-    fit's, None: the defaults)."""
+             silhouette_weight: float | None = None, click_draw: int = 0) -> dict:
+    """Run one scene through the pipeline and score it.
+
+    ``silhouette_weight``: tracking's and the global fit's (None: the defaults).  ``click_draw``: which
+    draw of the click noise (trinocular scenes; the noise is seeded by the scene's seed and the draw, so
+    a scene's clicks do not depend on which scenes ran before it); draws after the first get their own
+    run folder and row name (``..._d1``).
+    """
     from toolkit.anthropometry import BodyProportions
     from toolkit.pipeline.soft_body import SoftBodyRunConfig, run
     from toolkit.softbody import SoftBodyModel, SoftBodyParams
@@ -163,19 +171,23 @@ def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool 
     from toolkit.synthetic.spec import parse_spec
 
     data = make_dataset(name, kind, text, root / "data")
-    scene = build_scene(parse_spec(text, name))
+    spec = parse_spec(text, name)
+    scene = build_scene(spec)
+    run_name = name if click_draw == 0 else f"{name}_d{click_draw}"
     cfg = SoftBodyRunConfig(recording=False, progress=False, replace_stale=True, global_fit=global_fit)
     if silhouette_weight is not None:
         cfg = replace(cfg, track=replace(cfg.track, silhouette_weight=silhouette_weight),
                       fit=replace(cfg.fit, silhouette_weight=silhouette_weight))
     if kind == "trinocular":
-        cfg = replace(cfg, foreground="plate", clicks=write_clicks(data, scene, root / f"{name}_clicks.npz", rng))
-    res = run(cfg, dataset=data, out=root / "runs" / name, log=None)
+        click_rng = np.random.default_rng([spec.seed, click_draw, 18])
+        cfg = replace(cfg, foreground="plate",
+                      clicks=write_clicks(data, scene, root / f"{run_name}_clicks.npz", click_rng))
+    res = run(cfg, dataset=data, out=root / "runs" / run_name, log=None)
     z = np.load(res.extra["joints"])
     info = json.loads(Path(res.extra["body_model"]).read_text())
     model = SoftBodyModel(BodyProportions.from_height(info["stature_m"]), girth=info["girth"])
     truth = scene.joints[:len(z["joints"])]
-    out = {"scene": name, "kind": kind, "states": res.metrics["states"],
+    out = {"scene": run_name, "kind": kind, "states": res.metrics["states"],
            "clouds_s": res.metrics["seconds_per_frame"]["clouds"], "fit_s": res.metrics["seconds_per_frame"]["fit"]}
     for stage, jk, pk in (("track", "joints_tracking", "params_tracking"), ("global", "joints", "params")):
         j = z[jk]
@@ -191,8 +203,9 @@ COLUMNS = ("mpjpe_track", "mpjpe_global", "bone_track", "bone_global", "surface_
            "clouds_s", "fit_s")
 
 
-def report(rows: list) -> bool:
-    """Print the table, the medians and worst deciles; True when the targets are met."""
+def report(rows: list, global_fit: bool = True) -> bool:
+    """Print the table, the medians and worst deciles; True when every source meets the targets on its own
+    (``global_fit`` False: tracking only, the comparison with tracking is skipped)."""
     head = f"{'scene':<34}" + "".join(f"{c:>15}" for c in COLUMNS)
     print(head)
     for r in rows:
@@ -206,12 +219,16 @@ def report(rows: list) -> bool:
         print(f"{'median ' + kind:<34}" + "".join(f"{med[c]:>15.2f}" for c in COLUMNS))
         print(f"{'worst decile ' + kind:<34}" + "".join(f"{worst[c]:>15.2f}" for c in COLUMNS))
         if kind == "all":
-            ok = (med["mpjpe_global"] <= TARGET_MPJPE_MM and med["bone_global"] <= TARGET_BONE_MM
-                  and med["mpjpe_global"] < med["mpjpe_track"])
-            print(f"targets (median over scenes): MPJPE after the global fit {med['mpjpe_global']:.1f} <= "
-                  f"{TARGET_MPJPE_MM:.0f} mm, bone lengths {med['bone_global']:.1f} <= {TARGET_BONE_MM:.0f} mm, "
-                  f"global fit better than tracking ({med['mpjpe_global']:.1f} < {med['mpjpe_track']:.1f} mm): "
-                  + ("met" if ok else "NOT met"))
+            continue
+        worse = [r["scene"] for r in sel if global_fit and r["mpjpe_global"] >= r["mpjpe_track"]]
+        met = (med["mpjpe_global"] <= TARGET_MPJPE_MM and med["bone_global"] <= TARGET_BONE_MM
+               and not worse)
+        ok = ok and met
+        print(f"targets, {kind} (median over its scenes): MPJPE after the global fit {med['mpjpe_global']:.1f} <= "
+              f"{TARGET_MPJPE_MM:.0f} mm, bone lengths {med['bone_global']:.1f} <= {TARGET_BONE_MM:.0f} mm, "
+              f"global fit better than tracking in every scene "
+              f"({len(sel) - len(worse)} of {len(sel)}{': not ' + ', '.join(worse) if worse else ''}): "
+              + ("met" if met else "NOT met"))
     return ok
 
 
@@ -232,6 +249,9 @@ def main(argv=None) -> int:
     ap.add_argument("--silhouette-weight", type=float, default=None,
                     help="weight of the cameras' silhouettes in tracking and the global fit (0: none; "
                          "default: the configs')")
+    ap.add_argument("--click-draws", type=int, default=1,
+                    help="draws of the click noise per trinocular scene, each run and scored as its own row "
+                         "(the stereo initialisation's sensitivity to the clicks)")
     args = ap.parse_args(argv)
     n, frames = (1, 12) if args.quick else (args.scenes, args.frames)
     kinds = set(args.sources.split(","))
@@ -241,13 +261,15 @@ def main(argv=None) -> int:
     for name, kind, text in scene_specs(n, frames, args.seed):
         if kind not in kinds:
             continue
-        rows.append(evaluate(name, kind, text, args.cache, rng, not args.tracking_only, args.silhouette_weight))
-        print(f"{name}: MPJPE {rows[-1]['mpjpe_track']:.1f} -> {rows[-1]['mpjpe_global']:.1f} mm, bones "
-              f"{rows[-1]['bone_track']:.1f} -> {rows[-1]['bone_global']:.1f} mm ({time.perf_counter() - t0:.0f} s)",
-              flush=True)
+        for draw in range(args.click_draws if kind == "trinocular" else 1):
+            rows.append(evaluate(name, kind, text, args.cache, rng, not args.tracking_only, args.silhouette_weight,
+                                 click_draw=draw))
+            r = rows[-1]
+            print(f"{r['scene']}: MPJPE {r['mpjpe_track']:.1f} -> {r['mpjpe_global']:.1f} mm, bones "
+                  f"{r['bone_track']:.1f} -> {r['bone_global']:.1f} mm ({time.perf_counter() - t0:.0f} s)", flush=True)
     if args.json is not None:
         args.json.write_text(json.dumps(rows, indent=1))
-    ok = report(rows)
+    ok = report(rows, not args.tracking_only)
     print(f"total {time.perf_counter() - t0:.0f} s")
     return 0 if ok else 1
 
