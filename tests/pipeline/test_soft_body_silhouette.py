@@ -31,8 +31,7 @@ def stereo_dataset(tmp_path_factory):
 
 def test_silhouettes_are_the_masks_the_clouds_used(stereo_dataset):
     root, _ = stereo_dataset
-    src = StereoClouds(root, foreground="groundtruth")
-    src.keep_masks = True
+    src = StereoClouds(root, foreground="groundtruth", keep_masks=True)
     src.cloud(0)
     kept = src.silhouettes(0)
     again = src.silhouettes(0)  # not kept any more: found again by the same foreground step

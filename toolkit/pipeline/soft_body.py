@@ -427,7 +427,7 @@ def wants_silhouettes(config: SoftBodyRunConfig) -> bool:
 
 def silhouettes_of(source, n: int) -> list:
     """Per frame ``0..n-1``, the source's cameras' silhouettes (:func:`toolkit.softbody.silhouette.silhouette_views`)
-    from the masks its foreground step found (kept by ``source.cloud`` when ``source.keep_masks``)."""
+    from the masks its foreground step found (kept by ``source.cloud`` when the source keeps its masks)."""
     from toolkit.softbody.silhouette import silhouette_views
 
     out = []
@@ -472,7 +472,8 @@ def run(config: SoftBodyRunConfig, *, dataset, out, observer=None, log=print) ->
     from toolkit.pipeline.soft_body_sources import open_source
 
     out = Path(out)
-    source = open_source(dataset, config.source, stereo=config.stereo, foreground=config.foreground)
+    source = open_source(dataset, config.source, stereo=config.stereo, foreground=config.foreground,
+                         keep_masks=wants_silhouettes(config))
     n = len(source) if config.max_frames is None else min(len(source), int(config.max_frames))
     if n < 1:
         raise InputError(str(dataset), "at least one frame", "none")
@@ -485,7 +486,6 @@ def run(config: SoftBodyRunConfig, *, dataset, out, observer=None, log=print) ->
     own = observer is None and config.recording
     obs = _recording(out, run_recording(out, False)[1]) if own else observer
     t0 = time.perf_counter()
-    source.keep_masks = wants_silhouettes(config)
     try:
         clouds, raws, stats = build_clouds(source, n, config.patches, obs, config.progress)
         silhouettes = silhouettes_of(source, n) if source.keep_masks else None

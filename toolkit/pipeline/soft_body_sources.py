@@ -44,18 +44,28 @@ FOREGROUNDS = ("auto", "masks", "plate", "groundtruth")
 
 class DepthClouds:
     """The foreground points (every person in view) of each depth frame, world (or level camera)
-    coordinates, metres."""
+    coordinates, metres.
+
+    Parameters
+    ----------
+    dataset : path
+        A dataset folder with ``depth_camera/`` or a folder of depth frames.
+    mask_config : toolkit.pointcloud.MaskConfig, optional
+    keep_masks : bool
+        :meth:`cloud` keeps each frame's foreground mask until :meth:`silhouettes` takes it (the
+        silhouettes are then the very masks the clouds used, found once).
+    """
 
     kind = "depth"
 
-    def __init__(self, dataset, *, mask_config=None):
+    def __init__(self, dataset, *, mask_config=None, keep_masks: bool = False):
         from toolkit.io.depth_readers import open_depth_input
         from toolkit.pointcloud import BackgroundModel, MaskConfig
 
         self.input = open_depth_input(dataset)
         self.background = None if self.input.background is None else BackgroundModel(self.input.background)
         self.mask_config = mask_config or MaskConfig()
-        self.keep_masks, self._masks = False, {}  # keep_masks: cloud() keeps each frame's mask for silhouettes()
+        self.keep_masks, self._masks = bool(keep_masks), {}
 
     def __len__(self) -> int:
         return len(self.input)
@@ -107,11 +117,22 @@ class DepthClouds:
 
 
 class StereoClouds:
-    """The points of every trinocular head of a dataset in each frame, world, metres."""
+    """The points of every trinocular head of a dataset in each frame, world, metres.
+
+    Parameters
+    ----------
+    dataset : path
+        A dataset folder with trinocular heads (:func:`toolkit.pointcloud.stereo.trinocular_heads`).
+    stereo : toolkit.pointcloud.stereo.StereoConfig, optional
+    foreground : {"auto", "masks", "plate", "groundtruth"}
+        How the subject is found in the images (:data:`FOREGROUNDS`).
+    keep_masks : bool
+        :meth:`cloud` keeps each head's reference mask until :meth:`silhouettes` takes it.
+    """
 
     kind = "stereo"
 
-    def __init__(self, dataset, *, stereo=None, foreground: str = "auto"):
+    def __init__(self, dataset, *, stereo=None, foreground: str = "auto", keep_masks: bool = False):
         from toolkit.io import Dataset
         from toolkit.pointcloud.stereo import StereoConfig, head_pairs, trinocular_heads
 
@@ -123,7 +144,7 @@ class StereoClouds:
         self.config = stereo or StereoConfig()
         self.foreground = self._choose(foreground)
         self._plates = {}
-        self.keep_masks, self._masks = False, {}  # keep_masks: cloud() keeps the masks for silhouettes()
+        self.keep_masks, self._masks = bool(keep_masks), {}
 
     def _choose(self, foreground: str) -> str:
         d, first = self.data, self.data.camera_names[0]
@@ -192,17 +213,17 @@ class StereoClouds:
         return np.concatenate(out) if out else np.zeros((0, 3))
 
 
-def open_source(dataset, kind: str = "auto", *, stereo=None, foreground: str = "auto"):
+def open_source(dataset, kind: str = "auto", *, stereo=None, foreground: str = "auto", keep_masks: bool = False):
     """The cloud source of ``dataset``: ``"depth"`` (a ``depth_camera/`` or a folder of depth frames),
     ``"stereo"`` (a dataset of trinocular heads), or ``"auto"`` (depth when there is a ``depth_camera/``
-    folder or no ``calibration.toml``)."""
+    folder or no ``calibration.toml``); ``keep_masks``: the clouds' masks are kept for the silhouettes."""
     root = Path(dataset)
     if kind == "auto":
         kind = "depth" if (root / "depth_camera").is_dir() or not (root / "calibration.toml").is_file() else "stereo"
     if kind == "depth":
-        return DepthClouds(root)
+        return DepthClouds(root, keep_masks=keep_masks)
     if kind == "stereo":
-        return StereoClouds(root, stereo=stereo, foreground=foreground)
+        return StereoClouds(root, stereo=stereo, foreground=foreground, keep_masks=keep_masks)
     raise InputError("source (--source)", "'auto', 'depth' or 'stereo'", repr(kind))
 
 
