@@ -34,6 +34,7 @@ from toolkit.pipeline.run import RunResult, open_run
 from toolkit.pointcloud.patches import PatchConfig
 from toolkit.pointcloud.stereo import StereoConfig
 from toolkit.softbody import GlobalFitConfig, TrackConfig
+from toolkit.softbody.init import RefineConfig
 
 #: Cloud sources.
 SOURCES = ("auto", "depth", "stereo")
@@ -68,6 +69,10 @@ class SoftBodyRunConfig:
         Frame-to-frame tracking (``viewpoints`` default to the source's camera centres).
     fit : GlobalFitConfig
         The global fit (``[fit]`` table in TOML; ``viewpoints`` default to the source's camera centres).
+    refine : RefineConfig
+        Clicks: the clicked model's pose and lengths refined on the init frame's points, silhouettes
+        and the clicks as soft observations (:func:`toolkit.softbody.init.refine_on_cloud`; ``[refine]``
+        table, ``enabled = false`` keeps the triangulated clicks).
     global_fit : bool
         Run the global fit after tracking.
     independent : bool
@@ -99,6 +104,7 @@ class SoftBodyRunConfig:
     patches: PatchConfig = field(default_factory=PatchConfig)
     track: TrackConfig = field(default_factory=TrackConfig)
     fit: GlobalFitConfig = field(default_factory=GlobalFitConfig)
+    refine: RefineConfig = field(default_factory=RefineConfig)
     global_fit: bool = True
     independent: bool = False
     mesh_voxel_m: float = 0.015
@@ -189,8 +195,11 @@ def _tracker_joints(source, n: int, frame: int) -> np.ndarray:
                      "none")
 
 
-def initial_model(config: SoftBodyRunConfig, source, n: int):
-    """The model and parameters the tracking starts from, and the joints they came from (14, 3)."""
+def initial_model(config: SoftBodyRunConfig, source, n: int, cloud=None, silhouettes=None, observer=None):
+    """The model and parameters the tracking starts from, and the joints they came from (14, 3).
+
+    ``cloud`` (N, 3) metres and ``silhouettes`` (list of SilhouetteView): the init frame's, for
+    refining a clicked start (``config.refine``, reported to ``observer``)."""
     from toolkit.pipeline.soft_body_sources import read_clicks, read_init_joints
     from toolkit.softbody import init_from_2d, model_from_joints
 
@@ -215,6 +224,11 @@ def initial_model(config: SoftBodyRunConfig, source, n: int):
         raise InputError("clicks (--clicks)", "a clicks .npz for init = 'clicks'", "none")
     a, b, cam_a, cam_b, _ = read_clicks(config.clicks, source.data.rig)
     model, params = init_from_2d(a, b, cam_a, cam_b)
+    if config.refine.enabled and cloud is not None:
+        from toolkit.softbody.init import refine_on_cloud
+
+        params = refine_on_cloud(model, params, cloud, clicks=[(cam_a, a), (cam_b, b)], silhouettes=silhouettes,
+                                 config=config.refine, observer=observer, frame=min(config.init_frame, n - 1))
     return model, params, model.joints(params)
 
 
@@ -493,7 +507,9 @@ def run(config: SoftBodyRunConfig, *, dataset, out, observer=None, log=print) ->
         if config.independent:
             fitted = fit_independent(source, clouds, config, obs)
         else:
-            model, params0, joints0 = initial_model(config, source, n)
+            f0 = min(config.init_frame, n - 1)
+            model, params0, joints0 = initial_model(config, source, n, clouds[f0],
+                                                    None if silhouettes is None else silhouettes[f0], obs)
             if own:
                 _send_layout(obs, joints0, source.viewpoints)
             if obs is not None:

@@ -14,6 +14,8 @@ with the model's analytic joint Jacobian).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
@@ -27,7 +29,8 @@ from toolkit.softbody.model import (LENGTH_NAMES, LENGTHS, N_POSE, WIDTH_GROUPS,
                                     SoftBodyParams, pose_bounds)
 from toolkit.softbody.residuals import one_blas_thread
 
-__all__ = ["params_from_pose14", "model_from_joints", "init_from_2d", "fit_pose_to_joints", "STATURE_LIMITS"]
+__all__ = ["params_from_pose14", "model_from_joints", "init_from_2d", "fit_pose_to_joints", "STATURE_LIMITS",
+           "RefineConfig", "refine_on_cloud", "SYMMETRIC_LENGTHS"]
 
 _J = {n: i for i, n in enumerate(SKELETON_14.joint_names)}
 #: Statures the estimate from the joints is clipped to (metres): the metaball radii scale with it.
@@ -203,3 +206,193 @@ def init_from_2d(points2d_a, points2d_b, cam_a, cam_b, *, stature: float | None 
     if not np.all(np.isfinite(joints)):
         raise InputError("cam_a, cam_b", "two cameras that triangulate every joint", "a degenerate pair")
     return model_from_joints(joints, stature=stature)
+
+
+#: Left/right pairs of segment lengths (the symmetry prior of :func:`refine_on_cloud`).
+SYMMETRIC_LENGTHS = tuple((LENGTH_NAMES.index(f"l_{s}"), LENGTH_NAMES.index(f"r_{s}"))
+                          for s in ("upper_arm", "forearm", "thigh", "shank"))
+
+
+@dataclass(frozen=True)
+class RefineConfig:
+    """Settings of :func:`refine_on_cloud` (the initial model fitted to the first frame's points).
+
+    Attributes
+    ----------
+    enabled : bool
+        Whether the run refines a clicked start (:mod:`toolkit.pipeline.soft_body`).
+    click_px : float
+        Noise of the clicks, pixels (one standard deviation): the scale of their Cauchy loss, so that
+        one click far off (a wrong joint, a slip) pulls weakly.
+    click_weight : float
+        Weight of the click block against the points (each click residual is the reprojection error
+        turned into metres at the joint's depth).
+    loss, f_scale : str, float
+        Robust loss of the point-to-surface block and where it turns robust, metres.
+    symmetry_weight : float
+        Pull of each left length towards its right one, metre per metre (people are symmetric
+        to a few millimetres; one bad click is then shared by the two sides).
+    length_weight : float
+        Pull of every length towards the start's, metre per metre (lengths the points and clicks do
+        not show stay).
+    prior_weight : float
+        Pull of the pose towards the start, metres per radian (and metre per metre for the root).
+    silhouette_weight : float
+        Weight of the cameras' silhouettes when given (0: not used).
+    max_points : int
+        Points fitted (an even subsample).
+    max_nfev : int
+        Evaluations of the least-squares fit.
+    """
+
+    enabled: bool = True
+    click_px: float = 3.0
+    click_weight: float = 1.0
+    loss: str = "soft_l1"
+    f_scale: float = 0.02
+    symmetry_weight: float = 1.0
+    length_weight: float = 0.3
+    prior_weight: float = 0.01
+    silhouette_weight: float = 1.0
+    max_points: int = 1000
+    max_nfev: int = 60
+
+    def __post_init__(self):
+        for name in ("click_px", "f_scale"):
+            if not getattr(self, name) > 0:
+                raise InputError(f"RefineConfig.{name}", "a positive number", repr(getattr(self, name)))
+        for name in ("click_weight", "symmetry_weight", "length_weight", "prior_weight", "silhouette_weight"):
+            if not getattr(self, name) >= 0:
+                raise InputError(f"RefineConfig.{name}", "a weight >= 0", repr(getattr(self, name)))
+
+
+def _click_residuals(model: SoftBodyModel, st, clicks, cols: np.ndarray, scale_px: float):
+    """Clicks' reprojection errors in metres at each joint's depth (Cauchy loss at ``scale_px``), and Jacobian."""
+    from toolkit.softbody.residuals import robust
+    from toolkit.softbody.silhouette import _project_jac as project_jacobian
+
+    joints = st.nodes[:14]
+    dj = model.joints_jacobian(None, st)[:, :, cols]           # (14, 3, C)
+    rs, Js = [], []
+    for cam, uv_click in clicks:
+        uv, duv, z = project_jacobian(cam, joints)
+        f = float(cam.K[0, 0])
+        ok = np.isfinite(uv_click).all(axis=1) & (z > 1e-6)
+        m = np.where(ok, z / f, 0.0)                          # metres per pixel at each joint
+        r = (uv - np.where(ok[:, None], uv_click, uv)) * m[:, None]
+        J = np.einsum("nij,njc->nic", duv, dj) * m[:, None, None]
+        # robust per coordinate, the scale the clicks' noise in metres at the joint
+        for k in range(2):
+            s = np.maximum(scale_px * m, 1e-6)
+            rk, Jk = robust(r[:, k] / s, J[:, k] / s[:, None], "cauchy", 1.0)
+            rs.append(rk * s)
+            Js.append(Jk * s[:, None])
+    return np.concatenate(rs), np.vstack(Js)
+
+
+def refine_on_cloud(model: SoftBodyModel, params: SoftBodyParams, cloud, *, clicks=None, silhouettes=None,
+                    config: RefineConfig = RefineConfig(), observer=None, frame: int = 0) -> SoftBodyParams:
+    """The initial model's pose and lengths fitted to the first frame's points, silhouettes and clicks.
+
+    The clicked joints of :func:`init_from_2d` carry the clicks' noise (3 px at 3 m: 3-5 cm per
+    joint, 10 cm for an unlucky one) into every bone length, and tracking keeps those lengths; here
+    the clicks become soft observations (their reprojection error, robust) next to the frame's
+    points (robust point-to-surface distances) and the cameras' silhouettes, so the surface
+    decides what it shows (the body's extent, where a limb ends) and the clicks what it does not
+    (where a knee lies along a straight leg).  Left and right lengths are pulled together.
+
+    Parameters
+    ----------
+    model : SoftBodyModel
+    params : SoftBodyParams
+        Start (e.g. from :func:`init_from_2d`).
+    cloud : array_like of shape (N, 3)
+        The frame's points, metres, world (the subject's; a few outliers are tolerated).
+    clicks : sequence of (Camera, ndarray of shape (14, 2)), optional
+        The clicked joints in each camera, pixels, ``SKELETON_14`` order (NaN: not clicked).
+    silhouettes : list of SilhouetteView, optional
+        The frame's camera silhouettes.
+    config : RefineConfig
+    observer : Observer, optional
+        Receives ``joints3d`` ``softbody/init/start_joints`` (the start's joints), ``scalar``
+        ``softbody/init/click_error_px`` (the clicks' median reprojection error after the fit) and a
+        ``text`` line (that error before and after, the largest length change).
+    frame : int
+        The frame of the reports.
+
+    Returns
+    -------
+    SoftBodyParams
+        Pose and lengths refined, widths as given.  With fewer than 30 points the start is returned.
+    """
+    from toolkit.softbody.distance import check_points
+    from toolkit.softbody.residuals import data_residuals
+    from toolkit.softbody.silhouette import SilhouetteBlock
+    from toolkit.softbody.track import subsample
+
+    pts = subsample(check_points(cloud, "cloud"), config.max_points)
+    if len(pts) < 30:
+        return params
+    cols = np.r_[np.arange(N_POSE), np.arange(LENGTHS.start, LENGTHS.stop)]
+    lo, hi = pose_bounds()
+    lo, hi = np.r_[lo, np.full(len(LENGTH_NAMES), 0.01)], np.r_[hi, np.full(len(LENGTH_NAMES), 2.0)]
+    x0 = np.clip(params.vector[cols], lo + 1e-9, hi - 1e-9)
+    nl = len(LENGTH_NAMES)
+    wp = np.r_[np.full(N_POSE, config.prior_weight), np.full(nl, config.length_weight)]
+    S = np.zeros((len(SYMMETRIC_LENGTHS), len(cols)))
+    for i, (a, b) in enumerate(SYMMETRIC_LENGTHS):
+        S[i, N_POSE + a], S[i, N_POSE + b] = 1.0, -1.0
+    S *= np.sqrt(config.symmetry_weight)
+    sil = (SilhouetteBlock(model, params, silhouettes) if silhouettes and config.silhouette_weight > 0 else None)
+    ws, wc = np.sqrt(config.silhouette_weight), np.sqrt(config.click_weight)
+    cache = {}
+
+    def evaluate(x):
+        key = x.tobytes()
+        if key not in cache:
+            cache.clear()
+            v = params.vector.copy()
+            v[cols] = x
+            p = SoftBodyParams(v)
+            st = model.state(p)
+            r, J = data_residuals(model, p, pts, st, cols, config.loss, config.f_scale)
+            r, J = [r, wp * (x - x0), S @ x], [J, np.diag(wp), S]
+            if clicks and config.click_weight > 0:
+                rc, Jc = _click_residuals(model, st, clicks, cols, config.click_px)
+                r, J = r + [wc * rc], J + [wc * Jc]
+            if sil is not None:
+                rs, Js = sil.residuals(p, st, cols)
+                r, J = r + [ws * rs], J + [ws * Js]
+            cache[key] = (np.concatenate(r), np.vstack(J))
+        return cache[key]
+
+    with one_blas_thread():
+        res = least_squares(lambda x: evaluate(x)[0], x0, jac=lambda x: evaluate(x)[1], bounds=(lo, hi),
+                            method="trf", loss="linear", max_nfev=config.max_nfev, x_scale="jac")
+    v = params.vector.copy()
+    v[cols] = res.x
+    out = SoftBodyParams(v)
+    if observer is not None:
+        _report_refine(observer, model, params, out, clicks, frame)
+    return out
+
+
+def click_error_px(model: SoftBodyModel, params: SoftBodyParams, clicks) -> float:
+    """Median distance (pixels) between the model's joints projected and the clicks (NaN without clicks)."""
+    j = model.joints(params)
+    d = [np.linalg.norm(cam.project(j) - np.asarray(uv, float), axis=1) for cam, uv in (clicks or [])]
+    d = np.concatenate(d) if d else np.zeros(0)
+    d = d[np.isfinite(d)]
+    return float(np.median(d)) if d.size else float("nan")
+
+
+def _report_refine(observer, model: SoftBodyModel, start: SoftBodyParams, out: SoftBodyParams, clicks,
+                   frame: int) -> None:
+    before, after = click_error_px(model, start, clicks), click_error_px(model, out, clicks)
+    change = 1000 * (out.lengths - start.lengths)
+    k = int(np.argmax(np.abs(change)))
+    observer.report("joints3d", joints=model.joints(start), name="softbody/init/start_joints", frame=frame)
+    observer.report("scalar", name="softbody/init/click_error_px", value=after, frame=frame)
+    observer.report("text", text=f"initial model refined on the frame's points: clicks' median reprojection "
+                    f"error {before:.1f} -> {after:.1f} px, largest length change {LENGTH_NAMES[k]} "
+                    f"{change[k]:+.0f} mm", frame=frame)
