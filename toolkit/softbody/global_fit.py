@@ -8,12 +8,12 @@ favouring constant angular speed (second differences of the joint angles and
 of the root rotation over consecutive frames, as in the source); a pull of
 each frame's root (the pelvis, buried in the trunk and thighs) towards the
 tracked one; and priors on the shape: widths and lengths near the start
-(stronger for the joints buried in the torso), left and right limbs alike,
-each limb's split (thigh / shank, upper arm / forearm) near the median
-body's ratio, which the surface of a straight limb does not show, and each
-arm near its anthropometric share of the stature chain, which stereo points
-without hands do not show.  The data are
-the same points per frame as tracking's (``max_points`` as
+(the lengths of the joints buried in the torso, more strongly, near the
+median body's), left and right limbs alike, each limb's split (thigh /
+shank, upper arm / forearm) near the median body's ratio, which the surface
+of a straight limb does not show, and each arm near its anthropometric share
+of the stature chain, which stereo points without hands do not show.  The
+data are the same points per frame as tracking's (``max_points`` as
 :class:`~toolkit.softbody.track.TrackConfig`'s): a well-tracked pose is then
 already an optimum of the global objective's pose part and stays put.
 Each frame's residuals depend on its own pose and the shared shape only, so
@@ -146,9 +146,17 @@ class GlobalFitConfig:
         (depth) they outweigh it.
     buried_prior_weight : float
         Pull of the lengths of joints buried in the torso (shoulder width
-        and drop, hip width; not neck to head) towards the start, replacing
-        ``length_prior_weight`` for them (metres per metre): the coverage
-        block otherwise widened the shoulders into the arms' points.
+        and drop, hip width; not neck to head) towards ``buried_reference``,
+        replacing ``length_prior_weight`` for them (metres per metre): the
+        coverage block otherwise widened the shoulders into the arms' points.
+    buried_reference : {"anthropometric", "start"}
+        The buried lengths' reference: the median body's of the model's
+        stature (:class:`toolkit.anthropometry.BodyProportions`; the
+        synthetic bodies differ from it by up to 6 % a length, people by
+        about as much: 1 cm of shoulder width) or the start's.  Clicked
+        shoulders are off by 1.5-3 cm (3 px at 3 m), and with the start's
+        reference that error stayed in the fitted lengths (a trinocular
+        crouch: both neck-to-shoulder bones +44 mm).
     fit_lengths, fit_widths : bool
         Which shape blocks are free.
     max_nfev : int
@@ -180,6 +188,7 @@ class GlobalFitConfig:
     split_reference: str = "anthropometric"
     proportion_weight: float = 1.0
     buried_prior_weight: float = 3.0
+    buried_reference: str = "anthropometric"
     fit_lengths: bool = True
     fit_widths: bool = True
     max_nfev: int = 40
@@ -188,6 +197,9 @@ class GlobalFitConfig:
     def __post_init__(self):
         if self.loss not in LOSSES:
             raise InputError("GlobalFitConfig.loss", f"one of {LOSSES}", repr(self.loss))
+        if self.buried_reference not in ("start", "anthropometric"):
+            raise InputError("GlobalFitConfig.buried_reference", "'start' or 'anthropometric'",
+                             repr(self.buried_reference))
         if self.split_reference not in ("start", "anthropometric"):
             raise InputError("GlobalFitConfig.split_reference", "'start' or 'anthropometric'",
                              repr(self.split_reference))
@@ -278,6 +290,9 @@ class _Problem:
         self.arm_ratio = anth[_ARMS].sum(1) / (_CHAIN @ anth)  # (2,) arm length per metre of stature chain
         self.len_w = np.full(13, config.length_prior_weight)
         self.len_w[_BURIED] = config.buried_prior_weight
+        self.len_ref = self.shape0[:13].copy()  # the length prior's reference
+        if config.buried_reference == "anthropometric":
+            self.len_ref[_BURIED] = anth[_BURIED]
 
     def unpack(self, z):
         return z[:self.T * N_POSE].reshape(self.T, N_POSE), z[self.T * N_POSE:]
@@ -333,7 +348,7 @@ class _Problem:
         prior_rows = rows + np.arange(7)
         rows += 7
         wl = self.len_w if c.fit_lengths else np.zeros(13)
-        res.append(wl * (shape[:13] - self.shape0[:13]))
+        res.append(wl * (shape[:13] - self.len_ref))
         len_rows = rows + np.arange(13)
         rows += 13
         ws = c.symmetry_weight if c.fit_lengths else 0.0
