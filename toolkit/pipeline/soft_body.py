@@ -71,7 +71,7 @@ class SoftBodyRunConfig:
         The global fit (``[fit]`` table in TOML; ``viewpoints`` default to the source's camera centres).
     refine : RefineConfig
         Clicks: the clicked model's pose and lengths refined on the init frame's points, silhouettes
-        and the clicks as soft observations (:func:`toolkit.softbody.init.refine_on_cloud`; ``[refine]``
+        and the clicks as soft observations (:func:`toolkit.softbody.init.refine_initial_model`; ``[refine]``
         table, ``enabled = false`` keeps the triangulated clicks).
     global_fit : bool
         Run the global fit after tracking.
@@ -225,10 +225,11 @@ def initial_model(config: SoftBodyRunConfig, source, n: int, cloud=None, silhoue
     a, b, cam_a, cam_b, _ = read_clicks(config.clicks, source.data.rig)
     model, params = init_from_2d(a, b, cam_a, cam_b)
     if config.refine.enabled and cloud is not None:
-        from toolkit.softbody.init import refine_on_cloud
+        from toolkit.softbody.init import refine_initial_model
 
-        params = refine_on_cloud(model, params, cloud, clicks=[(cam_a, a), (cam_b, b)], silhouettes=silhouettes,
-                                 config=config.refine, observer=observer, frame=min(config.init_frame, n - 1))
+        model, params = refine_initial_model(model, params, cloud, clicks=[(cam_a, a), (cam_b, b)],
+                                             silhouettes=silhouettes, config=config.refine, observer=observer,
+                                             frame=min(config.init_frame, n - 1))
     return model, params, model.joints(params)
 
 

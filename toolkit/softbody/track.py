@@ -466,7 +466,9 @@ def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, con
         p = f.params.replace(pose=canonical_pose(f.params.pose)) if fitted else prev
         out[t] = p.vector
         fits.append(f)
-        prev2, prev = (prev, p) if fitted else (None, p)
+        # the motion is extrapolated between two tracked frames only: the start params0 is no frame (its
+        # correction by frame 0's fit, e.g. a clicked pose on another branch of the Euler angles, is no motion)
+        prev2, prev = (prev if t > 0 else None, p) if fitted else (None, p)
         run = run + 1 if fitted else 0
         obs.report("joints3d", joints=model.joints(p), name="softbody/track/joints", frame=t)
         if f.state != "empty":
