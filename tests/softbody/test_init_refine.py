@@ -73,7 +73,7 @@ def test_the_model_is_rebuilt_for_the_refined_stature():
     j0 = model.joints(truth[0])
     c = j0.mean(axis=0)
     m0, p0 = model_from_joints(c + 1.08 * (j0 - c))
-    m1, p1 = refine_initial_model(m0, p0, clouds[0])
+    m1, p1 = refine_initial_model(m0, p0, clouds[0], config=RefineConfig(restature=0.01))
     assert m0.proportions.height > 1.82
     assert abs(m1.proportions.height - 1.72) < 0.04
     assert m1.proportions.height == pytest.approx(stature_of(p1.lengths), rel=0.011)
