@@ -72,7 +72,7 @@ class SoftBodyRunConfig:
     refine : RefineConfig
         Clicks: the clicked model's pose and lengths refined on the init frame's points, silhouettes
         and the clicks as soft observations (:func:`toolkit.softbody.init.refine_initial_model`; ``[refine]``
-        table, ``enabled = false`` keeps the triangulated clicks).
+        table; ``enabled = true`` to use it, off by default: see :class:`~toolkit.softbody.init.RefineConfig`).
     global_fit : bool
         Run the global fit after tracking.
     independent : bool

@@ -228,7 +228,10 @@ class RefineConfig:
     Attributes
     ----------
     enabled : bool
-        Whether the run refines a clicked start (:mod:`toolkit.pipeline.soft_body`).
+        Whether the run refines a clicked start (:mod:`toolkit.pipeline.soft_body`).  Off by default:
+        it makes tracking better and less sensitive to the clicks, but the global fit from the refined
+        start ended worse on the seen stereo seed 9300 (2 draws: MPJPE median 36.6 against 31.2 mm,
+        bones 15.4 against 11.1 mm; ``docs/benchmarks.md``, "Sensitivity to the clicks").
     click_px : float
         Where the clicks' Cauchy loss turns robust, pixels (the clicks' noise, 3 px in the benchmark),
         so that one click far off (a wrong joint, a slip) pulls weakly.
@@ -262,7 +265,7 @@ class RefineConfig:
         the rebuilt model was 1.5-4 mm worse on 5 of 8 starts measured (crouches 5334, 8234, 8634).
     """
 
-    enabled: bool = True
+    enabled: bool = False
     click_px: float = 3.0
     click_weight: float = 1.0
     loss: str = "soft_l1"
