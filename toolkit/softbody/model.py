@@ -274,6 +274,24 @@ class _Primitive:
 _CHEST = 1.12
 
 
+def _TRUNK_LAYOUT(p: BodyProportions, h: float, sw: float) -> tuple:
+    """The three trunk metaballs: ``(s along the trunk, (rx metres, ry multiplier), rz axial fraction)``.
+
+    Calibrated (session 11, ``benchmarks/calibrate_softbody_layout.py``) with the pelvis blocks: radii,
+    axial extents and places of these five metaballs fitted (``least_squares``, soft-L1 at 1 cm) to the
+    signed distance of the torso's and upper thighs' vertices of 48 :class:`toolkit.body.BodyModel`
+    meshes (12 random people, 4 motions, 2 frames each), the model posed on the meshes' own joints with
+    their true lengths and girth.  The earlier layout (three trunk balls at 0.40 / 0.62 / 0.86 of the
+    trunk, one chest multiplier) left a waist 20 mm too thin 0.1-0.2 m above the mid-hip and the top of
+    the chest 17 mm too thin under a shoulder bulge; fitted to the true body's points, the global fit
+    raised the pelvis 30-96 mm and lengthened the legs to fill them.
+    """
+    pw = p.hip_half_width + 0.065 * h
+    mid = 0.5 * (sw + p.hip_half_width + 0.07 * h)
+    return ((0.32, (1.081 * pw, 1.019), 1.113 * 0.21), (0.644, (0.953 * mid, 1.001), 0.4),
+            (0.94, (0.949 * sw, 0.989), 0.732 * 0.2))
+
+
 def _primitives(p: BodyProportions, girth: float = 1.0) -> list[_Primitive]:
     """Metaballs approximating :class:`toolkit.body.BodyModel`'s volumes for ``p``."""
     h = p.height / 1.75 * girth
@@ -281,15 +299,17 @@ def _primitives(p: BodyProportions, girth: float = 1.0) -> list[_Primitive]:
     prims = []
     t = FRAMES.index
     # pelvis block below the mid-hip point, then the trunk from the hips to the neck
-    # (the synthetic torso ends about 0.1 m below the hip joints; below that, between the thighs, is a gap)
-    prims.append(_Primitive(t("pelvis"), 0, (0, 0, -0.01 * hh), (p.hip_half_width + 0.07 * h, 0.105 * h,
-                                                                  0.09 * hh), _G["pelvis"], False))
-    prims.append(_Primitive(t("pelvis"), 0, (0, 0, 0.08 * hh), (p.hip_half_width + 0.07 * h, 0.105 * h,
-                                                                  0.1 * hh), _G["pelvis"], False))
+    # (the synthetic torso ends about 0.1 m below the hip joints; below that, between the thighs, is a gap).
+    # Sizes and places calibrated against BodyModel meshes posed on their own joints (_TRUNK_LAYOUT).
+    pw = p.hip_half_width + 0.07 * h
     sw = p.shoulder_half_width + 0.03 * h
-    for s, rx, rz in ((0.40, p.hip_half_width + 0.065 * h, 0.21), (0.62, 0.5 * (sw + p.hip_half_width + 0.07 * h),
-                                                                   0.2), (0.86, sw, 0.2)):
-        prims.append(_Primitive(t("trunk"), s, (0, 0, 0), (_CHEST * rx, _CHEST * 0.1 * h, rz), _G["chest"], True))
+    prims.append(_Primitive(t("pelvis"), 0, (0, 0, -0.01 * hh), (1.096 * pw, 0.953 * 0.105 * h, 0.886 * 0.09 * hh),
+                            _G["pelvis"], False))
+    prims.append(_Primitive(t("pelvis"), 0, (0, 0, 0.113 * hh), (0.691 * pw, 0.985 * 0.105 * h, 0.05 * hh),
+                            _G["pelvis"], False))
+    for s, rx, rz in _TRUNK_LAYOUT(p, h, sw):
+        prims.append(_Primitive(t("trunk"), s, (0, 0, 0), (_CHEST * rx[0], _CHEST * rx[1] * 0.1 * h, rz), _G["chest"],
+                                True))
     prims.append(_Primitive(t("head"), 0.5, (0, 0, 0), (0.05 * h, 0.05 * h, 0.7), _G["head"], True))
     prims.append(_Primitive(t("head"), 1.0, (0, 0, 0.02 * hh), (0.075 * h, 0.09 * h, 0.11 * h), _G["head"], False))
     for side in ("l", "r"):
