@@ -22,7 +22,7 @@ multipliers), axial extents (multiplier) and places (metres along z for the
 pelvis blocks, a fraction of the trunk for the trunk balls) to the torso's
 and upper thighs' vertices (``scipy.optimize.least_squares``, soft-L1 at
 1 cm) and prints the 20 values, as a change to the current layout
-(``toolkit/softbody/model.py``: ``_primitives``, ``_TRUNK_LAYOUT``).  A biased
+(``toolkit/softbody/model.py``: ``_primitives``).  A biased
 layout biases the global fit's lengths: on noiseless points of the true
 mesh the old layout's global fit raised the pelvis 30-96 mm
 (``docs/benchmarks.md``, "Session 11: the trunk's metaballs").

@@ -36,8 +36,8 @@ from scipy.spatial import cKDTree
 from toolkit.errors import InputError
 from toolkit.observe import Observer, as_observer
 from toolkit.softbody.distance import check_points
-from toolkit.softbody.model import (LENGTH_NAMES, N_PARAMS, N_POSE, SoftBodyModel, SoftBodyParams, continuous_poses,
-                                    pose_bounds)
+from toolkit.softbody.model import (LENGTH_NAMES, N_PARAMS, N_POSE, STATURE_CHAIN, SYMMETRIC_LENGTHS, SoftBodyModel,
+                                    SoftBodyParams, continuous_poses, pose_bounds)
 from toolkit.softbody.residuals import (LOSSES, CoverageSamples, coverage_residuals, coverage_samples, data_residuals, gate_points,
                                         coverage_margin,
                                         one_blas_thread)
@@ -48,17 +48,13 @@ __all__ = ["GlobalFitConfig", "SoftBodyFit", "global_fit"]
 
 _N_SHAPE = N_PARAMS - N_POSE  # 20 shared values: lengths then widths
 _ANGLES = np.r_[0:3, 6:N_POSE]  # root rotation and joint angles: the constant-angular-speed term
-#: Left and right limb lengths (indices into LENGTH_NAMES) tied by the symmetry prior.
-_SYM = np.array([[LENGTH_NAMES.index(f"l_{n}"), LENGTH_NAMES.index(f"r_{n}")]
-                 for n in ("upper_arm", "forearm", "thigh", "shank")])
+_SYM = SYMMETRIC_LENGTHS  # left and right limb lengths tied by the symmetry prior
 #: Proximal and distal segment of each limb (indices into LENGTH_NAMES) tied by the split prior.
 _SPLIT = np.array([[LENGTH_NAMES.index(f"{s}_{a}"), LENGTH_NAMES.index(f"{s}_{b}")]
                    for s in ("l", "r") for a, b in (("upper_arm", "forearm"), ("thigh", "shank"))])
 #: Upper arm and forearm of each arm (indices into LENGTH_NAMES) tied to the stature chain by the proportion prior.
 _ARMS = np.array([[LENGTH_NAMES.index(f"{s}_upper_arm"), LENGTH_NAMES.index(f"{s}_forearm")] for s in ("l", "r")])
-#: The stature chain (torso, neck to head, the mean of the two legs): weights on LENGTH_NAMES.
-_CHAIN = np.array([1.0 if n in ("torso", "neck_to_head") else 0.5 if n.endswith(("thigh", "shank")) else 0.0
-                   for n in LENGTH_NAMES])
+_CHAIN = STATURE_CHAIN  # torso, neck to head, the mean leg: weights on LENGTH_NAMES
 #: Lengths of joints buried in the torso (shoulders, hips): seen through the surface only weakly.
 _BURIED = np.array([LENGTH_NAMES.index(n) for n in ("shoulder_half_width", "shoulder_drop",
                                                       "hip_half_width")])

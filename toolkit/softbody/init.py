@@ -25,8 +25,8 @@ from toolkit.cameras.triangulation import triangulate_linear
 from toolkit.errors import InputError
 from toolkit.motion.kinematics import Pose14, inverse_kinematics
 from toolkit.skeleton import SKELETON_14
-from toolkit.softbody.model import (LENGTH_NAMES, LENGTHS, N_POSE, WIDTH_GROUPS, SoftBodyModel,
-                                    SoftBodyParams, pose_bounds)
+from toolkit.softbody.model import (LENGTH_NAMES, LENGTHS, N_POSE, STATURE_CHAIN, SYMMETRIC_LENGTHS, WIDTH_GROUPS,
+                                    SoftBodyModel, SoftBodyParams, pose_bounds)
 from toolkit.softbody.residuals import one_blas_thread
 
 __all__ = ["params_from_pose14", "model_from_joints", "init_from_2d", "fit_pose_to_joints", "STATURE_LIMITS",
@@ -127,11 +127,7 @@ def fit_pose_to_joints(model: SoftBodyModel, params: SoftBodyParams, joints: np.
 def stature_of(lengths) -> float:
     """Stature (metres, unclipped) from the vertical chain of segment lengths (13,): shank + thigh (means of the
     two sides) + torso + neck-to-head, with the anthropometric ratios."""
-    v = np.asarray(lengths, float)
-    L = LENGTH_NAMES.index
-    chain = v[L("torso")] + v[L("neck_to_head")] + 0.5 * (v[L("l_thigh")] + v[L("r_thigh")] + v[L("l_shank")]
-                                                          + v[L("r_shank")])
-    return float(chain / _HEAD_ABOVE_ANKLE)
+    return float(STATURE_CHAIN @ np.asarray(lengths, float) / _HEAD_ABOVE_ANKLE)
 
 
 def model_from_joints(joints, *, stature: float | None = None, girth: float = 1.0
@@ -169,12 +165,12 @@ def model_from_joints(joints, *, stature: float | None = None, girth: float = 1.
     pose = inverse_kinematics(j)
     lengths = _lengths_from_joints(j, pose)
     if stature is None:
-        chain = stature_of(lengths) * _HEAD_ABOVE_ANKLE
-        if not 0.5 * STATURE_LIMITS[0] <= chain / _HEAD_ABOVE_ANKLE <= 2.0 * STATURE_LIMITS[1]:
+        h = stature_of(lengths)
+        if not 0.5 * STATURE_LIMITS[0] <= h <= 2.0 * STATURE_LIMITS[1]:
             raise InputError("joints", "the joints of a person in metres (a stature of "
                              f"{0.5 * STATURE_LIMITS[0]:.2f}-{2.0 * STATURE_LIMITS[1]:.1f} m from the bone lengths)",
-                             f"a stature of {chain / _HEAD_ABOVE_ANKLE:.3g} m (millimetres? mixed-up joints?)")
-        stature = float(np.clip(chain / _HEAD_ABOVE_ANKLE, *STATURE_LIMITS))
+                             f"a stature of {h:.3g} m (millimetres? mixed-up joints?)")
+        stature = float(np.clip(h, *STATURE_LIMITS))
     elif not (np.isfinite(stature) and 1.0 <= stature <= 2.5):
         raise InputError("stature", "a stature between 1.0 and 2.5 metres", repr(stature))
     model = SoftBodyModel(BodyProportions.from_height(stature), girth=girth)
@@ -215,10 +211,6 @@ def init_from_2d(points2d_a, points2d_b, cam_a, cam_b, *, stature: float | None 
         raise InputError("cam_a, cam_b", "two cameras that triangulate every joint", "a degenerate pair")
     return model_from_joints(joints, stature=stature)
 
-
-#: Left/right pairs of segment lengths (the symmetry prior of :func:`refine_on_cloud`).
-SYMMETRIC_LENGTHS = tuple((LENGTH_NAMES.index(f"l_{s}"), LENGTH_NAMES.index(f"r_{s}"))
-                          for s in ("upper_arm", "forearm", "thigh", "shank"))
 
 
 @dataclass(frozen=True)

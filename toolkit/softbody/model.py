@@ -57,7 +57,8 @@ from toolkit.skeleton import SKELETON_14
 
 __all__ = ["FRAMES", "DOF_NAMES", "LENGTH_NAMES", "WIDTH_GROUPS", "N_POSE", "N_PARAMS", "POSE", "LENGTHS",
            "WIDTHS", "SoftBodyParams", "SoftBodyModel", "ModelState", "BLEND_M", "pose_bounds",
-           "attached_points_jacobian", "rotvec_to_matrix", "canonical_pose", "pose_step", "continuous_poses"]
+           "attached_points_jacobian", "rotvec_to_matrix", "SYMMETRIC_LENGTHS", "STATURE_CHAIN", "canonical_pose",
+           "pose_step", "continuous_poses"]
 
 _J = {n: i for i, n in enumerate(SKELETON_14.joint_names)}
 PELVIS = 14  #: node index of the mid-hip point (the 15th node after the 14 joints)
@@ -82,6 +83,12 @@ _FRAME_DIR = np.array([_UP, _UP, _UP] + [_DOWN] * 8)
 #: Width groups (one multiplier each, left and right shared).
 WIDTH_GROUPS = ("head", "chest", "pelvis", "upper_arm", "forearm", "thigh", "shank")
 _G = {n: i for i, n in enumerate(WIDTH_GROUPS)}
+#: Left/right pairs of segment lengths (indices into LENGTH_NAMES), (4, 2): the symmetry priors.
+SYMMETRIC_LENGTHS = np.array([[LENGTH_NAMES.index(f"l_{n}"), LENGTH_NAMES.index(f"r_{n}")]
+                              for n in ("upper_arm", "forearm", "thigh", "shank")])
+#: The stature chain (torso, neck to head, the mean of the two legs): weights on LENGTH_NAMES, (13,).
+STATURE_CHAIN = np.array([1.0 if n in ("torso", "neck_to_head") else 0.5 if n.endswith(("thigh", "shank")) else 0.0
+                          for n in LENGTH_NAMES])
 
 # joint DOFs: frame -> [(name, axis, sign)], rotation R_axis(sign * angle), applied in order
 _DOFS = {
@@ -274,24 +281,6 @@ class _Primitive:
 _CHEST = 1.12
 
 
-def _TRUNK_LAYOUT(p: BodyProportions, h: float, sw: float) -> tuple:
-    """The three trunk metaballs: ``(s along the trunk, (rx metres, ry multiplier), rz axial fraction)``.
-
-    Calibrated (session 11, ``benchmarks/calibrate_softbody_layout.py``) with the pelvis blocks: radii,
-    axial extents and places of these five metaballs fitted (``least_squares``, soft-L1 at 1 cm) to the
-    signed distance of the torso's and upper thighs' vertices of 48 :class:`toolkit.body.BodyModel`
-    meshes (12 random people, 4 motions, 2 frames each), the model posed on the meshes' own joints with
-    their true lengths and girth.  The earlier layout (three trunk balls at 0.40 / 0.62 / 0.86 of the
-    trunk, one chest multiplier) left a waist 20 mm too thin 0.1-0.2 m above the mid-hip and the top of
-    the chest 17 mm too thin under a shoulder bulge; fitted to the true body's points, the global fit
-    raised the pelvis 30-96 mm and lengthened the legs to fill them.
-    """
-    pw = p.hip_half_width + 0.065 * h
-    mid = 0.5 * (sw + p.hip_half_width + 0.07 * h)
-    return ((0.32, (1.081 * pw, 1.019), 1.113 * 0.21), (0.644, (0.953 * mid, 1.001), 0.4),
-            (0.94, (0.949 * sw, 0.989), 0.732 * 0.2))
-
-
 def _primitives(p: BodyProportions, girth: float = 1.0) -> list[_Primitive]:
     """Metaballs approximating :class:`toolkit.body.BodyModel`'s volumes for ``p``."""
     h = p.height / 1.75 * girth
@@ -300,16 +289,23 @@ def _primitives(p: BodyProportions, girth: float = 1.0) -> list[_Primitive]:
     t = FRAMES.index
     # pelvis block below the mid-hip point, then the trunk from the hips to the neck
     # (the synthetic torso ends about 0.1 m below the hip joints; below that, between the thighs, is a gap).
-    # Sizes and places calibrated against BodyModel meshes posed on their own joints (_TRUNK_LAYOUT).
+    # The two pelvis blocks and three trunk balls are calibrated (session 11,
+    # benchmarks/calibrate_softbody_layout.py --fit): radii, axial extents and places fitted
+    # (least_squares, soft-L1 at 1 cm) to the signed distance of the torso's and upper thighs' vertices of
+    # 48 BodyModel meshes posed on their own joints with their true lengths and girth.  The earlier layout
+    # (trunk balls at 0.40 / 0.62 / 0.86 of the trunk) left the waist 20 mm and the top of the chest 17 mm
+    # too thin; fitted to the true body's points, the global fit raised the pelvis 30-96 mm to fill them.
     pw = p.hip_half_width + 0.07 * h
     sw = p.shoulder_half_width + 0.03 * h
     prims.append(_Primitive(t("pelvis"), 0, (0, 0, -0.01 * hh), (1.096 * pw, 0.953 * 0.105 * h, 0.886 * 0.09 * hh),
                             _G["pelvis"], False))
     prims.append(_Primitive(t("pelvis"), 0, (0, 0, 0.113 * hh), (0.691 * pw, 0.985 * 0.105 * h, 0.05 * hh),
                             _G["pelvis"], False))
-    for s, rx, rz in _TRUNK_LAYOUT(p, h, sw):
-        prims.append(_Primitive(t("trunk"), s, (0, 0, 0), (_CHEST * rx[0], _CHEST * rx[1] * 0.1 * h, rz), _G["chest"],
-                                True))
+    # trunk balls: (s along the trunk, half width m, half depth m, axial fraction of the trunk)
+    for s, rx, ry, rz in ((0.32, 1.081 * (p.hip_half_width + 0.065 * h), 1.019 * 0.1 * h, 1.113 * 0.21),
+                          (0.644, 0.953 * 0.5 * (sw + pw), 1.001 * 0.1 * h, 0.4),
+                          (0.94, 0.949 * sw, 0.989 * 0.1 * h, 0.732 * 0.2)):
+        prims.append(_Primitive(t("trunk"), s, (0, 0, 0), (_CHEST * rx, _CHEST * ry, rz), _G["chest"], True))
     prims.append(_Primitive(t("head"), 0.5, (0, 0, 0), (0.05 * h, 0.05 * h, 0.7), _G["head"], True))
     prims.append(_Primitive(t("head"), 1.0, (0, 0, 0.02 * hh), (0.075 * h, 0.09 * h, 0.11 * h), _G["head"], False))
     for side in ("l", "r"):
