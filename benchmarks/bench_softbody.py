@@ -147,12 +147,18 @@ def surface_distance_mm(true_mesh, model, params, rng, n: int = 4000) -> float:
     return 1000 * float(sc.compute_distance(o3d.core.Tensor(pts)).numpy().mean())
 
 
-def bone_error_mm(joints: np.ndarray, truth: np.ndarray) -> float:
+def bone_errors_mm(joints: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """Signed error (13,) mm of each bone of ``SKELETON_14`` (fitted - true, lengths averaged over the frames)."""
     from toolkit.skeleton import SKELETON_14
 
     lf = np.nanmean(SKELETON_14.bone_lengths(joints), axis=0)
     lt = np.nanmean(SKELETON_14.bone_lengths(truth), axis=0)
-    return 1000 * float(np.mean(np.abs(lf - lt)))
+    return 1000 * (lf - lt)
+
+
+def bone_error_mm(joints: np.ndarray, truth: np.ndarray) -> float:
+    """Mean absolute bone-length error (mm) over the 13 bones."""
+    return float(np.mean(np.abs(bone_errors_mm(joints, truth))))
 
 
 def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool = True,
@@ -193,6 +199,9 @@ def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool 
         j = z[jk]
         out[f"mpjpe_{stage}"] = 1000 * float(np.nanmean(np.linalg.norm(j - truth, axis=-1)))
         out[f"bone_{stage}"] = bone_error_mm(j, truth)
+        out[f"bones_signed_{stage}"] = np.round(bone_errors_mm(j, truth), 1).tolist()  # --json only
+        out[f"joint_error_{stage}"] = np.round(1000 * np.nanmean(np.linalg.norm(j - truth, axis=-1), axis=0),
+                                               1).tolist()  # --json only: per joint, mm
         out[f"surface_{stage}"] = float(np.mean([surface_distance_mm(scene.body_mesh(t), model,
                                                                      SoftBodyParams(z[pk][t]), rng)
                                                  for t in range(0, len(j), 4)]))

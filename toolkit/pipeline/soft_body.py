@@ -442,13 +442,15 @@ def wants_silhouettes(config: SoftBodyRunConfig) -> bool:
 
 def silhouettes_of(source, n: int) -> list:
     """Per frame ``0..n-1``, the source's cameras' silhouettes (:func:`toolkit.softbody.silhouette.silhouette_views`)
-    from the masks its foreground step found (kept by ``source.cloud`` when the source keeps its masks)."""
+    from the masks its foreground step found (kept by ``source.cloud`` when the source keeps its masks), each
+    outline moved onto its image's edge where the source has images (``source.silhouette_images``)."""
     from toolkit.softbody.silhouette import silhouette_views
 
     out = []
     for t in range(n):
         pairs = source.silhouettes(t)
-        out.append(silhouette_views([c for c, _ in pairs], [m for _, m in pairs]))
+        images = source.silhouette_images(t) if hasattr(source, "silhouette_images") else None
+        out.append(silhouette_views([c for c, _ in pairs], [m for _, m in pairs], images=images))
     return out
 
 

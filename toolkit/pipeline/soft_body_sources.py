@@ -144,7 +144,7 @@ class StereoClouds:
         self.config = stereo or StereoConfig()
         self.foreground = self._choose(foreground)
         self._plates = {}
-        self.keep_masks, self._masks = bool(keep_masks), {}
+        self.keep_masks, self._masks, self._images = bool(keep_masks), {}, {}
 
     def _choose(self, foreground: str) -> str:
         d, first = self.data, self.data.camera_names[0]
@@ -199,6 +199,12 @@ class StereoClouds:
             return kept
         return [(h[0], self.mask(h[0].name, t, self.data.frame(h[0].name, t))) for h in self.heads]
 
+    def silhouette_images(self, t: int) -> list:
+        """Each head's reference image of frame ``t``, ``[(H, W, 3) uint8]`` in the order of :meth:`silhouettes`
+        (the silhouettes' outlines are moved onto their edges: :func:`toolkit.softbody.silhouette.edge_offset`)."""
+        kept = self._images.pop(t, None)
+        return kept if kept is not None else [self.data.frame(h[0].name, t) for h in self.heads]
+
     def cloud(self, t: int) -> np.ndarray:
         """The heads' points of frame ``t``, (N, 3) metres (empty when nothing matched)."""
         from toolkit.pointcloud.stereo import head_cloud
@@ -209,6 +215,7 @@ class StereoClouds:
             masks = [self.mask(c.name, t, im) if k == 0 else None for k, (c, im) in enumerate(zip(head, images))]
             if self.keep_masks:
                 self._masks.setdefault(t, []).append((head[0], masks[0]))
+                self._images.setdefault(t, []).append(images[0])
             out.append(head_cloud(images, head, masks, self.config, pairs).points)
         return np.concatenate(out) if out else np.zeros((0, 3))
 

@@ -282,7 +282,7 @@ class RefineConfig:
 def _click_residuals(model: SoftBodyModel, st, clicks, cols: np.ndarray, scale_px: float):
     """Clicks' reprojection errors in metres at each joint's depth (Cauchy loss at ``scale_px``), and Jacobian."""
     from toolkit.softbody.residuals import robust
-    from toolkit.softbody.silhouette import _project_jac as project_jacobian
+    from toolkit.softbody.silhouette import project_jacobian
 
     joints = st.nodes[:14]
     dj = model.joints_jacobian(None, st)[:, :, cols]           # (14, 3, C)
