@@ -65,10 +65,22 @@ class DepthClouds:
         self.input = open_depth_input(dataset)
         self.background = None if self.input.background is None else BackgroundModel(self.input.background)
         self.mask_config = mask_config or MaskConfig()
-        self.keep_masks, self._masks = bool(keep_masks), {}
+        self.keep_masks, self._masks, self._unknown = bool(keep_masks), {}, {}
 
     def __len__(self) -> int:
         return len(self.input)
+
+    def silhouette_unknown(self, t: int) -> list:
+        """Frame ``t``'s pixels in front of the background by too little to call them foreground (the soles
+        of feet on the floor; :func:`toolkit.pointcloud.ambiguous_mask`), ``[(H, W) bool]`` in the order of
+        :meth:`silhouettes`: the silhouettes treat them as unknown."""
+        from toolkit.pointcloud import ambiguous_mask
+
+        u = self._unknown.pop(t, None)
+        if u is None:
+            u = ambiguous_mask(self.input.read(t), self.input.camera, background=self.background,
+                               config=self.mask_config)
+        return [u]
 
     def silhouettes(self, t: int) -> list:
         """The camera in the run's world frame and frame ``t``'s foreground mask, ``[(Camera, (H, W) bool)]``."""
@@ -109,7 +121,11 @@ class DepthClouds:
         d = self.input.read(t)
         m = foreground_mask(d, self.input.camera, background=self.background, config=self.mask_config)
         if self.keep_masks:
+            from toolkit.pointcloud import ambiguous_mask
+
             self._masks[t] = m
+            self._unknown[t] = ambiguous_mask(d, self.input.camera, background=self.background,
+                                              config=self.mask_config)
         if not m.any():
             return np.zeros((0, 3))
         pts, _, _ = depth_to_points(d, self.input.camera, m)

@@ -15,8 +15,8 @@ and marker systems.
 
 from toolkit.pointcloud.cloud import (UserCloud, ViewFrame, depth_to_points, pixel_rays, principal_direction,
                                       to_open3d_pointcloud, user_cloud)
-from toolkit.pointcloud.mask import BackgroundModel, MaskConfig, UserMask, foreground_mask, user_mask
+from toolkit.pointcloud.mask import BackgroundModel, MaskConfig, UserMask, ambiguous_mask, foreground_mask, user_mask
 from toolkit.pointcloud.normals import grid_normals, normal_map
 
-__all__ = ["BackgroundModel", "MaskConfig", "UserCloud", "UserMask", "ViewFrame", "depth_to_points", "foreground_mask", "grid_normals",
+__all__ = ["BackgroundModel", "MaskConfig", "UserCloud", "UserMask", "ViewFrame", "ambiguous_mask", "depth_to_points", "foreground_mask", "grid_normals",
            "normal_map", "pixel_rays", "principal_direction", "to_open3d_pointcloud", "user_cloud", "user_mask"]

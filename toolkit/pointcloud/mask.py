@@ -25,7 +25,7 @@ from toolkit.cameras import Camera
 from toolkit.pointcloud.cloud import _check_depth
 from toolkit.errors import InputError
 
-__all__ = ["BackgroundModel", "MaskConfig", "UserMask", "foreground_mask", "user_mask"]
+__all__ = ["BackgroundModel", "MaskConfig", "UserMask", "ambiguous_mask", "foreground_mask", "user_mask"]
 
 
 @dataclass(frozen=True)
@@ -50,6 +50,11 @@ class MaskConfig:
         Smallest component worth joining.
     near_m, far_m : float
         Readings outside this range are ignored.
+    ambiguous_margin_m, ambiguous_margin_rel : float
+        :func:`ambiguous_mask`: a reading in front of the background by more than this (plus
+        ``ambiguous_margin_rel`` of the depth; about three times the sensor's noise) but by less than the
+        foreground margin cannot be told from the background: the soles of feet standing on the floor
+        (the floor right behind them), a hand on a wall.
     """
 
     background_margin_m: float = 0.08
@@ -60,6 +65,8 @@ class MaskConfig:
     min_join_area_m2: float = 0.002
     near_m: float = 0.3
     far_m: float = 8.0
+    ambiguous_margin_m: float = 0.02
+    ambiguous_margin_rel: float = 0.01
 
 
 class BackgroundModel:
@@ -133,6 +140,43 @@ def _foreground(d: np.ndarray, valid: np.ndarray, background: BackgroundModel | 
     with np.errstate(invalid="ignore"):
         farther = d >= bg - (config.background_margin_m + config.background_margin_rel * bg)   # False for NaN bg
     return valid & ~farther
+
+
+def ambiguous_mask(depth: np.ndarray, camera: Camera, *, background: BackgroundModel | None = None,
+                   config: MaskConfig = MaskConfig()) -> np.ndarray:
+    """Pixels whose reading is in front of the background, but too little to call it foreground.
+
+    Between ``ambiguous_margin_m`` (+ ``ambiguous_margin_rel`` of the depth) and the foreground
+    margin (``background_margin_m`` + ``background_margin_rel``) in front of the background model:
+    a body touching the background there (the lowest 5-10 cm of feet on the floor, seen from 3 m)
+    is left out of :func:`foreground_mask` and yet is not background.  Consumers that compare a
+    model with the mask (:class:`toolkit.softbody.silhouette.SilhouetteView`) treat them as unknown.
+
+    Parameters
+    ----------
+    depth : ndarray of shape (H, W)
+        Metres, NaN = no reading.
+    camera : Camera
+    background : BackgroundModel, optional
+        Without one nothing is ambiguous.
+    config : MaskConfig
+
+    Returns
+    -------
+    ndarray of shape (H, W), bool
+    """
+    d = _check_depth(depth, camera)
+    if background is None:
+        return np.zeros(d.shape, bool)
+    bg = background.depth
+    if bg.shape != d.shape:
+        raise InputError("background", f"a depth map of shape {d.shape}", f"shape {bg.shape}")
+    with np.errstate(invalid="ignore"):
+        valid = (d > config.near_m) & (d < config.far_m)
+        gap = bg - d                                                     # NaN where either is missing
+        out = (gap > config.ambiguous_margin_m + config.ambiguous_margin_rel * bg) \
+            & (gap < config.background_margin_m + config.background_margin_rel * bg)
+    return valid & out
 
 
 def foreground_mask(depth: np.ndarray, camera: Camera, *, background: BackgroundModel | None = None,

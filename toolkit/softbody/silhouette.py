@@ -214,6 +214,11 @@ class SilhouetteView:
     config : SilhouetteConfig
     image : ndarray of shape (H, W, 3) or (H, W), optional
         The image the mask was found in: the outline is moved onto its edge (:func:`edge_offset`).
+    unknown : ndarray of shape (H, W), optional
+        Pixels outside the mask that may still be the subject (nonzero; e.g. a depth camera's readings
+        just in front of the background, :func:`toolkit.pointcloud.ambiguous_mask`: the soles of feet
+        on the floor): model points projecting there cost nothing, and outline points next to them
+        (the mask's edge there need not be the body's) give no rays.
 
     Attributes
     ----------
@@ -234,7 +239,8 @@ class SilhouetteView:
         If ``camera`` is not a Camera or ``mask`` is not of the camera's image size.
     """
 
-    def __init__(self, camera: Camera, mask, config: SilhouetteConfig = SilhouetteConfig(), image=None):
+    def __init__(self, camera: Camera, mask, config: SilhouetteConfig = SilhouetteConfig(), image=None,
+                 unknown=None):
         if not isinstance(camera, Camera):
             raise InputError("silhouette camera", "a toolkit.cameras.Camera", type(camera).__name__)
         m = np.asarray(mask)
@@ -243,9 +249,20 @@ class SilhouetteView:
             raise InputError(f"silhouette mask of camera {camera.name!r}", f"shape ({h}, {w}) (the camera's image)",
                              f"shape {m.shape}")
         m = m > 0
+        u = np.zeros_like(m) if unknown is None else np.asarray(unknown)
+        if u.shape != (h, w):
+            raise InputError(f"silhouette unknown pixels of camera {camera.name!r}", f"shape ({h}, {w})",
+                             f"shape {u.shape}")
+        u = (u > 0) & ~m
         self.camera, self.config = camera, config
         self.focal = 0.5 * float(camera.K[0, 0] + camera.K[1, 1])
         self.outline, normals = _outline(m, config) if m.any() else (np.zeros((0, 2)), np.zeros((0, 2)))
+        if u.any() and len(self.outline):
+            # outline points whose outside (up to 2 px out) is unknown: not the body's edge for sure
+            near = cv2.dilate(u.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+            q = np.clip(np.round(self.outline).astype(int), 0, [w - 1, h - 1])
+            keep = ~near[q[:, 1], q[:, 0]]
+            self.outline, normals = self.outline[keep], normals[keep]
         self.edge_offset_px = 0.0
         if image is not None and len(self.outline):
             im = np.asarray(image)
@@ -256,22 +273,26 @@ class SilhouetteView:
             self.outline = self.outline + self.edge_offset_px * normals
         self.state = "empty" if not m.any() else "ok" if len(self.outline) else "no_outline"
         self.origins, self.directions = camera.rays(self.outline) if len(self.outline) else (np.zeros((0, 3)),) * 2
-        self.outside = cv2.distanceTransform((~m).astype(np.uint8), cv2.DIST_L2, 5).astype(np.float32) \
+        self.outside = cv2.distanceTransform((~(m | u)).astype(np.uint8), cv2.DIST_L2, 5).astype(np.float32) \
             if m.any() else np.zeros((h, w), np.float32)
 
     def __repr__(self) -> str:
         return f"SilhouetteView({self.camera.name!r}, {self.state}, {len(self.outline)} outline points)"
 
 
-def silhouette_views(cameras, masks, config: SilhouetteConfig = SilhouetteConfig(), images=None) -> list:
+def silhouette_views(cameras, masks, config: SilhouetteConfig = SilhouetteConfig(), images=None,
+                     unknowns=None) -> list:
     """The silhouettes of one frame: one :class:`SilhouetteView` per camera and mask (masks may be None: left out);
     ``images``: per camera the image the mask was found in, or None (the outline is then not moved onto the
-    image's edge)."""
+    image's edge); ``unknowns``: per camera the pixels that may still be the subject, or None."""
     cams, ms = list(cameras), list(masks)
     ims = [None] * len(cams) if images is None else list(images)
-    if len(cams) != len(ms) or len(cams) != len(ims):
-        raise InputError("silhouette masks and images", f"one per camera ({len(cams)})", f"{len(ms)}, {len(ims)}")
-    return [SilhouetteView(c, m, config, image=im) for c, m, im in zip(cams, ms, ims) if m is not None]
+    uns = [None] * len(cams) if unknowns is None else list(unknowns)
+    if not len(cams) == len(ms) == len(ims) == len(uns):
+        raise InputError("silhouette masks, images and unknown pixels", f"one per camera ({len(cams)})",
+                         f"{len(ms)}, {len(ims)}, {len(uns)}")
+    return [SilhouetteView(c, m, config, image=im, unknown=un) for c, m, im, un in zip(cams, ms, ims, uns)
+            if m is not None]
 
 
 def _ray_candidates(st: ModelState, o: np.ndarray, d: np.ndarray, n: int) -> np.ndarray:
