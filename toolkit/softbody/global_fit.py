@@ -55,8 +55,8 @@ _SPLIT = np.array([[LENGTH_NAMES.index(f"{s}_{a}"), LENGTH_NAMES.index(f"{s}_{b}
 #: Upper arm and forearm of each arm (indices into LENGTH_NAMES) tied to the stature chain by the proportion prior.
 _ARMS = np.array([[LENGTH_NAMES.index(f"{s}_upper_arm"), LENGTH_NAMES.index(f"{s}_forearm")] for s in ("l", "r")])
 _CHAIN = STATURE_CHAIN  # torso, neck to head, the mean leg: weights on LENGTH_NAMES
-#: Lengths of joints buried in the torso (shoulders, hips): seen through the surface only weakly.
-_BURIED = np.array([LENGTH_NAMES.index(n) for n in ("shoulder_half_width", "shoulder_drop",
+#: Lengths ending in a joint buried in the torso (neck, shoulders, hips): seen through the surface only weakly.
+_BURIED = np.array([LENGTH_NAMES.index(n) for n in ("neck_to_head", "shoulder_half_width", "shoulder_drop",
                                                       "hip_half_width")])
 
 
@@ -141,15 +141,20 @@ class GlobalFitConfig:
         a few per cent (about 2-3 cm of arm); where the points are dense
         (depth) they outweigh it.
     buried_prior_weight : float
-        Pull of the lengths of joints buried in the torso (shoulder width
-        and drop, hip width; not neck to head) towards ``buried_reference``,
+        Pull of the lengths that end in a joint buried in the torso (neck to
+        head, shoulder width and drop, hip width) towards ``buried_reference``,
         replacing ``length_prior_weight`` for them (metres per metre): the
-        coverage block otherwise widened the shoulders into the arms' points.
+        coverage block otherwise widened the shoulders into the arms' points,
+        and the neck slides along the spine at no cost (trunk shorter, neck to
+        head longer: the clicked neck's error stayed in both).
     buried_reference : {"anthropometric", "start"}
-        The buried lengths' reference: the median body's of the model's
-        stature (:class:`toolkit.anthropometry.BodyProportions`; the
-        synthetic bodies differ from it by up to 6 % a length, people by
-        about as much: 1 cm of shoulder width) or the start's.  Clicked
+        The buried lengths' reference: the median body's share of the stature
+        chain (:class:`toolkit.anthropometry.BodyProportions`) times the chain
+        of the lengths being fitted (torso, neck to head, mean leg), so that
+        it follows the fitted stature rather than the start's (clicked
+        statures were 5-11 cm off); the synthetic bodies differ from it by
+        up to 6 % a length (neck to head within 6 mm), people by about as
+        much (1 cm of shoulder width).  Or the start's lengths.  Clicked
         shoulders are off by 1.5-3 cm (3 px at 3 m), and with the start's
         reference that error stayed in the fitted lengths (a trinocular
         crouch: both neck-to-shoulder bones +44 mm).
@@ -286,9 +291,12 @@ class _Problem:
         self.arm_ratio = anth[_ARMS].sum(1) / (_CHAIN @ anth)  # (2,) arm length per metre of stature chain
         self.len_w = np.full(13, config.length_prior_weight)
         self.len_w[_BURIED] = config.buried_prior_weight
-        self.len_ref = self.shape0[:13].copy()  # the length prior's reference
+        # the length prior's residual: length - len_ref - len_chain * (stature chain of the current lengths)
+        self.len_ref = self.shape0[:13].copy()
+        self.len_chain = np.zeros(13)
         if config.buried_reference == "anthropometric":
-            self.len_ref[_BURIED] = anth[_BURIED]
+            self.len_ref[_BURIED] = 0.0
+            self.len_chain[_BURIED] = anth[_BURIED] / (_CHAIN @ anth)
 
     def unpack(self, z):
         return z[:self.T * N_POSE].reshape(self.T, N_POSE), z[self.T * N_POSE:]
@@ -344,7 +352,7 @@ class _Problem:
         prior_rows = rows + np.arange(7)
         rows += 7
         wl = self.len_w if c.fit_lengths else np.zeros(13)
-        res.append(wl * (shape[:13] - self.len_ref))
+        res.append(wl * (shape[:13] - self.len_ref - self.len_chain * (_CHAIN @ shape[:13])))
         len_rows = rows + np.arange(13)
         rows += 13
         ws = c.symmetry_weight if c.fit_lengths else 0.0
@@ -379,9 +387,10 @@ class _Problem:
             ci.append(self.T * N_POSE + 13 + np.arange(7))
             vals.append(np.full(7, wp))
         if np.any(wl > 0):
-            ri.append(len_rows)
-            ci.append(self.T * N_POSE + np.arange(13))
-            vals.append(wl)
+            dl = np.diag(wl) - (wl * self.len_chain)[:, None] * _CHAIN[None]  # (13, 13)
+            ri.append(np.repeat(len_rows, 13))
+            ci.append(np.tile(self.T * N_POSE + np.arange(13), 13))
+            vals.append(dl.ravel())
         if ws > 0:
             for side, sign in ((0, 1.0), (1, -1.0)):
                 ri.append(sym_rows)

@@ -122,8 +122,6 @@ class SilhouetteConfig:
         if not (self.outline_slack_px >= 0 and self.edge_search_px >= 0):
             raise InputError("SilhouetteConfig.outline_slack_px/edge_search_px", "numbers of pixels >= 0",
                              f"{self.outline_slack_px!r}, {self.edge_search_px!r}")
-        if not self.outline_slack_px >= 0:
-            raise InputError("SilhouetteConfig.outline_slack_px", "a number of pixels >= 0", repr(self.outline_slack_px))
         if self.max_outline < 1 or self.sample_dirs < 1:
             raise InputError("SilhouetteConfig.max_outline/sample_dirs", "positive counts",
                              f"{self.max_outline}, {self.sample_dirs}")
@@ -185,12 +183,11 @@ def edge_offset(image: np.ndarray, mask: np.ndarray, outline: np.ndarray, normal
     r = float(config.edge_search_px)
     if r <= 0 or len(outline) == 0:
         return 0.0
-    g = np.asarray(image, np.float32)
-    g = cv2.GaussianBlur(g, (3, 3), 0.7)
-    gx, gy = cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(g, cv2.CV_32F, 0, 1, ksize=3)
-    mag = np.sqrt(gx ** 2 + gy ** 2) if g.ndim == 2 else np.sqrt((gx ** 2 + gy ** 2).sum(-1))
     if not mask.any():
         return 0.0
+    g = cv2.GaussianBlur(np.asarray(image, np.float32), (3, 3), 0.7)
+    gx, gy = cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(g, cv2.CV_32F, 0, 1, ksize=3)
+    mag = np.sqrt(gx ** 2 + gy ** 2) if g.ndim == 2 else np.sqrt((gx ** 2 + gy ** 2).sum(-1))
     ts = np.arange(-r, r + 1e-9, 0.25)
     P = outline[:, None, :] + ts[None, :, None] * normals[:, None, :]
     h, w = mask.shape
