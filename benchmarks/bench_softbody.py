@@ -162,13 +162,14 @@ def bone_error_mm(joints: np.ndarray, truth: np.ndarray) -> float:
 
 
 def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool = True,
-             silhouette_weight: float | None = None, click_draw: int = 0) -> dict:
+             silhouette_weight: float | None = None, click_draw: int = 0, refine: bool | None = None) -> dict:
     """Run one scene through the pipeline and score it.
 
     ``silhouette_weight``: tracking's and the global fit's (None: the defaults).  ``click_draw``: which
     draw of the click noise (trinocular scenes; the noise is seeded by the scene's seed and the draw, so
     a scene's clicks do not depend on which scenes ran before it); draws after the first get their own
-    run folder and row name (``..._d1``).
+    run folder and row name (``..._d1``).  ``refine``: whether the clicked start is refined on frame 0
+    (:class:`toolkit.softbody.init.RefineConfig` ``enabled``; None: the default).
     """
     from toolkit.anthropometry import BodyProportions
     from toolkit.pipeline.soft_body import SoftBodyRunConfig, run
@@ -184,6 +185,8 @@ def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool 
     if silhouette_weight is not None:
         cfg = replace(cfg, track=replace(cfg.track, silhouette_weight=silhouette_weight),
                       fit=replace(cfg.fit, silhouette_weight=silhouette_weight))
+    if refine is not None:
+        cfg = replace(cfg, refine=replace(cfg.refine, enabled=refine))
     if kind == "trinocular":
         click_rng = np.random.default_rng([spec.seed, click_draw, 18])
         cfg = replace(cfg, foreground="plate",
@@ -261,6 +264,8 @@ def main(argv=None) -> int:
     ap.add_argument("--click-draws", type=int, default=1,
                     help="draws of the click noise per trinocular scene, each run and scored as its own row "
                          "(the stereo initialisation's sensitivity to the clicks)")
+    ap.add_argument("--refine", choices=("default", "on", "off"), default="default",
+                    help="refine the clicked start on frame 0 (RefineConfig.enabled; default: the config's)")
     args = ap.parse_args(argv)
     n, frames = (1, 12) if args.quick else (args.scenes, args.frames)
     kinds = set(args.sources.split(","))
@@ -272,7 +277,7 @@ def main(argv=None) -> int:
             continue
         for draw in range(args.click_draws if kind == "trinocular" else 1):
             rows.append(evaluate(name, kind, text, args.cache, rng, not args.tracking_only, args.silhouette_weight,
-                                 click_draw=draw))
+                                 click_draw=draw, refine=None if args.refine == "default" else args.refine == "on"))
             r = rows[-1]
             print(f"{r['scene']}: MPJPE {r['mpjpe_track']:.1f} -> {r['mpjpe_global']:.1f} mm, bones "
                   f"{r['bone_track']:.1f} -> {r['bone_global']:.1f} mm ({time.perf_counter() - t0:.0f} s)", flush=True)
