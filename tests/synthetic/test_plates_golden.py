@@ -13,7 +13,12 @@ intrinsics, a bird's-eye view.
 
 The scene is generated deterministically; where its surroundings differ from
 the digest stored with the outputs (other library versions) the test is
-skipped with that reason.  Regenerate the file (only when an intended change
+skipped with that reason, and so it is where Open3D's ray caster itself gives
+other bits for the same rays (``raycast_probe``: the depths of one camera's
+rays against the surroundings, cast directly; Embree's arithmetic follows the
+processor's vector instructions: on a machine with AVX-512 the depths differed
+from those of the machine the file was made on, in session 12, with the same
+library versions and the code of either commit).  Regenerate the file (only when an intended change
 of the outputs has been explained) with
 ``python tests/synthetic/test_plates_golden.py tests/data/plates_golden.json``.
 """
@@ -77,6 +82,22 @@ def _sha1(a: np.ndarray) -> str:
     return f"{a.dtype} {a.shape} " + hashlib.sha1(np.ascontiguousarray(a).tobytes()).hexdigest()
 
 
+def raycast_probe() -> str:
+    """Digest of Open3D's hit distances of a fixed grid of rays (the first camera's) against the surroundings."""
+    import open3d as o3d
+
+    _, _, env, cams, _ = _setup()
+    scene = o3d.t.geometry.RaycastingScene()
+    for s in env:
+        scene.add_triangles(o3d.core.Tensor(np.asarray(s.vertices, np.float32)),
+                            o3d.core.Tensor(np.asarray(s.triangles, np.uint32)))
+    cam = cams[0]
+    u, v = np.meshgrid(np.arange(0, cam.size[0], 2) + 0.5, np.arange(0, cam.size[1], 2) + 0.5)
+    o, d = cam.rays(np.stack([u.ravel(), v.ravel()], 1))
+    hit = scene.cast_rays(o3d.core.Tensor(np.hstack([o, d]).astype(np.float32)))
+    return _sha1(hit["t_hit"].numpy())
+
+
 def outputs(renderer_class=None) -> dict:
     """Digests of the plates, depths and body renders of the golden cameras (``renderer_class``: default the
     toolkit's; a digest of the bytes is as strict as the arrays and keeps the file small)."""
@@ -104,7 +125,10 @@ def test_plates_and_renders_equal_the_golden_outputs():
     got = outputs()
     if got["digest"] != gold["digest"]:
         pytest.skip("the generated surroundings differ from the golden scene's (other library versions)")
-    assert got == gold
+    if gold.get("raycast_probe") != raycast_probe():
+        pytest.skip("Open3D's ray caster gives other bits for the same rays on this machine (another vector "
+                    "instruction set, or another Open3D build)")
+    assert got == {k: v for k, v in gold.items() if k != "raycast_probe"}
 
 
 def test_plates_not_kept_equal_kept_ones_and_are_read_only():
@@ -140,4 +164,4 @@ def test_block_sum_downsample_equals_mean():
 
 
 if __name__ == "__main__":  # regenerate: python tests/synthetic/test_plates_golden.py tests/data/plates_golden.json
-    Path(sys.argv[1]).write_text(json.dumps(outputs(), indent=1) + "\n")
+    Path(sys.argv[1]).write_text(json.dumps({**outputs(), "raycast_probe": raycast_probe()}, indent=1) + "\n")
