@@ -70,3 +70,19 @@ def test_an_image_of_another_size_is_refused(scene):
     _, _, cam, mask = scene
     with pytest.raises(InputError, match="silhouette image"):
         SilhouetteView(cam, mask, image=np.zeros((10, 10, 3), np.uint8))
+
+
+def test_an_offset_measured_once_moves_the_outline_alike(scene):
+    """Sources measure the offset when they find the mask (mask_edge_offset) and keep only the number."""
+    from toolkit.softbody.silhouette import mask_edge_offset, silhouette_views
+
+    _, _, cam, mask = scene
+    fat, img = grow(mask, 2), picture(mask)
+    off = mask_edge_offset(img, fat)
+    measured = SilhouetteView(cam, fat, image=img)
+    given, = silhouette_views([cam], [fat], edge_offsets=[off])
+    assert off == measured.edge_offset_px == given.edge_offset_px
+    np.testing.assert_array_equal(given.outline, measured.outline)
+    assert mask_edge_offset(img, np.zeros_like(fat)) == 0.0
+    with pytest.raises(InputError, match="edge offset"):
+        SilhouetteView(cam, fat, edge_offset_px=float("nan"))

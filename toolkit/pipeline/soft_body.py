@@ -443,16 +443,17 @@ def wants_silhouettes(config: SoftBodyRunConfig) -> bool:
 def silhouettes_of(source, n: int) -> list:
     """Per frame ``0..n-1``, the source's cameras' silhouettes (:func:`toolkit.softbody.silhouette.silhouette_views`)
     from the masks its foreground step found (kept by ``source.cloud`` when the source keeps its masks), each
-    outline moved onto its image's edge where the source has images (``source.silhouette_images``), the pixels
+    outline moved onto its image's edge where the source measures it (``source.silhouette_edge_offsets``), the pixels
     it cannot tell from the background unknown where it knows them (``source.silhouette_unknown``)."""
     from toolkit.softbody.silhouette import silhouette_views
 
     out = []
     for t in range(n):
         pairs = source.silhouettes(t)
-        images = source.silhouette_images(t) if hasattr(source, "silhouette_images") else None
+        offsets = source.silhouette_edge_offsets(t) if hasattr(source, "silhouette_edge_offsets") else None
         unknowns = source.silhouette_unknown(t) if hasattr(source, "silhouette_unknown") else None
-        out.append(silhouette_views([c for c, _ in pairs], [m for _, m in pairs], images=images, unknowns=unknowns))
+        out.append(silhouette_views([c for c, _ in pairs], [m for _, m in pairs], edge_offsets=offsets,
+                                    unknowns=unknowns))
     return out
 
 

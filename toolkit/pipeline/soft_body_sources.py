@@ -160,7 +160,7 @@ class StereoClouds:
         self.config = stereo or StereoConfig()
         self.foreground = self._choose(foreground)
         self._plates = {}
-        self.keep_masks, self._masks, self._images = bool(keep_masks), {}, {}
+        self.keep_masks, self._masks, self._edge_offsets = bool(keep_masks), {}, {}
 
     def _choose(self, foreground: str) -> str:
         d, first = self.data, self.data.camera_names[0]
@@ -215,11 +215,26 @@ class StereoClouds:
             return kept
         return [(h[0], self.mask(h[0].name, t, self.data.frame(h[0].name, t))) for h in self.heads]
 
-    def silhouette_images(self, t: int) -> list:
-        """Each head's reference image of frame ``t``, ``[(H, W, 3) uint8]`` in the order of :meth:`silhouettes`
-        (the silhouettes' outlines are moved onto their edges: :func:`toolkit.softbody.silhouette.edge_offset`)."""
-        kept = self._images.pop(t, None)
-        return kept if kept is not None else [self.data.frame(h[0].name, t) for h in self.heads]
+    def silhouette_edge_offsets(self, t: int) -> list:
+        """How far each head's reference image's edge lies from its mask's outline in frame ``t`` (pixels,
+        :func:`toolkit.softbody.silhouette.mask_edge_offset`), in the order of :meth:`silhouettes`: the
+        silhouettes' outlines are moved by it (measured by :meth:`cloud` when it keeps the masks, so that the
+        images are not kept)."""
+        from toolkit.softbody.silhouette import mask_edge_offset
+
+        kept = self._edge_offsets.pop(t, None)
+        if kept is not None:
+            return kept
+        out = []
+        for cam, m in self._silhouettes_peek(t):
+            out.append(mask_edge_offset(self.data.frame(cam.name, t), m))
+        return out
+
+    def _silhouettes_peek(self, t: int) -> list:
+        """:meth:`silhouettes` without taking the kept masks."""
+        kept = self._masks.get(t)
+        return kept if kept is not None else \
+            [(h[0], self.mask(h[0].name, t, self.data.frame(h[0].name, t))) for h in self.heads]
 
     def cloud(self, t: int) -> np.ndarray:
         """The heads' points of frame ``t``, (N, 3) metres (empty when nothing matched)."""
@@ -230,8 +245,10 @@ class StereoClouds:
             images = [self.data.frame(c.name, t) for c in head]
             masks = [self.mask(c.name, t, im) if k == 0 else None for k, (c, im) in enumerate(zip(head, images))]
             if self.keep_masks:
+                from toolkit.softbody.silhouette import mask_edge_offset
+
                 self._masks.setdefault(t, []).append((head[0], masks[0]))
-                self._images.setdefault(t, []).append(images[0])
+                self._edge_offsets.setdefault(t, []).append(mask_edge_offset(images[0], masks[0]))
             out.append(head_cloud(images, head, masks, self.config, pairs).points)
         return np.concatenate(out) if out else np.zeros((0, 3))
 

@@ -50,7 +50,7 @@ from toolkit.softbody.distance import distance, distance_and_jacobian
 from toolkit.softbody.model import ModelState, SoftBodyModel, SoftBodyParams
 from toolkit.softbody.residuals import CoverageSamples, coverage_samples, robust
 
-__all__ = ["project_jacobian", "SilhouetteConfig", "SilhouetteView", "SilhouetteBlock", "VIEW_STATES", "silhouette_views",
+__all__ = ["project_jacobian", "mask_edge_offset", "edge_offset", "SilhouetteConfig", "SilhouetteView", "SilhouetteBlock", "VIEW_STATES", "silhouette_views",
            "ray_minimum", "model_mask", "report_silhouettes"]
 
 #: States of one camera's silhouette in one frame.
@@ -199,6 +199,16 @@ def edge_offset(image: np.ndarray, mask: np.ndarray, outline: np.ndarray, normal
     return float(np.median(ts[np.argmax(prof[clear], axis=1)]))
 
 
+def mask_edge_offset(image: np.ndarray, mask, config: SilhouetteConfig = SilhouetteConfig()) -> float:
+    """:func:`edge_offset` of a mask's own outline (pixels; 0 for an empty mask): what a source measures
+    once, when it finds the mask, so that it need not keep the image for :class:`SilhouetteView`."""
+    m = np.asarray(mask) > 0
+    if not m.any():
+        return 0.0
+    outline, normals = _outline(m, config)
+    return edge_offset(np.asarray(image), m, outline, normals, config) if len(outline) else 0.0
+
+
 class SilhouetteView:
     """One camera's silhouette of the subject in one frame.
 
@@ -211,6 +221,8 @@ class SilhouetteView:
     config : SilhouetteConfig
     image : ndarray of shape (H, W, 3) or (H, W), optional
         The image the mask was found in: the outline is moved onto its edge (:func:`edge_offset`).
+    edge_offset_px : float, optional
+        The offset measured already (:func:`mask_edge_offset`), used instead of measuring it on ``image``.
     unknown : ndarray of shape (H, W), optional
         Pixels outside the mask that may still be the subject (nonzero; e.g. a depth camera's readings
         just in front of the background, :func:`toolkit.pointcloud.ambiguous_mask`: the soles of feet
@@ -237,7 +249,7 @@ class SilhouetteView:
     """
 
     def __init__(self, camera: Camera, mask, config: SilhouetteConfig = SilhouetteConfig(), image=None,
-                 unknown=None):
+                 unknown=None, edge_offset_px: float | None = None):
         if not isinstance(camera, Camera):
             raise InputError("silhouette camera", "a toolkit.cameras.Camera", type(camera).__name__)
         m = np.asarray(mask)
@@ -261,7 +273,13 @@ class SilhouetteView:
             keep = ~near[q[:, 1], q[:, 0]]
             self.outline, normals = self.outline[keep], normals[keep]
         self.edge_offset_px = 0.0
-        if image is not None and len(self.outline):
+        if edge_offset_px is not None and len(self.outline):
+            if not np.isfinite(edge_offset_px):
+                raise InputError(f"edge offset of camera {camera.name!r}", "a finite number of pixels",
+                                 repr(edge_offset_px))
+            self.edge_offset_px = float(edge_offset_px)
+            self.outline = self.outline + self.edge_offset_px * normals
+        elif image is not None and len(self.outline):
             im = np.asarray(image)
             if im.shape[:2] != (h, w):
                 raise InputError(f"silhouette image of camera {camera.name!r}", f"shape ({h}, {w}[, 3])",
@@ -278,18 +296,20 @@ class SilhouetteView:
 
 
 def silhouette_views(cameras, masks, config: SilhouetteConfig = SilhouetteConfig(), images=None,
-                     unknowns=None) -> list:
+                     unknowns=None, edge_offsets=None) -> list:
     """The silhouettes of one frame: one :class:`SilhouetteView` per camera and mask (masks may be None: left out);
     ``images``: per camera the image the mask was found in, or None (the outline is then not moved onto the
-    image's edge); ``unknowns``: per camera the pixels that may still be the subject, or None."""
+    image's edge); ``edge_offsets``: per camera the edge offset measured already (pixels) or None, instead of
+    the images; ``unknowns``: per camera the pixels that may still be the subject, or None."""
     cams, ms = list(cameras), list(masks)
     ims = [None] * len(cams) if images is None else list(images)
     uns = [None] * len(cams) if unknowns is None else list(unknowns)
-    if not len(cams) == len(ms) == len(ims) == len(uns):
-        raise InputError("silhouette masks, images and unknown pixels", f"one per camera ({len(cams)})",
-                         f"{len(ms)}, {len(ims)}, {len(uns)}")
-    return [SilhouetteView(c, m, config, image=im, unknown=un) for c, m, im, un in zip(cams, ms, ims, uns)
-            if m is not None]
+    offs = [None] * len(cams) if edge_offsets is None else list(edge_offsets)
+    if not len(cams) == len(ms) == len(ims) == len(uns) == len(offs):
+        raise InputError("silhouette masks, images, unknown pixels and edge offsets", f"one per camera ({len(cams)})",
+                         f"{len(ms)}, {len(ims)}, {len(uns)}, {len(offs)}")
+    return [SilhouetteView(c, m, config, image=im, unknown=un, edge_offset_px=off)
+            for c, m, im, un, off in zip(cams, ms, ims, uns, offs) if m is not None]
 
 
 def _ray_candidates(st: ModelState, o: np.ndarray, d: np.ndarray, n: int) -> np.ndarray:
