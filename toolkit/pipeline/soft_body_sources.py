@@ -225,16 +225,13 @@ class StereoClouds:
         kept = self._edge_offsets.pop(t, None)
         if kept is not None:
             return kept
+        masks = self._masks.get(t)
         out = []
-        for cam, m in self._silhouettes_peek(t):
-            out.append(mask_edge_offset(self.data.frame(cam.name, t), m))
+        for k, h in enumerate(self.heads):
+            image = self.data.frame(h[0].name, t)
+            m = masks[k][1] if masks is not None else self.mask(h[0].name, t, image)
+            out.append(mask_edge_offset(image, m))
         return out
-
-    def _silhouettes_peek(self, t: int) -> list:
-        """:meth:`silhouettes` without taking the kept masks."""
-        kept = self._masks.get(t)
-        return kept if kept is not None else \
-            [(h[0], self.mask(h[0].name, t, self.data.frame(h[0].name, t))) for h in self.heads]
 
     def cloud(self, t: int) -> np.ndarray:
         """The heads' points of frame ``t``, (N, 3) metres (empty when nothing matched)."""

@@ -129,14 +129,26 @@ def _empty(shape) -> UserMask:
     return UserMask(np.zeros(shape, bool), 0, 0.0, float("nan"))
 
 
+def _valid(d: np.ndarray, config: MaskConfig) -> np.ndarray:
+    """Readings within ``config.near_m``-``config.far_m`` (False for NaN)."""
+    with np.errstate(invalid="ignore"):
+        return (d > config.near_m) & (d < config.far_m)
+
+
+def _background_depth(background: BackgroundModel, d: np.ndarray) -> np.ndarray:
+    """The background model's depth map, checked against the frame's shape."""
+    bg = background.depth
+    if bg.shape != d.shape:
+        raise InputError("background", f"a depth map of shape {d.shape}", f"shape {bg.shape}")
+    return bg
+
+
 def _foreground(d: np.ndarray, valid: np.ndarray, background: BackgroundModel | None,
                 config: MaskConfig) -> np.ndarray:
     """Pixels with a valid reading clearly in front of the background (all valid ones without a model)."""
     if background is None:
         return valid
-    bg = background.depth
-    if bg.shape != d.shape:
-        raise InputError("background", f"a depth map of shape {d.shape}", f"shape {bg.shape}")
+    bg = _background_depth(background, d)
     with np.errstate(invalid="ignore"):
         farther = d >= bg - (config.background_margin_m + config.background_margin_rel * bg)   # False for NaN bg
     return valid & ~farther
@@ -168,15 +180,12 @@ def ambiguous_mask(depth: np.ndarray, camera: Camera, *, background: BackgroundM
     d = _check_depth(depth, camera)
     if background is None:
         return np.zeros(d.shape, bool)
-    bg = background.depth
-    if bg.shape != d.shape:
-        raise InputError("background", f"a depth map of shape {d.shape}", f"shape {bg.shape}")
+    bg = _background_depth(background, d)
     with np.errstate(invalid="ignore"):
-        valid = (d > config.near_m) & (d < config.far_m)
         gap = bg - d                                                     # NaN where either is missing
         out = (gap > config.ambiguous_margin_m + config.ambiguous_margin_rel * bg) \
             & (gap < config.background_margin_m + config.background_margin_rel * bg)
-    return valid & out
+    return _valid(d, config) & out
 
 
 def foreground_mask(depth: np.ndarray, camera: Camera, *, background: BackgroundModel | None = None,
@@ -203,8 +212,7 @@ def foreground_mask(depth: np.ndarray, camera: Camera, *, background: Background
     ndarray of shape (H, W), bool
     """
     d = _check_depth(depth, camera)
-    with np.errstate(invalid="ignore"):
-        valid = (d > config.near_m) & (d < config.far_m)          # False for NaN
+    valid = _valid(d, config)
     fg = _foreground(d, valid, background, config)
     if not fg.any():
         return fg
@@ -238,8 +246,7 @@ def user_mask(depth: np.ndarray, camera: Camera, *, background: BackgroundModel 
         Empty (``found`` False) when no component is large enough.
     """
     d = _check_depth(depth, camera)
-    with np.errstate(invalid="ignore"):
-        valid = (d > config.near_m) & (d < config.far_m)          # False for NaN
+    valid = _valid(d, config)
     f2 = camera.K[0, 0] * camera.K[1, 1]
     if given is not None:
         g = np.asarray(given, bool)

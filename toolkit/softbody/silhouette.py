@@ -83,10 +83,6 @@ class SilhouetteConfig:
         Surface points per metaball considered for the mask block.
     ray_tol : float
         Precision of each ray's least distance along the ray, metres (:func:`ray_minimum`).
-    outline_slack_px : float
-        A ray that misses the model by less than this (pixels at the ray's nearest point) costs nothing;
-        beyond it, the miss less the slack (the outline's quantisation; a ray cutting through the model
-        costs in full).
     edge_search_px : float
         With the camera's image given (:class:`SilhouetteView`), the outline is moved onto the image's
         edge: along each outline point's normal, within this many pixels either side, the strongest
@@ -111,7 +107,6 @@ class SilhouetteConfig:
     mask_margin_px: float = 1.0
     sample_dirs: int = 16
     ray_tol: float = 1e-4
-    outline_slack_px: float = 0.0
     edge_search_px: float = 3.0
     min_edge_points: int = 30
 
@@ -119,9 +114,8 @@ class SilhouetteConfig:
         for name in ("step_px", "gate", "scale"):
             if not getattr(self, name) > 0:
                 raise InputError(f"SilhouetteConfig.{name}", "a positive number", repr(getattr(self, name)))
-        if not (self.outline_slack_px >= 0 and self.edge_search_px >= 0):
-            raise InputError("SilhouetteConfig.outline_slack_px/edge_search_px", "numbers of pixels >= 0",
-                             f"{self.outline_slack_px!r}, {self.edge_search_px!r}")
+        if not self.edge_search_px >= 0:
+            raise InputError("SilhouetteConfig.edge_search_px", "a number of pixels >= 0", repr(self.edge_search_px))
         if self.max_outline < 1 or self.sample_dirs < 1:
             raise InputError("SilhouetteConfig.max_outline/sample_dirs", "positive counts",
                              f"{self.max_outline}, {self.sample_dirs}")
@@ -181,9 +175,7 @@ def edge_offset(image: np.ndarray, mask: np.ndarray, outline: np.ndarray, normal
         outline points have a clear edge within ``edge_search_px``.
     """
     r = float(config.edge_search_px)
-    if r <= 0 or len(outline) == 0:
-        return 0.0
-    if not mask.any():
+    if r <= 0 or len(outline) == 0 or not mask.any():
         return 0.0
     g = cv2.GaussianBlur(np.asarray(image, np.float32), (3, 3), 0.7)
     gx, gy = cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(g, cv2.CV_32F, 0, 1, ksize=3)
@@ -295,21 +287,19 @@ class SilhouetteView:
         return f"SilhouetteView({self.camera.name!r}, {self.state}, {len(self.outline)} outline points)"
 
 
-def silhouette_views(cameras, masks, config: SilhouetteConfig = SilhouetteConfig(), images=None,
-                     unknowns=None, edge_offsets=None) -> list:
+def silhouette_views(cameras, masks, config: SilhouetteConfig = SilhouetteConfig(), unknowns=None,
+                     edge_offsets=None) -> list:
     """The silhouettes of one frame: one :class:`SilhouetteView` per camera and mask (masks may be None: left out);
-    ``images``: per camera the image the mask was found in, or None (the outline is then not moved onto the
-    image's edge); ``edge_offsets``: per camera the edge offset measured already (pixels) or None, instead of
-    the images; ``unknowns``: per camera the pixels that may still be the subject, or None."""
+    ``edge_offsets``: per camera the mask's edge offset (pixels, :func:`mask_edge_offset`) or None (the outline
+    stays); ``unknowns``: per camera the pixels that may still be the subject, or None."""
     cams, ms = list(cameras), list(masks)
-    ims = [None] * len(cams) if images is None else list(images)
     uns = [None] * len(cams) if unknowns is None else list(unknowns)
     offs = [None] * len(cams) if edge_offsets is None else list(edge_offsets)
-    if not len(cams) == len(ms) == len(ims) == len(uns) == len(offs):
-        raise InputError("silhouette masks, images, unknown pixels and edge offsets", f"one per camera ({len(cams)})",
-                         f"{len(ms)}, {len(ims)}, {len(uns)}, {len(offs)}")
-    return [SilhouetteView(c, m, config, image=im, unknown=un, edge_offset_px=off)
-            for c, m, im, un, off in zip(cams, ms, ims, uns, offs) if m is not None]
+    if not len(cams) == len(ms) == len(uns) == len(offs):
+        raise InputError("silhouette masks, unknown pixels and edge offsets", f"one per camera ({len(cams)})",
+                         f"{len(ms)}, {len(uns)}, {len(offs)}")
+    return [SilhouetteView(c, m, config, unknown=un, edge_offset_px=off)
+            for c, m, un, off in zip(cams, ms, uns, offs) if m is not None]
 
 
 def _ray_candidates(st: ModelState, o: np.ndarray, d: np.ndarray, n: int) -> np.ndarray:
@@ -493,17 +483,13 @@ class SilhouetteBlock:
         self.model, self.config = model, config
         o = [v.origins for v in self.views]
         d = [v.directions for v in self.views]
-        f = [np.full(len(v.origins), v.focal) for v in self.views]
         o = np.concatenate(o) if o else np.zeros((0, 3))
         d = np.concatenate(d) if d else np.zeros((0, 3))
-        f = np.concatenate(f) if f else np.zeros(0)
         st = model.state(start)
         s0, r0 = ray_minimum(model, start, o, d, state=st, tol=config.ray_tol)
         keep = np.abs(r0) < config.gate
         self.origins, self.directions = o[keep], d[keep]
-        self._s = s0[keep]
-        # the slack in metres at each ray's nearest point to the start model (fixed: an exact Jacobian)
-        self._slack = config.outline_slack_px / f[keep] * np.maximum(self._s, 0.0)  # each ray's last minimum: the next evaluation starts there
+        self._s = s0[keep]  # each ray's last minimum: the next evaluation starts there
         self.n_rays = int(keep.sum())
         self.samples = coverage_samples(model, start, n_dirs=config.sample_dirs) if self.views \
             else CoverageSamples(np.zeros(0, int), np.zeros((0, 3)))
@@ -528,13 +514,10 @@ class SilhouetteBlock:
                            start=self._s, spacing=0.005)
         self._s = s
         J = None
-        free = (r > 0) & (r < self._slack)  # within the slack: no cost, no gradient
-        r = r - np.clip(r, 0.0, self._slack)
         if with_jac:
             x = self.origins + s[:, None] * self.directions
             J = distance_and_jacobian(self.model, params, x, state=st)[1][:, columns] if len(x) \
                 else np.zeros((0, len(columns)))
-            J[free] = 0.0
         r, J = robust(r, J, "cauchy", c.scale)
         rm, Jm = self._mask(st, columns, with_jac)
         w = np.sqrt(c.mask_weight)
