@@ -161,15 +161,54 @@ def bone_error_mm(joints: np.ndarray, truth: np.ndarray) -> float:
     return float(np.mean(np.abs(bone_errors_mm(joints, truth))))
 
 
+def parse_overrides(items) -> dict:
+    """``["track.posture_weight=0.5", "init_posture_weight=0"]`` -> ``{"track": {"posture_weight": 0.5},
+    "": {"init_posture_weight": 0.0}}`` (section ``""``: the run config's own fields; values as Python
+    literals: numbers, True/False, quoted strings; anything else a string).
+
+    Raises
+    ------
+    SystemExit
+        On an item without ``SECTION.FIELD=VALUE`` or an unknown section or field (named).
+    """
+    import ast
+    from dataclasses import fields
+
+    from toolkit.pipeline.soft_body import SoftBodyRunConfig
+
+    base = SoftBodyRunConfig()
+    out: dict = {}
+    for item in items or ():
+        key, eq, value = item.partition("=")
+        section, dot, field = key.rpartition(".")
+        if not eq:
+            raise SystemExit(f"--set {item!r}: expected [SECTION.]FIELD=VALUE (e.g. track.posture_weight=0.5)")
+        sub = getattr(base, section, None) if dot else base
+        if sub is None or not hasattr(sub, "__dataclass_fields__"):
+            raise SystemExit(f"--set {item!r}: no config section {section!r} in SoftBodyRunConfig")
+        if field not in {f.name for f in fields(sub)}:
+            raise SystemExit(f"--set {item!r}: {type(sub).__name__} has no field {field!r}")
+        if not dot and hasattr(getattr(base, field), "__dataclass_fields__"):
+            raise SystemExit(f"--set {item!r}: {field!r} is a section: set its fields ({field}.NAME=VALUE)")
+        try:
+            v = ast.literal_eval(value)
+        except (ValueError, SyntaxError):
+            v = value
+        out.setdefault(section, {})[field] = v
+    return out
+
+
 def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool = True,
-             silhouette_weight: float | None = None, click_draw: int = 0, refine: bool | None = None) -> dict:
+             silhouette_weight: float | None = None, click_draw: int = 0, refine: bool | None = None,
+             overrides: dict | None = None) -> dict:
     """Run one scene through the pipeline and score it.
 
     ``silhouette_weight``: tracking's and the global fit's (None: the defaults).  ``click_draw``: which
     draw of the click noise (trinocular scenes; the noise is seeded by the scene's seed and the draw, so
     a scene's clicks do not depend on which scenes ran before it); draws after the first get their own
     run folder and row name (``..._d1``).  ``refine``: whether the clicked start is refined on frame 0
-    (:class:`toolkit.softbody.init.RefineConfig` ``enabled``; None: the default).
+    (:class:`toolkit.softbody.init.RefineConfig` ``enabled``; None: the default).  ``overrides``:
+    ``{section: {field: value}}`` for the run config's nested configs (:func:`parse_overrides`).
     """
     from toolkit.anthropometry import BodyProportions
     from toolkit.pipeline.soft_body import SoftBodyRunConfig, run
@@ -187,6 +226,9 @@ def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool 
                       fit=replace(cfg.fit, silhouette_weight=silhouette_weight))
     if refine is not None:
         cfg = replace(cfg, refine=replace(cfg.refine, enabled=refine))
+    for section, values in (overrides or {}).items():
+        cfg = replace(cfg, **values) if not section else \
+            replace(cfg, **{section: replace(getattr(cfg, section), **values)})
     if kind == "trinocular":
         click_rng = np.random.default_rng([spec.seed, click_draw, 18])
         cfg = replace(cfg, foreground="plate",
@@ -266,7 +308,11 @@ def main(argv=None) -> int:
                          "(the stereo initialisation's sensitivity to the clicks)")
     ap.add_argument("--refine", choices=("default", "on", "off"), default="default",
                     help="refine the clicked start on frame 0 (RefineConfig.enabled; default: the config's)")
+    ap.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
+                    help="override a field of the run config's nested configs, e.g. track.posture_weight=0.5 "
+                         "or fit.root_prior_weight=2 (repeatable)")
     args = ap.parse_args(argv)
+    overrides = parse_overrides(args.set)
     n, frames = (1, 12) if args.quick else (args.scenes, args.frames)
     kinds = set(args.sources.split(","))
     rng = np.random.default_rng(18)
@@ -277,7 +323,8 @@ def main(argv=None) -> int:
             continue
         for draw in range(args.click_draws if kind == "trinocular" else 1):
             rows.append(evaluate(name, kind, text, args.cache, rng, not args.tracking_only, args.silhouette_weight,
-                                 click_draw=draw, refine=None if args.refine == "default" else args.refine == "on"))
+                                 click_draw=draw, refine=None if args.refine == "default" else args.refine == "on",
+                                 overrides=overrides))
             r = rows[-1]
             print(f"{r['scene']}: MPJPE {r['mpjpe_track']:.1f} -> {r['mpjpe_global']:.1f} mm, bones "
                   f"{r['bone_track']:.1f} -> {r['bone_global']:.1f} mm ({time.perf_counter() - t0:.0f} s)", flush=True)

@@ -34,7 +34,7 @@ from toolkit.pipeline.run import RunResult, open_run
 from toolkit.pointcloud.patches import PatchConfig
 from toolkit.pointcloud.stereo import StereoConfig
 from toolkit.softbody import GlobalFitConfig, TrackConfig
-from toolkit.softbody.init import RefineConfig
+from toolkit.softbody.init import POSTURE_WEIGHT, RefineConfig
 
 #: Cloud sources.
 SOURCES = ("auto", "depth", "stereo")
@@ -63,6 +63,9 @@ class SoftBodyRunConfig:
         ``.npz`` with 2D joints in two images (see :func:`~toolkit.pipeline.soft_body_sources.read_clicks`).
     init_frame : int
         Frame whose joints initialise the model (the first frame's pose is found by the tracker).
+    init_posture_weight : float
+        Pull of the initial pose's trunk bend and twist (against the pelvis) towards 0 when it is
+        fitted to the initial joints, metres per radian (:func:`toolkit.softbody.model_from_joints`).
     stereo : StereoConfig
     patches : PatchConfig
     track : TrackConfig
@@ -100,6 +103,7 @@ class SoftBodyRunConfig:
     init_joints: Path | None = None
     clicks: Path | None = None
     init_frame: int = 0
+    init_posture_weight: float = POSTURE_WEIGHT
     stereo: StereoConfig = field(default_factory=StereoConfig)
     patches: PatchConfig = field(default_factory=PatchConfig)
     track: TrackConfig = field(default_factory=TrackConfig)
@@ -125,6 +129,9 @@ class SoftBodyRunConfig:
             raise InputError("SoftBodyRunConfig.init (--init)", f"one of {INITS}", repr(self.init))
         if int(self.init_frame) < 0:
             raise InputError("SoftBodyRunConfig.init_frame (--init-frame)", "a frame >= 0", repr(self.init_frame))
+        if not (np.isfinite(self.init_posture_weight) and self.init_posture_weight >= 0):
+            raise InputError("SoftBodyRunConfig.init_posture_weight", "a finite weight >= 0 (metres per radian)",
+                             repr(self.init_posture_weight))
         if not 0.003 <= self.mesh_voxel_m <= 0.1:
             raise InputError("SoftBodyRunConfig.mesh_voxel_m", "a grid step from 0.003 to 0.1 m",
                              repr(self.mesh_voxel_m))
@@ -214,16 +221,16 @@ def initial_model(config: SoftBodyRunConfig, source, n: int, cloud=None, silhoue
         if source.kind != "depth":
             raise InputError("init (--init)", "'depth_tracker' only for depth input", source.kind)
         joints = _tracker_joints(source, n, min(config.init_frame, n - 1))
-        return (*model_from_joints(joints), joints)
+        return (*model_from_joints(joints, posture_weight=config.init_posture_weight), joints)
     if init == "joints":
         if config.init_joints is None:
             raise InputError("init_joints (--init-joints)", "a joints .npz for init = 'joints'", "none")
         joints = read_init_joints(config.init_joints, config.init_frame)
-        return (*model_from_joints(joints), joints)
+        return (*model_from_joints(joints, posture_weight=config.init_posture_weight), joints)
     if config.clicks is None:
         raise InputError("clicks (--clicks)", "a clicks .npz for init = 'clicks'", "none")
     a, b, cam_a, cam_b, _ = read_clicks(config.clicks, source.data.rig)
-    model, params = init_from_2d(a, b, cam_a, cam_b)
+    model, params = init_from_2d(a, b, cam_a, cam_b, posture_weight=config.init_posture_weight)
     if config.refine.enabled and cloud is not None:
         from toolkit.softbody.init import refine_initial_model
 
@@ -418,7 +425,7 @@ def fit_independent(source, clouds, config: SoftBodyRunConfig, observer=None) ->
             params.append(params[-1] if params else None)
             states.append("lost")
             continue
-        model, p0 = model_from_joints(joints[t])
+        model, p0 = model_from_joints(joints[t], posture_weight=config.init_posture_weight)
         tr = track_sequence(model, p0, [clouds[t]], config=tcfg)
         models.append(model)
         params.append(np.asarray(tr.params[0]))

@@ -37,7 +37,7 @@ from toolkit.errors import InputError
 from toolkit.observe import Observer, as_observer
 from toolkit.softbody.distance import check_points
 from toolkit.softbody.model import (LENGTH_NAMES, N_PARAMS, N_POSE, STATURE_CHAIN, SYMMETRIC_LENGTHS, SoftBodyModel,
-                                    SoftBodyParams, continuous_poses, pose_bounds)
+                                    TRUNK_POSTURE, SoftBodyParams, continuous_poses, pose_bounds)
 from toolkit.softbody.residuals import (LOSSES, CoverageSamples, coverage_residuals, coverage_samples, data_residuals, gate_points,
                                         coverage_margin,
                                         one_blas_thread)
@@ -171,6 +171,10 @@ class GlobalFitConfig:
     silhouette_weight : float
         Weight of the silhouette blocks (:mod:`toolkit.softbody.silhouette`) of the
         frames with masks given; 0: not used.
+    posture_weight : float
+        Pull of each frame's trunk bend and twist against the pelvis towards
+        0, metres per radian (as :class:`toolkit.softbody.track.TrackConfig`,
+        whose entry gives the measurements).
     """
 
     loss: str = "soft_l1"
@@ -200,6 +204,7 @@ class GlobalFitConfig:
     fit_widths: bool = True
     max_nfev: int = 40
     silhouette_weight: float = 1.0
+    posture_weight: float = 0.2
 
     def __post_init__(self):
         if self.loss not in LOSSES:
@@ -210,6 +215,9 @@ class GlobalFitConfig:
         if self.split_reference not in ("start", "anthropometric"):
             raise InputError("GlobalFitConfig.split_reference", "'start' or 'anthropometric'",
                              repr(self.split_reference))
+        if not (np.isfinite(self.posture_weight) and self.posture_weight >= 0):
+            raise InputError("GlobalFitConfig.posture_weight", "a finite weight >= 0 (metres per radian)",
+                             repr(self.posture_weight))
         if not (self.f_scale > 0 and self.gate > 0 and self.max_points > 0):
             raise InputError("GlobalFitConfig", "positive f_scale, gate and max_points",
                              f"{self.f_scale}, {self.gate}, {self.max_points}")
@@ -353,6 +361,11 @@ class _Problem:
         res.append(uw * (poses - self.pose0).ravel())
         unseen_rows = rows + np.arange(uw.size)
         rows += uw.size
+        wq = c.posture_weight
+        res.append(wq * poses[:, TRUNK_POSTURE].ravel())
+        posture_rows = rows + np.arange(self.T * len(TRUNK_POSTURE))
+        posture_cols = (np.arange(self.T)[:, None] * N_POSE + TRUNK_POSTURE[None]).ravel()
+        rows += len(posture_rows)
         wp = c.width_prior_weight
         res.append(wp * (shape[13:] - self.shape0[13:]))
         prior_rows = rows + np.arange(7)
@@ -388,6 +401,9 @@ class _Problem:
         ri.append(unseen_rows)
         ci.append(np.arange(uw.size))
         vals.append(uw)
+        ri.append(posture_rows)
+        ci.append(posture_cols)
+        vals.append(np.full(len(posture_rows), wq))
         if c.fit_widths:
             ri.append(prior_rows)
             ci.append(self.T * N_POSE + 13 + np.arange(7))

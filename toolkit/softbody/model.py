@@ -57,8 +57,8 @@ from toolkit.skeleton import SKELETON_14
 
 __all__ = ["FRAMES", "DOF_NAMES", "LENGTH_NAMES", "WIDTH_GROUPS", "N_POSE", "N_PARAMS", "POSE", "LENGTHS",
            "WIDTHS", "SoftBodyParams", "SoftBodyModel", "ModelState", "BLEND_M", "pose_bounds",
-           "attached_points_jacobian", "rotvec_to_matrix", "SYMMETRIC_LENGTHS", "STATURE_CHAIN", "canonical_pose",
-           "pose_step", "continuous_poses"]
+           "attached_points_jacobian", "rotvec_to_matrix", "TRUNK_POSTURE", "SYMMETRIC_LENGTHS", "STATURE_CHAIN",
+           "canonical_pose", "pose_step", "continuous_poses"]
 
 _J = {n: i for i, n in enumerate(SKELETON_14.joint_names)}
 PELVIS = 14  #: node index of the mid-hip point (the 15th node after the 14 joints)
@@ -107,6 +107,8 @@ _DOF_TABLE = [(FRAMES.index(f), name, axis, sign) for f in FRAMES[1:] for name, 
 #: Names of the parameter vector's pose entries.
 DOF_NAMES = ("root_rx", "root_ry", "root_rz", "root_tx", "root_ty", "root_tz") + tuple(d[1] for d in _DOF_TABLE)
 N_POSE = len(DOF_NAMES)  # 27
+#: Pose entries of the trunk's lateral bend and axial twist against the pelvis (the posture priors').
+TRUNK_POSTURE = np.array([DOF_NAMES.index("bend"), DOF_NAMES.index("twist")])
 N_PARAMS = N_POSE + len(LENGTH_NAMES) + len(WIDTH_GROUPS)  # 47
 POSE = slice(0, N_POSE)
 LENGTHS = slice(N_POSE, N_POSE + len(LENGTH_NAMES))
