@@ -7,6 +7,8 @@ Usage::
     python -m benchmarks.bench_softbody --quick            # 1 + 1 scenes x 12 frames
     python -m benchmarks.bench_softbody --scenes 3 --frames 20 --seed 2600   # docs/benchmarks.md
     python -m benchmarks.bench_softbody --sources trinocular --click-draws 4  # sensitivity to the clicks
+    python -m benchmarks.bench_softbody --scenes 4 --frames 12 --seed 15000 --click-draws 2 --pictures DIR
+    python -m benchmarks.bench_softbody --set track.posture_weight=0 --set fit.posture_weight=0  # an ablation
 
 Seeded synthetic sequences, each a random person (1.60-1.90 m, random
 outfit, checked shirt and trousers for the stereo scenes) doing one of several
@@ -34,6 +36,11 @@ median and worst decile over scenes:
   true body mesh (:class:`toolkit.body.BodyModel`, the mesh the scene was
   rendered from) to the fitted model's surface mesh, every 4th frame;
 * time per frame (s) of the clouds and of the fit (tracking + global fit).
+
+``--pictures DIR`` draws each source's worst decile of runs (:func:`picture_worst`);
+``--set SECTION.FIELD=VALUE`` overrides a field of the run config
+(:class:`toolkit.pipeline.soft_body.SoftBodyRunConfig` and its nested ``track``,
+``fit``, ``refine``, ``stereo``, ``patches`` configs) for an ablation.
 
 Targets (issue 18), checked per source (depth and trinocular each on their own,
 the median over its scenes): after the global fit MPJPE <= 35 mm and bone
@@ -253,6 +260,50 @@ def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool 
     return out
 
 
+def picture_worst(rows: list, specs: dict, root: Path, out_dir: Path, rng) -> list:
+    """Pictures of each source's worst runs (the worst decile after the global fit, at least one).
+
+    The frame with the largest joint error: the fitted surface with the true body mesh's vertices over
+    it, coloured by how far they lie outside the fitted surface (blue inside or on it, red 3 cm and more
+    outside: true body the fit missed; fitted surface with no points on it sticks out of the true body),
+    from the scene's first camera and from the side; the caption names the run, the frame and its mean
+    joint error.  ``specs``: scene name -> spec text; ``root``: the ``--cache`` folder.  Returns the
+    paths written.
+    """
+    from toolkit.anthropometry import BodyProportions
+    from toolkit.io import atomic_write_png
+    from toolkit.pipeline.soft_body_images import draw_fit
+    from toolkit.softbody import SoftBodyModel, SoftBodyParams, distance
+    from toolkit.softbody.mesh import surface_mesh
+    from toolkit.synthetic.generator import build_scene
+    from toolkit.synthetic.spec import parse_spec
+
+    paths = []
+    for kind in sorted({r["kind"] for r in rows}):
+        sel = sorted((r for r in rows if r["kind"] == kind), key=lambda r: -r["mpjpe_global"])
+        for r in sel[:max(1, int(np.ceil(0.1 * len(sel))))]:
+            run_dir = root / "runs" / r["scene"]
+            base = r["scene"].rsplit("_d", 1)[0] if r["scene"] not in specs else r["scene"]
+            scene = build_scene(parse_spec(specs[base], base))
+            z = np.load(run_dir / "joints.npz")
+            info = json.loads((run_dir / "body_model.json").read_text())
+            model = SoftBodyModel(BodyProportions.from_height(info["stature_m"]), girth=info["girth"])
+            truth = scene.joints[:len(z["joints"])]
+            err = np.nanmean(np.linalg.norm(z["joints"] - truth, axis=-1), axis=1)
+            t = int(np.nanargmax(err))
+            params = SoftBodyParams(z["params"][t])
+            v, f = surface_mesh(model, params, voxel=0.01)
+            verts = np.asarray(scene.body_mesh(t).vertices, float)
+            pts = verts[rng.choice(len(verts), min(4000, len(verts)), replace=False)]
+            d = np.clip(distance(model, params, pts), 0.0, None)  # buried vertices lie inside: not misses
+            img = draw_fit(pts, d, v, f, scene.rig[0].forward,
+                           caption=f"{r['scene']} frame {t}: {1000 * err[t]:.0f} mm")
+            path = out_dir / f"{r['scene']}_frame{t:03d}.png"
+            atomic_write_png(path, img)
+            paths.append(path)
+    return paths
+
+
 COLUMNS = ("mpjpe_track", "mpjpe_global", "bone_track", "bone_global", "surface_track", "surface_global",
            "clouds_s", "fit_s")
 
@@ -308,6 +359,8 @@ def main(argv=None) -> int:
                          "(the stereo initialisation's sensitivity to the clicks)")
     ap.add_argument("--refine", choices=("default", "on", "off"), default="default",
                     help="refine the clicked start on frame 0 (RefineConfig.enabled; default: the config's)")
+    ap.add_argument("--pictures", type=Path, default=None,
+                    help="draw each source's worst runs (worst decile, at least one) into this folder")
     ap.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
                     help="override a field of the run config's nested configs, e.g. track.posture_weight=0.5 "
                          "or fit.root_prior_weight=2 (repeatable)")
@@ -331,6 +384,10 @@ def main(argv=None) -> int:
     if args.json is not None:
         args.json.write_text(json.dumps(rows, indent=1))
     ok = report(rows, not args.tracking_only)
+    if args.pictures is not None and rows:
+        specs = {name: text for name, _, text in scene_specs(n, frames, args.seed)}
+        for path in picture_worst(rows, specs, args.cache, args.pictures, rng):
+            print(f"worst case pictured: {path}")
     print(f"total {time.perf_counter() - t0:.0f} s")
     return 0 if ok else 1
 
