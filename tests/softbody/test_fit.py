@@ -9,6 +9,7 @@ from toolkit.observe import RecordingObserver
 from toolkit.softbody import LENGTH_NAMES, distance, init_from_2d, model_from_joints
 from toolkit.softbody.global_fit import GlobalFitConfig, global_fit
 from toolkit.softbody.mesh import surface_mesh
+from toolkit.softbody.model import TRUNK_POSTURE
 from toolkit.softbody.track import TrackConfig, track_sequence
 
 from tests.softbody.conftest import model_walk
@@ -41,6 +42,15 @@ def test_tracking_recovers_the_pose_from_its_own_surface(scene):
     assert track.states == ("ok",) * N_FRAMES
     assert np.all(_mpjpe_mm(track.joints, joints) < EXACT_MM)
     assert len(obs.of_kind("joints3d")) == N_FRAMES
+    # the trunk's bend and twist against the pelvis per frame (the posture prior's angles): the walk's
+    # twist of 2-9 degrees comes out about half as large (the prior's price: the pelvis turns with the
+    # trunk, the joints stay within EXACT_MM), and no bend
+    twist = np.array([d["value"] for d in obs.of_kind("scalar") if d["name"] == "softbody/posture/trunk_twist_deg"])
+    bend = np.array([d["value"] for d in obs.of_kind("scalar") if d["name"] == "softbody/posture/trunk_bend_deg"])
+    assert len(twist) == len(bend) == N_FRAMES
+    true_twist = np.degrees([p.pose[TRUNK_POSTURE[1]] for p in truth])
+    assert np.all(twist > 0.35 * true_twist) and np.all(twist < true_twist + 1.0)
+    assert np.abs(bend).max() < 2.0
 
 
 def test_global_fit_recovers_lengths_that_tracking_gets_wrong(scene):

@@ -107,6 +107,7 @@ def test_softbody_layout(tmp_path):
         obs.send_blueprint(softbody_blueprint(["torso", "l_thigh"], eye=subject_eye([0, 0, 1], [[0, -3, 1]])))
     got = views(path)
     assert got["3D"] == {"world"} and got["TextLog"] == {"logs"}
-    assert got["TimeSeries"] == {"metrics/softbody/median_residual_mm", "metrics/softbody/track"}
+    assert got["TimeSeries"] == {"metrics/softbody/median_residual_mm", "metrics/softbody/track",
+                                 "metrics/softbody/posture"}
     assert got["BarChart"] == {"metrics/softbody/global/cost", "metrics/softbody/global/lengths/torso",
                                "metrics/softbody/global/lengths/l_thigh"}

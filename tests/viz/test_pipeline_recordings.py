@@ -170,3 +170,5 @@ def test_soft_body_recording_has_every_item(tmp_path):
     assert _has(ents, "world/softbody/joints", "Points3D:keypoint_ids")
     lengths = [e for e in ents if e.startswith("metrics/softbody/global/lengths/")]
     assert len(lengths) >= 5
+    for name in ("trunk_bend_deg", "trunk_twist_deg"):
+        assert any(e.startswith(f"metrics/softbody/posture/{name}") for e in ents), name

@@ -496,6 +496,9 @@ def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, con
             obs.report("scalar", name="softbody/track/inlier_fraction", value=f.inlier_fraction, frame=t)
             obs.report("scalar", name="softbody/track/median_distance_m", value=f.median_distance, frame=t)
         obs.report("scalar", name="softbody/track/other_points", value=float(np.sum(f.other)), frame=t)
+        bend, twist = np.degrees(p.pose[TRUNK_POSTURE])  # what the posture prior holds (config.posture_weight)
+        obs.report("scalar", name="softbody/posture/trunk_bend_deg", value=float(bend), frame=t)
+        obs.report("scalar", name="softbody/posture/trunk_twist_deg", value=float(twist), frame=t)
         if f.state != "ok":
             obs.report("text", text=f"frame {t}: {f.state} ({f.n_points} points, another body touching "
                        f"{100 * f.contact:.0f} % of them)", level="WARN", frame=t)

@@ -280,6 +280,7 @@ SOFTBODY_LENGTHS = "softbody/global/lengths"
 SOFTBODY_COST = "softbody/global/cost"
 SOFTBODY_RESIDUAL = "softbody/median_residual_mm"
 SOFTBODY_TRACK = "softbody/track"
+SOFTBODY_POSTURE = "softbody/posture"
 
 
 def softbody_blueprint(length_names: Iterable[str], *, eye: tuple[Sequence[float], Sequence[float]] | None = None,
@@ -290,7 +291,8 @@ def softbody_blueprint(length_names: Iterable[str], *, eye: tuple[Sequence[float
     clouds, patches, the model's surface, the residual-coloured points and
     the joints, each toggled in the view's entity list) above the log; right,
     tabs: the median residual per frame, the tracking's per-frame figures
-    (inlier fraction, median distance, points of other bodies), and the
+    (inlier fraction, median distance, points of other bodies), the trunk's
+    bend and twist against the pelvis per frame (degrees), and the
     global fit's lengths over its iterations (one bar chart per length, with
     the cost).
 
@@ -315,6 +317,8 @@ def softbody_blueprint(length_names: Iterable[str], *, eye: tuple[Sequence[float
     right = rrb.Tabs(
         rrb.Vertical(rrb.TimeSeriesView(origin=entity_path(METRICS, SOFTBODY_RESIDUAL), name="median residual (mm)"),
                      rrb.TimeSeriesView(origin=entity_path(METRICS, SOFTBODY_TRACK), name="tracking"),
+                     rrb.TimeSeriesView(origin=entity_path(METRICS, SOFTBODY_POSTURE),
+                                        name="trunk against the pelvis (deg)"),
                      name="per frame"),
         rrb.Grid(*bars, name="global fit: lengths over the iterations (m)"),
         active_tab=0)
