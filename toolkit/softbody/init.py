@@ -25,8 +25,8 @@ from toolkit.cameras.triangulation import triangulate_linear
 from toolkit.errors import InputError
 from toolkit.motion.kinematics import Pose14, inverse_kinematics
 from toolkit.skeleton import SKELETON_14
-from toolkit.softbody.model import (LENGTH_NAMES, TRUNK_POSTURE, LENGTHS, N_POSE, STATURE_CHAIN, SYMMETRIC_LENGTHS, WIDTH_GROUPS,
-                                    SoftBodyModel, SoftBodyParams, pose_bounds)
+from toolkit.softbody.model import (LENGTH_NAMES, LENGTHS, N_POSE, STATURE_CHAIN, SYMMETRIC_LENGTHS, TRUNK_POSTURE,
+                                    WIDTH_GROUPS, SoftBodyModel, SoftBodyParams, pose_bounds)
 from toolkit.softbody.residuals import one_blas_thread
 
 __all__ = ["params_from_pose14", "model_from_joints", "init_from_2d", "fit_pose_to_joints", "STATURE_LIMITS",
@@ -171,6 +171,14 @@ def model_from_joints(joints, *, stature: float | None = None, girth: float = 1.
         seen on shoulders, neck and hips together, sets the pelvis; a real
         bend or twist still shows where the joints agree on it.  0: the
         joints alone (exact joints).
+
+    Returns
+    -------
+    model : SoftBodyModel
+        Reference radii of a median person of that stature.
+    params : SoftBodyParams
+        Lengths measured on the joints (shoulder offsets symmetric), widths 1,
+        pose from inverse kinematics refined by least squares.
 
     Raises
     ------

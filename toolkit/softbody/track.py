@@ -45,7 +45,8 @@ from scipy.spatial import cKDTree
 from toolkit.errors import InputError
 from toolkit.observe import Observer, as_observer
 from toolkit.softbody.distance import check_points, distance, primitive_distances
-from toolkit.softbody.model import N_POSE, TRUNK_POSTURE, SoftBodyModel, SoftBodyParams, canonical_pose, pose_bounds, pose_step
+from toolkit.softbody.model import (N_POSE, TRUNK_POSTURE, SoftBodyModel, SoftBodyParams, canonical_pose, pose_bounds,
+                                    pose_step)
 from toolkit.softbody.residuals import (LOSSES, CoverageSamples, coverage_residuals, coverage_samples, data_residuals,
                                        coverage_margin,
                                        one_blas_thread)
@@ -154,7 +155,9 @@ class TrackConfig:
         pose's, :data:`toolkit.softbody.init.POSTURE_WEIGHT`, here and in the
         global fit) the trinocular MPJPE after the global fit went 32.9 ->
         28.5 mm (mean of 16 runs, seeds 13000 and 14000; better in 16 of
-        16), and depth 13.2 -> 12.3 mm (8 runs, better in 8).  Its price: on
+        16), and depth 13.2 -> 12.3 mm (8 runs, better in 8); on the fresh
+        seeds 15000 and 16000 stereo 26.1 -> 24.1 mm (13 of 16 better) and
+        depth 14.2 -> 13.7 mm (docs/benchmarks.md, "Session 13").  Its price: on
         noiseless points of a trunk really bent 20 degrees and twisted 15,
         tracking ends at about 16 and 9 degrees (joints 4 mm off): the surface
         shows a twist against the pelvis only weakly.
