@@ -74,6 +74,9 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--independent", action="store_true",
                     help="unrelated depth frames: each initialised from its own depth-tracker skeleton")
     ap.add_argument("--no-global-fit", action="store_true", help="track only (no lengths/widths fit)")
+    ap.add_argument("--posture-weight", type=float, default=None,
+                    help="pull of the trunk's bend and twist against the pelvis towards 0 in the initial fit, "
+                         "tracking and the global fit, m/rad (default 0.2; 0 for motions that twist the trunk)")
     ap.add_argument("--no-recording", action="store_true", help="do not write recording.rrd")
     ap.add_argument("--replace-stale", action="store_true",
                     help="if OUT holds results of another dataset or other options, move it to OUT.stale-N")
@@ -86,7 +89,10 @@ def config_from_args(args: argparse.Namespace) -> SoftBodyRunConfig:
     config = load_config(SoftBodyRunConfig, args.config, source=args.source, foreground=args.foreground,
                          init=args.init, init_joints=args.init_joints, clicks=args.clicks,
                          init_frame=args.init_frame, max_frames=args.frames, images=args.images)
-    return replace(config, meshes=config.meshes or args.meshes, independent=config.independent or args.independent, global_fit=config.global_fit and not args.no_global_fit,
+    if args.posture_weight is not None:
+        config = config.with_posture_weight(args.posture_weight)
+    return replace(config, meshes=config.meshes or args.meshes, independent=config.independent or args.independent,
+                   global_fit=config.global_fit and not args.no_global_fit,
                    recording=config.recording and not args.no_recording,
                    replace_stale=config.replace_stale or args.replace_stale, progress=config.progress and not args.quiet)
 

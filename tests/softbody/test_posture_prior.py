@@ -87,3 +87,17 @@ def test_bad_posture_weight_is_named():
         GlobalFitConfig(posture_weight=-0.1)
     with pytest.raises(InputError, match="init_posture_weight"):
         SoftBodyRunConfig(init_posture_weight=-1.0)
+
+
+def test_one_flag_sets_the_prior_everywhere(tmp_path):
+    """``fit_soft_body.py --posture-weight W`` sets the initial fit's, tracking's and the global fit's
+    prior; a --config file's values stay where no flag is given."""
+    from recipes.fit_soft_body import config_from_args, parser
+
+    args = parser().parse_args(["data", "--out", str(tmp_path), "--posture-weight", "0"])
+    cfg = config_from_args(args)
+    assert cfg.init_posture_weight == cfg.track.posture_weight == cfg.fit.posture_weight == 0.0
+    toml = tmp_path / "c.toml"
+    toml.write_text("init_posture_weight = 0.1\n[track]\nposture_weight = 0.3\n")
+    cfg = config_from_args(parser().parse_args(["data", "--out", str(tmp_path), "--config", str(toml)]))
+    assert (cfg.init_posture_weight, cfg.track.posture_weight, cfg.fit.posture_weight) == (0.1, 0.3, 0.2)

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -138,6 +138,13 @@ class SoftBodyRunConfig:
         if self.max_frames is not None and int(self.max_frames) < 1:
             raise InputError("SoftBodyRunConfig.max_frames (--frames)", "a number of frames >= 1",
                              repr(self.max_frames))
+
+    def with_posture_weight(self, weight: float) -> "SoftBodyRunConfig":
+        """The same config with one posture prior (the trunk's bend and twist against the pelvis towards 0,
+        metres per radian) in the initial fit, tracking and the global fit (``--posture-weight``; 0 for
+        motions that really twist the trunk against the pelvis: golf, throwing)."""
+        return replace(self, init_posture_weight=weight, track=replace(self.track, posture_weight=weight),
+                       fit=replace(self.fit, posture_weight=weight))
 
 
 def build_clouds(source, n: int, patches: PatchConfig, observer=None, progress: bool = False):
