@@ -98,14 +98,15 @@ resolution = [320, 240]
 """
 
 
-def scene_specs(n_scenes: int, frames: int, seed0: int = 1800):
-    """``(name, kind, spec text)`` of ``n_scenes`` depth and ``n_scenes`` trinocular scenes."""
+def scene_specs(n_scenes: int, frames: int, seed0: int = 1800, motions=MOTIONS):
+    """``(name, kind, spec text)`` of ``n_scenes`` depth and ``n_scenes`` trinocular scenes, scene ``i``
+    doing ``motions[i % len(motions)]``."""
     out = []
     for kind, template in (("depth", DEPTH_SPEC), ("trinocular", TRINOCULAR_SPEC)):
         for i in range(n_scenes):
             seed = seed0 + 17 * i + (0 if kind == "depth" else 500)
             height = float(np.random.default_rng(seed).uniform(1.60, 1.90))
-            motion = MOTIONS[i % len(MOTIONS)]
+            motion = motions[i % len(motions)]
             out.append((f"{kind}_{motion}_s{seed}_f{frames}", kind,
                         template.format(seed=seed, frames=frames, height=height, motion=motion)))
     return out
@@ -359,6 +360,9 @@ def main(argv=None) -> int:
                          "(the stereo initialisation's sensitivity to the clicks)")
     ap.add_argument("--refine", choices=("default", "on", "off"), default="default",
                     help="refine the clicked start on frame 0 (RefineConfig.enabled; default: the config's)")
+    ap.add_argument("--motions", default=",".join(MOTIONS),
+                    help="comma-separated motions of the scenes, in turn (default: %(default)s; any of "
+                         "toolkit.motion.SCENE_MOTIONS, e.g. turn with --frames 30 twists the trunk)")
     ap.add_argument("--pictures", type=Path, default=None,
                     help="draw each source's worst runs (worst decile, at least one) into this folder")
     ap.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
@@ -366,12 +370,17 @@ def main(argv=None) -> int:
                          "or fit.root_prior_weight=2 (repeatable)")
     args = ap.parse_args(argv)
     overrides = parse_overrides(args.set)
+    from toolkit.motion import SCENE_MOTIONS
+
+    motions = tuple(m.strip() for m in args.motions.split(",") if m.strip())
+    if not motions or any(m not in SCENE_MOTIONS for m in motions):
+        raise SystemExit(f"--motions {args.motions!r}: expected a comma-separated list of {SCENE_MOTIONS}")
     n, frames = (1, 12) if args.quick else (args.scenes, args.frames)
     kinds = set(args.sources.split(","))
     rng = np.random.default_rng(18)
     rows = []
     t0 = time.perf_counter()
-    for name, kind, text in scene_specs(n, frames, args.seed):
+    for name, kind, text in scene_specs(n, frames, args.seed, motions):
         if kind not in kinds:
             continue
         for draw in range(args.click_draws if kind == "trinocular" else 1):
@@ -385,7 +394,7 @@ def main(argv=None) -> int:
         args.json.write_text(json.dumps(rows, indent=1))
     ok = report(rows, not args.tracking_only)
     if args.pictures is not None and rows:
-        specs = {name: text for name, _, text in scene_specs(n, frames, args.seed)}
+        specs = {name: text for name, _, text in scene_specs(n, frames, args.seed, motions)}
         for path in picture_worst(rows, specs, args.cache, args.pictures, rng):
             print(f"worst case pictured: {path}")
     print(f"total {time.perf_counter() - t0:.0f} s")

@@ -276,6 +276,12 @@ class _Problem:
         self.pose0 = track.params[:, :N_POSE].copy()
         self.unseen_w = np.zeros((self.T, N_POSE))  # pull of poorly seen parts' angles to the tracked ones
         for t in range(self.T):
+            # a frame without data of its own (not ok, or no points near the model) is held at its tracked
+            # pose: only the constant-angular-speed term tied its angles and nothing its root translation
+            # (a stereo walk's 5 crowded frames, left free, drifted 0.4-0.8 m off; tracking had them
+            # within 47 mm)
+            self.unseen_w[t] = config.unseen_weight
+            self.unseen_w[t, :6] = config.root_prior_weight
             if track.states[t] != "ok":
                 continue
             p = SoftBodyParams(track.params[t])
