@@ -50,3 +50,35 @@ def test_bad_input_is_named():
         surface_patches(np.zeros((4, 2)))
     with pytest.raises(InputError, match="patch_m"):
         PatchConfig(patch_m=0.0)
+
+
+def test_the_patch_scale_follows_a_noisy_cloud():
+    """A far person's depth points (noise growing with the square of the distance): at the fixed 2.5 cm
+    scale almost nothing is a patch; the scale doubles until the patches hold the cloud, and their centres
+    still lie on the surface.  A clean cloud keeps the fixed scale (the same patches)."""
+    from toolkit.pointcloud.patches import PatchConfig, surface_patches
+
+    rng = np.random.default_rng(7)
+    # the front half of a 0.15 m cylinder, 1 m tall, 1.5 cm spacing, 20 mm of noise along the view (y)
+    a, z = np.meshgrid(np.arange(0.1, np.pi - 0.1, 0.015 / 0.15), np.arange(0.0, 1.0, 0.015))
+    clean = np.c_[0.15 * np.cos(a.ravel()), -0.15 * np.sin(a.ravel()), z.ravel()]
+    noisy = clean.copy()
+    noisy[:, 1] += rng.normal(0, 0.02, len(clean))
+    fixed = surface_patches(noisy, PatchConfig(max_doublings=0))
+    assert fixed.support.sum() < 0.1 * len(noisy)  # measured 3 %
+    adapted = surface_patches(noisy)
+    assert adapted.support.sum() >= 0.3 * len(noisy) and len(adapted.centres) >= 50  # 41 %, 111
+    r = np.hypot(adapted.centres[:, 0], adapted.centres[:, 1])
+    assert np.median(np.abs(r - 0.15)) < 0.012  # 5.8 mm
+    same = surface_patches(clean), surface_patches(clean, PatchConfig(max_doublings=0))
+    np.testing.assert_array_equal(same[0].centres, same[1].centres)
+
+
+def test_bad_scale_options_are_named():
+    from toolkit.errors import InputError
+    from toolkit.pointcloud.patches import PatchConfig
+
+    with pytest.raises(InputError, match="min_coverage"):
+        PatchConfig(min_coverage=1.5)
+    with pytest.raises(InputError, match="max_doublings"):
+        PatchConfig(max_doublings=-1)
