@@ -108,6 +108,6 @@ def test_softbody_layout(tmp_path):
     got = views(path)
     assert got["3D"] == {"world"} and got["TextLog"] == {"logs"}
     assert got["TimeSeries"] == {"metrics/softbody/median_residual_mm", "metrics/softbody/track",
-                                 "metrics/softbody/posture"}
+                                 "metrics/softbody/track/other_points", "metrics/softbody/posture"}
     assert got["BarChart"] == {"metrics/softbody/global/cost", "metrics/softbody/global/lengths/torso",
                                "metrics/softbody/global/lengths/l_thigh"}

@@ -281,6 +281,7 @@ SOFTBODY_COST = "softbody/global/cost"
 SOFTBODY_RESIDUAL = "softbody/median_residual_mm"
 SOFTBODY_TRACK = "softbody/track"
 SOFTBODY_POSTURE = "softbody/posture"
+SOFTBODY_OTHER = "other_points"  # under SOFTBODY_TRACK: a count, plotted apart from the fractions and metres
 
 
 def softbody_blueprint(length_names: Iterable[str], *, eye: tuple[Sequence[float], Sequence[float]] | None = None,
@@ -291,7 +292,8 @@ def softbody_blueprint(length_names: Iterable[str], *, eye: tuple[Sequence[float
     clouds, patches, the model's surface, the residual-coloured points and
     the joints, each toggled in the view's entity list) above the log; right,
     tabs: the median residual per frame, the tracking's per-frame figures
-    (inlier fraction, median distance, points of other bodies), the trunk's
+    (inlier fraction and median distance; the points of other bodies, a
+    count, in a plot of their own), the trunk's
     bend and twist against the pelvis per frame (degrees), and the
     global fit's lengths over its iterations (one bar chart per length, with
     the cost).
@@ -316,7 +318,10 @@ def softbody_blueprint(length_names: Iterable[str], *, eye: tuple[Sequence[float
     bars += [rrb.BarChartView(origin=entity_path(METRICS, SOFTBODY_LENGTHS, n), name=n) for n in length_names]
     right = rrb.Tabs(
         rrb.Vertical(rrb.TimeSeriesView(origin=entity_path(METRICS, SOFTBODY_RESIDUAL), name="median residual (mm)"),
-                     rrb.TimeSeriesView(origin=entity_path(METRICS, SOFTBODY_TRACK), name="tracking"),
+                     rrb.TimeSeriesView(origin=entity_path(METRICS, SOFTBODY_TRACK), name="tracking",
+                                        contents=["+ $origin/**", f"- $origin/{SOFTBODY_OTHER}"]),
+                     rrb.TimeSeriesView(origin=entity_path(METRICS, SOFTBODY_TRACK, SOFTBODY_OTHER),
+                                        name="points of other bodies"),
                      rrb.TimeSeriesView(origin=entity_path(METRICS, SOFTBODY_POSTURE),
                                         name="trunk against the pelvis (deg)"),
                      name="per frame"),
