@@ -40,7 +40,8 @@ median and worst decile over scenes:
 ``--pictures DIR`` draws each source's worst decile of runs (:func:`picture_worst`);
 ``--set SECTION.FIELD=VALUE`` overrides a field of the run config
 (:class:`toolkit.pipeline.soft_body.SoftBodyRunConfig` and its nested ``track``,
-``fit``, ``refine``, ``stereo``, ``patches`` configs) for an ablation.
+``fit``, ``refine``, ``stereo``, ``patches`` configs; a TOML key/value, read and
+checked as a ``--config`` file is) for an ablation.
 
 Targets (issue 18), checked per source (depth and trinocular each on their own,
 the median over its scenes): after the global fit MPJPE <= 35 mm and bone
@@ -170,40 +171,62 @@ def bone_error_mm(joints: np.ndarray, truth: np.ndarray) -> float:
 
 
 def parse_overrides(items) -> dict:
-    """``["track.posture_weight=0.5", "init_posture_weight=0"]`` -> ``{"track": {"posture_weight": 0.5},
-    "": {"init_posture_weight": 0.0}}`` (section ``""``: the run config's own fields; values as Python
-    literals: numbers, True/False, quoted strings; anything else a string).
+    """``--set`` items as a nested table of :class:`~toolkit.pipeline.soft_body.SoftBodyRunConfig` fields.
+
+    Each item is a TOML key/value line (dotted keys for the nested configs, strings quoted):
+    ``["track.posture_weight = 0.5", "fit.loss = 'cauchy'", "init_posture_weight = 0"]`` ->
+    ``{"track": {"posture_weight": 0.5}, "fit": {"loss": "cauchy"}, "init_posture_weight": 0}``.
+    Checked as a ``--config`` file is (:func:`toolkit.pipeline.run.config_from_dict`: unknown
+    sections and fields named, values checked by the configs themselves).
 
     Raises
     ------
     SystemExit
-        On an item without ``SECTION.FIELD=VALUE`` or an unknown section or field (named).
+        On an item that is no TOML key/value, or a field or value the config refuses (named).
     """
-    import ast
-    from dataclasses import fields
+    import tomllib
 
+    from toolkit.errors import InputError
+    from toolkit.pipeline.run import config_from_dict
     from toolkit.pipeline.soft_body import SoftBodyRunConfig
 
-    base = SoftBodyRunConfig()
-    out: dict = {}
-    for item in items or ():
-        key, eq, value = item.partition("=")
-        section, dot, field = key.rpartition(".")
-        if not eq:
-            raise SystemExit(f"--set {item!r}: expected [SECTION.]FIELD=VALUE (e.g. track.posture_weight=0.5)")
-        sub = getattr(base, section, None) if dot else base
-        if sub is None or not hasattr(sub, "__dataclass_fields__"):
-            raise SystemExit(f"--set {item!r}: no config section {section!r} in SoftBodyRunConfig")
-        if field not in {f.name for f in fields(sub)}:
-            raise SystemExit(f"--set {item!r}: {type(sub).__name__} has no field {field!r}")
-        if not dot and hasattr(getattr(base, field), "__dataclass_fields__"):
-            raise SystemExit(f"--set {item!r}: {field!r} is a section: set its fields ({field}.NAME=VALUE)")
-        try:
-            v = ast.literal_eval(value)
-        except (ValueError, SyntaxError):
-            v = value
-        out.setdefault(section, {})[field] = v
-    return out
+    try:
+        data = tomllib.loads("\n".join(items or ()))
+    except tomllib.TOMLDecodeError as e:
+        raise SystemExit(f"--set {list(items)!r}: expected [SECTION.]FIELD=VALUE lines, TOML values "
+                         f"(strings quoted), e.g. track.posture_weight=0.5: {e}") from None
+    try:
+        config_from_dict(SoftBodyRunConfig, data, where="--set")
+    except InputError as e:
+        raise SystemExit(str(e)) from None
+    return data
+
+
+def apply_overrides(cfg, overrides: dict):
+    """``cfg`` (a SoftBodyRunConfig) with the fields of :func:`parse_overrides`'s table replaced, converted
+    as the config reader converts them; the other fields of ``cfg`` stay."""
+    from toolkit.pipeline.run import config_from_dict
+
+    if not overrides:
+        return cfg
+    given = config_from_dict(type(cfg), overrides, where="--set")
+    for key, value in overrides.items():
+        if isinstance(value, dict):  # a nested config: only the fields given
+            sub = getattr(given, key)
+            cfg = replace(cfg, **{key: replace(getattr(cfg, key), **{f: getattr(sub, f) for f in value})})
+        else:
+            cfg = replace(cfg, **{key: getattr(given, key)})
+    return cfg
+
+
+def fitted_run(run_dir: Path):
+    """A finished run's ``joints.npz`` (loaded) and the soft body of its ``body_model.json``."""
+    from toolkit.anthropometry import BodyProportions
+    from toolkit.softbody import SoftBodyModel
+
+    info = json.loads((run_dir / "body_model.json").read_text())
+    return np.load(run_dir / "joints.npz"), SoftBodyModel(BodyProportions.from_height(info["stature_m"]),
+                                                         girth=info["girth"])
 
 
 def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool = True,
@@ -216,11 +239,10 @@ def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool 
     a scene's clicks do not depend on which scenes ran before it); draws after the first get their own
     run folder and row name (``..._d1``).  ``refine``: whether the clicked start is refined on frame 0
     (:class:`toolkit.softbody.init.RefineConfig` ``enabled``; None: the default).  ``overrides``:
-    ``{section: {field: value}}`` for the run config's nested configs (:func:`parse_overrides`).
+    :func:`parse_overrides`'s table, applied last (:func:`apply_overrides`).
     """
-    from toolkit.anthropometry import BodyProportions
     from toolkit.pipeline.soft_body import SoftBodyRunConfig, run
-    from toolkit.softbody import SoftBodyModel, SoftBodyParams
+    from toolkit.softbody import SoftBodyParams
     from toolkit.synthetic.generator import build_scene
     from toolkit.synthetic.spec import parse_spec
 
@@ -234,17 +256,13 @@ def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool 
                       fit=replace(cfg.fit, silhouette_weight=silhouette_weight))
     if refine is not None:
         cfg = replace(cfg, refine=replace(cfg.refine, enabled=refine))
-    for section, values in (overrides or {}).items():
-        cfg = replace(cfg, **values) if not section else \
-            replace(cfg, **{section: replace(getattr(cfg, section), **values)})
+    cfg = apply_overrides(cfg, overrides)
     if kind == "trinocular":
         click_rng = np.random.default_rng([spec.seed, click_draw, 18])
         cfg = replace(cfg, foreground="plate",
                       clicks=write_clicks(data, scene, root / f"{run_name}_clicks.npz", click_rng))
     res = run(cfg, dataset=data, out=root / "runs" / run_name, log=None)
-    z = np.load(res.extra["joints"])
-    info = json.loads(Path(res.extra["body_model"]).read_text())
-    model = SoftBodyModel(BodyProportions.from_height(info["stature_m"]), girth=info["girth"])
+    z, model = fitted_run(Path(res.extra["joints"]).parent)
     truth = scene.joints[:len(z["joints"])]
     out = {"scene": run_name, "kind": kind, "states": res.metrics["states"],
            "clouds_s": res.metrics["seconds_per_frame"]["clouds"], "fit_s": res.metrics["seconds_per_frame"]["fit"]}
@@ -271,10 +289,9 @@ def picture_worst(rows: list, specs: dict, root: Path, out_dir: Path, rng) -> li
     joint error.  ``specs``: scene name -> spec text; ``root``: the ``--cache`` folder.  Returns the
     paths written.
     """
-    from toolkit.anthropometry import BodyProportions
     from toolkit.io import atomic_write_png
     from toolkit.pipeline.soft_body_images import draw_fit
-    from toolkit.softbody import SoftBodyModel, SoftBodyParams, distance
+    from toolkit.softbody import SoftBodyParams, distance
     from toolkit.softbody.mesh import surface_mesh
     from toolkit.synthetic.generator import build_scene
     from toolkit.synthetic.spec import parse_spec
@@ -286,9 +303,7 @@ def picture_worst(rows: list, specs: dict, root: Path, out_dir: Path, rng) -> li
             run_dir = root / "runs" / r["scene"]
             base = r["scene"].rsplit("_d", 1)[0] if r["scene"] not in specs else r["scene"]
             scene = build_scene(parse_spec(specs[base], base))
-            z = np.load(run_dir / "joints.npz")
-            info = json.loads((run_dir / "body_model.json").read_text())
-            model = SoftBodyModel(BodyProportions.from_height(info["stature_m"]), girth=info["girth"])
+            z, model = fitted_run(run_dir)
             truth = scene.joints[:len(z["joints"])]
             err = np.nanmean(np.linalg.norm(z["joints"] - truth, axis=-1), axis=1)
             t = int(np.nanargmax(err))
@@ -366,8 +381,8 @@ def main(argv=None) -> int:
     ap.add_argument("--pictures", type=Path, default=None,
                     help="draw each source's worst runs (worst decile, at least one) into this folder")
     ap.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
-                    help="override a field of the run config's nested configs, e.g. track.posture_weight=0.5 "
-                         "or fit.root_prior_weight=2 (repeatable)")
+                    help="override a field of the run config (a TOML key/value, strings quoted), e.g. "
+                         "track.posture_weight=0.5, fit.loss='cauchy' or init_posture_weight=0 (repeatable)")
     args = ap.parse_args(argv)
     overrides = parse_overrides(args.set)
     from toolkit.motion import SCENE_MOTIONS
