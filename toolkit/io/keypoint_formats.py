@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import os
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -281,7 +281,8 @@ def select_person(people: np.ndarray, n_keypoints: int, policy: str = "most_conf
 
 
 def read_keypoints(sources: list[str | os.PathLike], fmt: str | None = None, declared_by: str = "--format",
-                   person: str = "most_confident", max_frames: int | None = None) -> KeypointInput:
+                   person: str = "most_confident", max_frames: int | None = None,
+                   frame_offsets: list[int] | None = None) -> KeypointInput:
     """Keypoints of every camera, in the given order, aligned on frame numbers.
 
     Parameters
@@ -297,6 +298,9 @@ def read_keypoints(sources: list[str | os.PathLike], fmt: str | None = None, dec
         How to pick one person of a frame (:func:`select_person`).
     max_frames : int, optional
         Keep only the first ``max_frames`` frame numbers of the union.
+    frame_offsets : list of int, optional
+        Per source, frames it started late (``sync.json``, toolkit.detection.sync): its frame ``f``
+        is frame ``f + offset`` of the common timeline (the cameras' ``frames`` are shifted so).
 
     Returns
     -------
@@ -308,6 +312,10 @@ def read_keypoints(sources: list[str | os.PathLike], fmt: str | None = None, dec
         See :func:`read_camera_detections` and :func:`detect_format`.
     """
     cams = [read_camera_detections(s, max_frames) for s in sources]
+    if frame_offsets is not None:
+        if len(frame_offsets) != len(cams):
+            raise InputError("frame_offsets", f"one offset per source ({len(cams)})", f"{len(frame_offsets)}")
+        cams = [replace(c, frames=np.asarray(c.frames) + int(o)) if o else c for c, o in zip(cams, frame_offsets)]
     choice = detect_format(cams, fmt, declared_by)
     n_kp = len(KEYPOINTS[choice.fmt])
     frames = np.unique(np.concatenate([c.frames for c in cams])) if cams else np.zeros(0, int)

@@ -10,7 +10,10 @@ Pose2Sim lays a session out as::
           pose-associated/        the same with the main person picked (Pose2Sim's personAssociation)
           pose-3d/                Pose2Sim's own triangulation (.trc)
 
-or without the participant level (``Session/Trial/``).  :func:`read_pose2sim_trial`
+or without the participant level (``Session/Trial/``), or, as Pose2Sim's current demos are laid
+out, a trial holding its own ``calibration/`` (``Calib.qca.txt`` from Qualisys, or a ``.toml``)
+and ``videos/`` but no keypoints yet (its own detector makes them): ``keypoints`` is then ``None``
+and ``videos`` the folder to detect people in (toolkit.pipeline.detect_keypoints).  :func:`read_pose2sim_trial`
 takes a trial folder and finds the keypoints (``pose-associated`` when there, else
 ``pose``; or the one of the two it is given), the calibration file, the keypoint format (``[pose] pose_model``) and the
 frame rate (``[project] frame_rate``) with Pose2Sim's own precedence (trial, then
@@ -44,10 +47,11 @@ class Pose2SimTrial:
     Attributes
     ----------
     trial : Path
-    keypoints : Path
-        ``pose-associated`` (or ``pose``): one sub-folder of JSON files per camera.
+    keypoints : Path or None
+        ``pose-associated`` (or ``pose``): one sub-folder of JSON files per camera; ``None`` for a
+        trial with videos and no keypoints.
     calibration : Path or None
-        The session's ``Calib*.toml``.
+        The session's (or the trial's own) ``Calib*.toml``, else its ``*.qca.txt``.
     pose_model : str or None
         The keypoint format (:data:`POSE_MODELS`) of the settings, ``None`` when not set.
     frame_rate : float or None
@@ -65,6 +69,27 @@ class Pose2SimTrial:
     frame_rate: float | None
     config_files: tuple[Path, ...]
     reference_trc: tuple[Path, ...]
+    videos: Path | None = None
+
+
+#: Video folders of a trial (Pose2Sim: ``videos/``).
+VIDEO_FOLDERS = ("videos", "video")
+_VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
+
+
+def _videos_of(p: Path) -> Path | None:
+    """The trial's folder of videos, if it has one holding videos."""
+    for f in VIDEO_FOLDERS:
+        folder = p / f
+        if folder.is_dir() and any(v.suffix.lower() in _VIDEO_SUFFIXES for v in folder.iterdir()):
+            return folder
+    return None
+
+
+def _holds_videos_and_calibration(p: Path) -> bool:
+    """A trial of today's layout: videos, and a calibration folder in it or above it."""
+    return (p.is_dir() and _videos_of(p) is not None
+            and any(_calibration_dir(up) is not None for up in (p, p.parent, p.parent.parent)))
 
 
 def _holds_pose(p: Path) -> bool:
@@ -83,7 +108,7 @@ def is_pose2sim_trial(path: str | os.PathLike) -> bool:
     """Whether ``path`` is read as a Pose2Sim trial: a folder holding ``pose-associated/`` or ``pose/``,
     or one of those folders inside a trial (to read, say, the raw ``pose/`` rather than ``pose-associated/``)."""
     p = Path(path)
-    return _holds_pose(p) or _pose_folder_of_trial(p)
+    return _holds_pose(p) or _pose_folder_of_trial(p) or _holds_videos_and_calibration(p)
 
 
 def _merge(base: dict, over: dict) -> dict:
@@ -122,17 +147,20 @@ def read_pose2sim_trial(path: str | os.PathLike) -> Pose2SimTrial:
         trial, keypoints = trial.parent, trial
     elif _holds_pose(trial):
         keypoints = next(trial / f for f in POSE_FOLDERS if (trial / f).is_dir())
+    elif _holds_videos_and_calibration(trial):
+        keypoints = None
     else:
-        raise InputError(str(trial), f"a Pose2Sim trial folder holding one of {list(POSE_FOLDERS)}", "none of them")
-    # the session is the first folder above the trial that holds a calibration folder
+        raise InputError(str(trial), f"a Pose2Sim trial folder holding one of {list(POSE_FOLDERS)}, or videos/ "
+                         "and a calibration folder", "none of them")
+    # the session is the first folder (the trial itself, or one above it) that holds a calibration folder
     session, calib_dir = None, None
-    for up in (trial.parent, trial.parent.parent):
+    for up in (trial, trial.parent, trial.parent.parent):
         calib_dir = _calibration_dir(up)
         if calib_dir is not None:
             session = up
             break
     levels = [trial]
-    if session is not None:
+    if session is not None and session != trial:
         p = trial.parent
         while p != session and session in p.parents:
             levels.append(p)
@@ -150,7 +178,7 @@ def read_pose2sim_trial(path: str | os.PathLike) -> Pose2SimTrial:
     where = str(files[-1]) if files else str(trial)
     model = config.get("pose", {}).get("pose_model") if isinstance(config.get("pose"), dict) else None
     fmt = None
-    if model is not None:
+    if model is not None and keypoints is not None:   # without keypoints, the pose_model is another detector's
         fmt = POSE_MODELS.get(str(model).upper())
         if fmt is None:
             raise InputError(f"{where}: [pose] pose_model", f"one of {sorted(POSE_MODELS)}", repr(model))
@@ -163,14 +191,15 @@ def read_pose2sim_trial(path: str | os.PathLike) -> Pose2SimTrial:
         rate = None
     calibration = None
     if calib_dir is not None:
-        tomls = sorted(calib_dir.glob("Calib*.toml")) or sorted(calib_dir.glob("*.toml"))
+        tomls = (sorted(calib_dir.glob("Calib*.toml")) or sorted(calib_dir.glob("*.toml"))
+                 or sorted(calib_dir.glob("*.qca.txt")))
         if len(tomls) > 1:
-            raise InputError(str(calib_dir), "one calibration .toml (else give --calibration)",
+            raise InputError(str(calib_dir), "one calibration .toml or .qca.txt (else give --calibration)",
                              f"{[t.name for t in tomls]}")
         calibration = tomls[0] if tomls else None
     trc = tuple(sorted((trial / "pose-3d").glob("*.trc"))) if (trial / "pose-3d").is_dir() else ()
     return Pose2SimTrial(trial=trial, keypoints=keypoints, calibration=calibration, pose_model=fmt,
-                         frame_rate=rate, config_files=tuple(files), reference_trc=trc)
+                         frame_rate=rate, config_files=tuple(files), reference_trc=trc, videos=_videos_of(trial))
 
 
 #: Statures (metres) accepted from a Pose2Sim ``participant_height``; others are ignored.

@@ -343,9 +343,9 @@ def associate_frame(detections, rig: Rig, config: AssociationConfig = Associatio
             unexplained += int(not (_cover(boxes[v], box) >= EXPLAINED_OVERLAP).any())
         kept.append((g, c, X, unexplained))
     kept.sort(key=lambda p: (-(p[0] >= 0).sum(), p[1]))
-    groups = np.array([p[0] for p in kept], int).reshape(-1, V)
+    groups = np.array([p[0] for p in kept], int).reshape(len(kept), V)
     cost = np.array([p[1] for p in kept], float)
-    joints = np.array([p[2] for p in kept], float).reshape(-1, K, 3)
+    joints = np.array([p[2] for p in kept], float).reshape(len(kept), K, 3)   # K = 0 when nobody is seen
     return FrameAssociation(groups, cost, joints, tuple(sorted(unassigned)),
                             np.array(outside, int).reshape(-1, V), np.array([p[3] for p in kept], int))
 

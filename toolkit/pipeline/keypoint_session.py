@@ -64,9 +64,44 @@ class KeypointSession:
     fps_from: str | None
 
 
+def frame_offsets(root: Path, sources) -> list[int] | None:
+    """Per source, the frames it started late according to ``root/sync.json`` (None without one).
+
+    Raises
+    ------
+    InputError
+        A ``sync.json`` that names none of the sources.
+    """
+    from toolkit.pipeline.detect_keypoints import SYNC_FILE, read_sync
+
+    offsets = read_sync(root)
+    if offsets is None:
+        return None
+    names = [Path(s).stem if Path(s).is_file() else Path(s).name for s in sources]
+    if not set(offsets) & set(names):
+        raise InputError(str(Path(root) / SYNC_FILE), f"offsets for the cameras {names}", f"{sorted(offsets)}")
+    return [int(offsets.get(n, 0)) for n in names]
+
+
+def _videos_without_keypoints(root: Path) -> bool:
+    from toolkit.pipeline.detect_keypoints import VIDEO_SUFFIXES
+
+    return (root.is_dir() and not camera_sources_or_none(root)
+            and any(p.suffix.lower() in VIDEO_SUFFIXES for p in root.iterdir()))
+
+
+def camera_sources_or_none(root: Path) -> list:
+    """The keypoint sources of ``root``, or an empty list when it holds none."""
+    try:
+        return camera_sources(root)
+    except InputError:
+        return []
+
+
 def open_keypoint_session(keypoints: str | os.PathLike, calibration: str | os.PathLike | None = None,
                           fmt: str | None = None, fps: float | None = None, person: str = "consensus",
-                          max_frames: int | None = None) -> KeypointSession:
+                          max_frames: int | None = None, detect_into: str | os.PathLike | None = None,
+                          detect_config=None, log=None) -> KeypointSession:
     """Read the keypoints and calibration of a folder or a Pose2Sim trial.
 
     Parameters
@@ -87,6 +122,13 @@ def open_keypoint_session(keypoints: str | os.PathLike, calibration: str | os.Pa
         more than one), or a per-view policy of toolkit.io.keypoint_formats.select_person.
     max_frames : int, optional
         Keep only the first frames.
+    detect_into : path-like, optional
+        Where to detect keypoints when ``keypoints`` is a trial with videos and no keypoints (or a
+        folder of videos): toolkit.pipeline.detect_keypoints runs there (kept, reused when complete).
+    detect_config : DetectConfig, optional
+        The detection's options (default: the built-in detector's).
+    log : callable, optional
+        Receives a line when detection runs.
 
     Returns
     -------
@@ -100,6 +142,18 @@ def open_keypoint_session(keypoints: str | os.PathLike, calibration: str | os.Pa
     """
     trial = read_pose2sim_trial(keypoints) if is_pose2sim_trial(keypoints) else None
     root = trial.keypoints if trial is not None else Path(keypoints)
+    videos = trial.videos if trial is not None and root is None else (
+        Path(keypoints) if root is not None and _videos_without_keypoints(Path(keypoints)) else None)
+    if videos is not None:
+        if detect_into is None:
+            raise InputError(str(keypoints), "keypoint files (or an output folder to detect them into)",
+                             f"videos only ({videos})")
+        from toolkit.pipeline.detect_keypoints import DetectConfig, ensure_keypoints
+
+        config = detect_config or DetectConfig()
+        if max_frames is not None and config.max_frames is None:
+            config = replace(config, max_frames=max_frames)
+        root = ensure_keypoints(videos, detect_into, config, log=log or print)
     calib = Path(calibration) if calibration is not None else (trial.calibration if trial is not None else None)
     if calib is None:
         raise InputError("--calibration", "a calibration file (or a Pose2Sim trial whose session has one)",
@@ -112,10 +166,15 @@ def open_keypoint_session(keypoints: str | os.PathLike, calibration: str | os.Pa
     if fmt is None and trial is not None and trial.pose_model is not None:
         fmt, declared_by = trial.pose_model, "[pose] pose_model of the Pose2Sim Config.toml"
     data = read_keypoints(list(sources), fmt, declared_by, person="most_confident" if person == "consensus" else person,
-                          max_frames=max_frames)
+                          max_frames=max_frames, frame_offsets=frame_offsets(root, sources))
     fps_from = "--fps" if fps is not None else None
     if fps is None and trial is not None and trial.frame_rate is not None:
         fps, fps_from = trial.frame_rate, "Pose2Sim Config.toml"
+    if fps is None:
+        from toolkit.pipeline.detect_keypoints import DETECTION_FILE, detected_frame_rate
+
+        fps = detected_frame_rate(root)
+        fps_from = f"the videos ({Path(root) / DETECTION_FILE})" if fps is not None else None
     if person == "consensus":
         dets = frame_detections(data.cameras, data.frames, data.keypoints.shape[2])
         data = replace(data, keypoints=main_person(dets, Rig(tuple(cams)),

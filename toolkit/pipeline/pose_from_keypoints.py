@@ -29,6 +29,7 @@ import numpy as np
 from toolkit.errors import InputError
 from toolkit.multiview import FLIP_MODES, MAX_OFFSET_PX, MIN_JOINT_CONFIDENCE, MIN_VIEW_CONFIDENCE
 from toolkit.multiview.keypoint_sequence import OFFSET_MODES
+from toolkit.pipeline.detect_keypoints import DetectConfig
 from toolkit.pipeline.run import STOPPED_INTERRUPTED, RunResult, config_identity
 
 #: ``format`` names accepted, mapped to the names of toolkit.skeleton.mappings ("auto": found from the files).
@@ -45,6 +46,9 @@ EXPORTS = ("trc", "c3d", "csv")
 TRAJECTORY_AXES = {"npz, csv": "world frame of the calibration (z up), metres",
                    "trc": "Y up: (X, Y, Z) = world (y, z, x), metres", "c3d": "the TRC's axes, millimetres"}
 #: How ``people.json`` says people were found.
+#: A person followed in fewer than this share of the frames is reported as transient, apart from the
+#: participants (a bystander crossing the volume, someone entering or leaving, or a short-lived association).
+PARTICIPANT_MIN_SHARE = 0.25
 PEOPLE_RULE = ("detections grouped across views by ray distance (toolkit.multiview.association), tracked over "
                "time (toolkit.multiview.tracking); seen by two cameras or more, in the capture volume")
 
@@ -90,6 +94,9 @@ class PoseFromKeypointsConfig:
         Write ``recording.rrd``.
     progress : bool
         Show a progress bar (reading the videos).
+    detection : DetectConfig
+        The 2D detector's options, used when the input is a trial with videos and no keypoints
+        (detected into ``OUT/keypoints/``; a TOML file sets them in a ``[detection]`` table).
     """
 
     calibration: Path | None = None
@@ -110,6 +117,7 @@ class PoseFromKeypointsConfig:
     multi_person: bool = False
     recording: bool = True
     progress: bool = True
+    detection: DetectConfig = DetectConfig()
 
     #: Fields that do not change the results (left out of the run identity).
     RUNTIME = ("videos", "recording", "progress")
@@ -330,7 +338,10 @@ def _metrics(seq, status: str, rig, n_frames: int) -> dict:
         m.update({"offsets": d.mode, "offsets_reason": d.reason,
                   "flips_per_camera": {c: int(n) for c, n in zip(rig.names, (arrays["flips"] != "").sum(axis=0))}})
     if ok.any():
-        off = np.nanmean(np.linalg.norm(arrays["offsets"][ok], axis=-1), axis=0)
+        norms = np.linalg.norm(arrays["offsets"][ok], axis=-1)
+        seen = np.isfinite(norms).any(axis=0)
+        off = np.full(norms.shape[1], np.nan)
+        off[seen] = np.nanmean(norms[:, seen], axis=0)   # a camera that never saw the person: NaN, no warning
         m.update({"mean_offset_px": {c: float(o) for c, o in zip(rig.names, off)},
                   "mean_ray_distance_m": float(np.nanmean(arrays["cost"][ok])),
                   "frames_breaking_constraints": int(sum(len(v) > 0 for v in seq.violations))})
@@ -406,11 +417,12 @@ def run_identity(config: PoseFromKeypointsConfig) -> dict:
     return {"recipe": "pose_from_keypoints", "config": config_identity(config, exclude=config.RUNTIME)}
 
 
-def _open(config: PoseFromKeypointsConfig, dataset):
+def _open(config: PoseFromKeypointsConfig, dataset, out: Path, log=None):
     from toolkit.pipeline.keypoint_session import open_keypoint_session
 
     return open_keypoint_session(dataset, config.calibration, FORMATS[config.format], config.fps,
-                                 max_frames=config.max_frames)
+                                 max_frames=config.max_frames, detect_into=Path(out) / "keypoints",
+                                 detect_config=config.detection, log=log)
 
 
 def run(config: PoseFromKeypointsConfig, *, dataset, out, observer=None, log=print) -> RunResult:
@@ -439,7 +451,7 @@ def run(config: PoseFromKeypointsConfig, *, dataset, out, observer=None, log=pri
     InputError
         Bad keypoints, calibration, videos or options.
     """
-    session = _open(config, dataset)
+    session = _open(config, dataset, out, log)
     if not config.multi_person:
         return run_person(config, session, out, observer=observer, log=log)
     return _run_people(config, session, Path(out), observer, log)
@@ -459,13 +471,19 @@ def _run_people(config: PoseFromKeypointsConfig, session, out: Path, observer, l
     out.mkdir(parents=True, exist_ok=True)
     own = observer is None and config.recording
     observer = _recording(out / "recording.rrd", rig) if own else observer
+    seen_share = [(people.views[k] > 0).mean() for k in range(people.n_people)]
+    n_part = sum(s >= PARTICIPANT_MIN_SHARE for s in seen_share)
     log(f"{people.n_people} people found in {len(kin.frames)} frames (seen by two cameras or more, in the "
-        "capture volume, tracked over time)")
+        f"capture volume, tracked over time): {n_part} participants, {people.n_people - n_part} transient "
+        f"(followed in under {PARTICIPANT_MIN_SHARE:.0%} of the frames)")
     summary, results = [], []
     try:
         for k in range(people.n_people):
             name, seen = f"person_{k}", people.views[k] > 0
-            summary.append({"person": name, "frames": int(seen.sum()), "first_frame": int(kin.frames[seen][0]),
+            share = float(seen.sum()) / max(len(kin.frames), 1)
+            summary.append({"person": name, "frames": int(seen.sum()), "share": round(share, 3),
+                            "role": "participant" if share >= PARTICIPANT_MIN_SHARE else "transient",
+                            "first_frame": int(kin.frames[seen][0]),
                             "last_frame": int(kin.frames[seen][-1]),
                             "cameras_per_frame_median": float(np.median(people.views[k][seen]))})
             one = replace(session, keypoints=replace(kin, keypoints=people.keypoints(detections, k)))
@@ -474,7 +492,10 @@ def _run_people(config: PoseFromKeypointsConfig, session, out: Path, observer, l
             results.append((name, _person_header(summary[-1]), run_person(
                 sub, one, out / name, observer=obs, log=log, identity=run_identity(config))))
     finally:
-        atomic_write_text(out / "people.json", json.dumps({"people": summary, "frames": len(kin.frames),
+        atomic_write_text(out / "people.json", json.dumps({
+            "people": summary, "frames": len(kin.frames),
+            "participants": sum(p["role"] == "participant" for p in summary),
+            "participant_rule": f"followed in at least {PARTICIPANT_MIN_SHARE:.0%} of the frames (else transient)",
                                                            "cameras": rig.names, "rule": PEOPLE_RULE}, indent=2) + "\n")
         if own:
             observer.close()
@@ -484,8 +505,8 @@ def _run_people(config: PoseFromKeypointsConfig, session, out: Path, observer, l
 
 
 def _person_header(p: dict) -> str:
-    return (f"{p['person']}: frames {p['first_frame']}-{p['last_frame']} ({p['frames']} frames), "
-            f"median {p['cameras_per_frame_median']:g} cameras")
+    return (f"{p['person']} ({p['role']}): frames {p['first_frame']}-{p['last_frame']} ({p['frames']} frames, "
+            f"{p['share']:.0%}), median {p['cameras_per_frame_median']:g} cameras")
 
 
 def _person_lines(result: RunResult) -> list:
