@@ -163,16 +163,6 @@ def bench_trials(root: Path, out: Path, log) -> None:
         log("  " + ", ".join(f"{k} ({v[0]:+.0f}, {v[1]:+.0f})" for k, v in gap["median_offset_px"].items()))
 
 
-def _cut_video(src: Path, dst: Path, skip: int) -> None:
-    from toolkit.io import VideoReader
-    from toolkit.io.video import write_video
-
-    with VideoReader(src) as r:
-        fps = r.fps
-        frames = [f for i, f in enumerate(r) if i >= skip]
-    write_video(dst, frames, fps)
-
-
 def bench_sync(root: Path, out: Path, seed: int, log) -> None:
     from toolkit.io import VideoReader
     from toolkit.io.video import write_video
@@ -230,7 +220,7 @@ def picture(trial: Path, run_dir: Path, path: Path, frame: int = 50) -> None:
     import cv2
 
     from toolkit.io import VideoReader
-    from toolkit.skeleton import BONES_14
+    from toolkit.skeleton import SKELETON_14
 
     rig = read_calibration(trial / "calibration" / "Calib.qca.txt")
     colours = [(230, 60, 60), (60, 160, 230), (60, 200, 90), (230, 180, 40), (200, 80, 200)]
@@ -247,7 +237,7 @@ def picture(trial: Path, run_dir: Path, path: Path, frame: int = 50) -> None:
                 continue
             uv = cam.project(J)
             col = colours[k % len(colours)]
-            for a, b in BONES_14:
+            for a, b in SKELETON_14.bones:
                 if np.isfinite(uv[[a, b]]).all():
                     cv2.line(img, tuple(int(v) for v in uv[a]), tuple(int(v) for v in uv[b]), col, 8)
             top = uv[np.isfinite(uv).all(1)]

@@ -19,7 +19,7 @@ Writes into ``KP_DIR``:
   size, frames and people per frame, warnings (cameras at different frame rates, nobody found);
 * ``sync.json`` (``--sync``): ``{"offsets": {camera: frames started late}, "peaks": ..., "curves": ...}``
   from where the cameras' rays meet (with ``--calibration``) or else from the correlation of the
-  people's motion between cameras; the keypoint readers apply it.
+  people's motion between cameras; ``pose_from_keypoints.py`` applies it.
 
 The detector runs offline from the model files of the installed ``mediapipe`` wheel (BlazePose full,
 several people per image); ``--detector rtmlib --det-model X.onnx --pose-model Y.onnx`` runs RTMPose

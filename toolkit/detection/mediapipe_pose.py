@@ -134,8 +134,6 @@ class MediaPipePoseDetector:
         shrink by the long side; tiles find people the whole image misses (small or beside another
         person).  A tile's detection cut by an inner edge of the tile is dropped; duplicates are
         merged (:data:`SAME_PERSON_SHARE`), the most confident kept.
-    threads : int, optional
-        Not used by MediaPipe's CPU delegate (it picks its own); kept for the interface.
     cache : Path, optional
         Where the task bundle is kept (:func:`build_task_bundle`).
 
@@ -151,7 +149,7 @@ class MediaPipePoseDetector:
 
     def __init__(self, num_poses: int = NUM_POSES, min_detection_confidence: float = MIN_DETECTION_CONFIDENCE,
                  min_presence_confidence: float = MIN_PRESENCE_CONFIDENCE, masks: bool = False,
-                 tiles: bool = True, threads: int | None = None, cache: Path | None = None):
+                 tiles: bool = True, cache: Path | None = None):
         if not (isinstance(num_poses, int) and num_poses >= 1):
             raise InputError("num_poses", "a whole number >= 1", repr(num_poses))
         for n, v in (("min_detection_confidence", min_detection_confidence),

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from toolkit.errors import InputError
+from toolkit.io.video import VIDEO_SUFFIXES
 
 __all__ = ["POSE_MODELS", "Pose2SimTrial", "is_pose2sim_trial", "participant_height", "read_pose2sim_trial"]
 
@@ -74,14 +75,13 @@ class Pose2SimTrial:
 
 #: Video folders of a trial (Pose2Sim: ``videos/``).
 VIDEO_FOLDERS = ("videos", "video")
-_VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
 
 
 def _videos_of(p: Path) -> Path | None:
     """The trial's folder of videos, if it has one holding videos."""
     for f in VIDEO_FOLDERS:
         folder = p / f
-        if folder.is_dir() and any(v.suffix.lower() in _VIDEO_SUFFIXES for v in folder.iterdir()):
+        if folder.is_dir() and any(v.suffix.lower() in VIDEO_SUFFIXES for v in folder.iterdir()):
             return folder
     return None
 
@@ -191,12 +191,12 @@ def read_pose2sim_trial(path: str | os.PathLike) -> Pose2SimTrial:
         rate = None
     calibration = None
     if calib_dir is not None:
-        tomls = (sorted(calib_dir.glob("Calib*.toml")) or sorted(calib_dir.glob("*.toml"))
+        found = (sorted(calib_dir.glob("Calib*.toml")) or sorted(calib_dir.glob("*.toml"))
                  or sorted(calib_dir.glob("*.qca.txt")))
-        if len(tomls) > 1:
+        if len(found) > 1:
             raise InputError(str(calib_dir), "one calibration .toml or .qca.txt (else give --calibration)",
-                             f"{[t.name for t in tomls]}")
-        calibration = tomls[0] if tomls else None
+                             f"{[t.name for t in found]}")
+        calibration = found[0] if found else None
     trc = tuple(sorted((trial / "pose-3d").glob("*.trc"))) if (trial / "pose-3d").is_dir() else ()
     return Pose2SimTrial(trial=trial, keypoints=keypoints, calibration=calibration, pose_model=fmt,
                          frame_rate=rate, config_files=tuple(files), reference_trc=trc, videos=_videos_of(trial))

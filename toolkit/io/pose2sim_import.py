@@ -46,6 +46,7 @@ from pathlib import Path
 
 from toolkit.cameras import Camera, Rig
 from toolkit.errors import InputError
+from toolkit.io.video import VIDEO_SUFFIXES
 from toolkit.io.atomic import atomic_path, atomic_write_text, temp_path
 from toolkit.io.calibration import read_calibration, write_calibration_toml
 from toolkit.io.keypoint_files import camera_sources, match_cameras
@@ -63,7 +64,6 @@ PAD_TOLERANCE_PX = 16
 #: Relative aspect-ratio difference below which a video of another size is the calibrated image resized.
 ASPECT_TOLERANCE = 2e-3
 #: Suffixes of the trial's video files (case-insensitive).
-VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
 #: The import's report, written last into the dataset folder.
 IMPORT_JSON = "import.json"
 

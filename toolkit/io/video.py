@@ -30,6 +30,7 @@ from toolkit.io.atomic import temp_path
 
 __all__ = [
     "DEFAULT_FOURCC",
+    "VIDEO_SUFFIXES",
     "VideoWriter",
     "write_video",
     "VideoReader",
@@ -38,6 +39,8 @@ __all__ = [
     "count_frames",
 ]
 
+#: Suffixes of the video files the toolkit looks for in folders (trials, rigs).
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
 #: Codec used for ``.mp4`` files (MPEG-4 Part 2, encodable by opencv-python-headless).
 DEFAULT_FOURCC = "mp4v"
 

@@ -30,12 +30,11 @@ from pathlib import Path
 import numpy as np
 
 from toolkit.errors import InputError
+from toolkit.io.video import VIDEO_SUFFIXES
 
 __all__ = ["DetectConfig", "DetectResult", "VIDEO_SUFFIXES", "find_videos", "detect_videos", "synchronise",
            "read_sync", "ensure_keypoints", "detected_frame_rate", "summary_lines", "DETECTION_FILE", "SYNC_FILE"]
 
-#: Video file suffixes looked for.
-VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
 #: Summary file of a detection run, and the synchronisation's.
 DETECTION_FILE = "detection.json"
 SYNC_FILE = "sync.json"
@@ -157,7 +156,7 @@ class DetectResult:
 
     @property
     def detector_fps(self) -> float:
-        """Images per second of the detector (this run, all processes together)."""
+        """Images detected per second of the whole run (start-up, decoding and all processes included)."""
         busy = self.seconds
         return self.frames_detected / busy if busy > 0 else float("nan")
 
@@ -278,7 +277,7 @@ def _check_identity(out: Path, config: DetectConfig, model: str) -> None:
                          f"options {old.get('options')} (this run: {config.identity()})")
 
 
-def _probe(videos: list[Path], max_frames: int | None) -> tuple[dict, list[str]]:
+def _probe(videos: list[Path]) -> tuple[dict, list[str]]:
     """Each video's frame rate, size and frames, and warnings for rates or counts that differ."""
     from toolkit.io.video import probe_video
 
@@ -328,7 +327,7 @@ def detect_videos(source, out, config: DetectConfig = DetectConfig(), log=print)
     t0 = time.perf_counter()
     videos = find_videos(source)
     out = Path(out)
-    infos, warnings = _probe(videos, config.max_frames)
+    infos, warnings = _probe(videos)
     for w in warnings:
         log(f"warning: {w}")
     probe = make_detector(config.detector, **config.backend_options())   # fails early with a clear error

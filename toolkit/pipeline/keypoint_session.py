@@ -84,13 +84,13 @@ def frame_offsets(root: Path, sources) -> list[int] | None:
 
 
 def _videos_without_keypoints(root: Path) -> bool:
-    from toolkit.pipeline.detect_keypoints import VIDEO_SUFFIXES
+    from toolkit.io.video import VIDEO_SUFFIXES
 
-    return (root.is_dir() and not camera_sources_or_none(root)
+    return (root.is_dir() and not _camera_sources_or_none(root)
             and any(p.suffix.lower() in VIDEO_SUFFIXES for p in root.iterdir()))
 
 
-def camera_sources_or_none(root: Path) -> list:
+def _camera_sources_or_none(root: Path) -> list:
     """The keypoint sources of ``root``, or an empty list when it holds none."""
     try:
         return camera_sources(root)

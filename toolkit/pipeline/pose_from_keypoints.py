@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from toolkit.errors import InputError
+from toolkit.io.video import VIDEO_SUFFIXES
 from toolkit.multiview import FLIP_MODES, MAX_OFFSET_PX, MIN_JOINT_CONFIDENCE, MIN_VIEW_CONFIDENCE
 from toolkit.multiview.keypoint_sequence import OFFSET_MODES
 from toolkit.pipeline.detect_keypoints import DetectConfig
@@ -38,17 +39,15 @@ FORMATS = {"auto": None, "body_25b": "body_25b", "body_25": "body_25", "coco17":
            "blazepose_33": "blazepose_33"}
 #: Frame rate assumed when neither ``fps``, a Pose2Sim Config.toml nor the videos give one (said so in the outputs).
 ASSUMED_FPS = 30.0
-#: Video file suffixes looked for in ``videos``.
-VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv")
 #: Trajectory files that may be written besides ``poses3d.npz``.
 EXPORTS = ("trc", "c3d", "csv")
 #: What ``poses3d.json`` says about the axes of each trajectory file.
 TRAJECTORY_AXES = {"npz, csv": "world frame of the calibration (z up), metres",
                    "trc": "Y up: (X, Y, Z) = world (y, z, x), metres", "c3d": "the TRC's axes, millimetres"}
-#: How ``people.json`` says people were found.
 #: A person followed in fewer than this share of the frames is reported as transient, apart from the
 #: participants (a bystander crossing the volume, someone entering or leaving, or a short-lived association).
 PARTICIPANT_MIN_SHARE = 0.25
+#: How ``people.json`` says people were found.
 PEOPLE_RULE = ("detections grouped across views by ray distance (toolkit.multiview.association), tracked over "
                "time (toolkit.multiview.tracking); seen by two cameras or more, in the capture volume")
 
@@ -471,8 +470,7 @@ def _run_people(config: PoseFromKeypointsConfig, session, out: Path, observer, l
     out.mkdir(parents=True, exist_ok=True)
     own = observer is None and config.recording
     observer = _recording(out / "recording.rrd", rig) if own else observer
-    seen_share = [(people.views[k] > 0).mean() for k in range(people.n_people)]
-    n_part = sum(s >= PARTICIPANT_MIN_SHARE for s in seen_share)
+    n_part = sum((people.views[k] > 0).mean() >= PARTICIPANT_MIN_SHARE for k in range(people.n_people))
     log(f"{people.n_people} people found in {len(kin.frames)} frames (seen by two cameras or more, in the "
         f"capture volume, tracked over time): {n_part} participants, {people.n_people - n_part} transient "
         f"(followed in under {PARTICIPANT_MIN_SHARE:.0%} of the frames)")
@@ -496,7 +494,7 @@ def _run_people(config: PoseFromKeypointsConfig, session, out: Path, observer, l
             "people": summary, "frames": len(kin.frames),
             "participants": sum(p["role"] == "participant" for p in summary),
             "participant_rule": f"followed in at least {PARTICIPANT_MIN_SHARE:.0%} of the frames (else transient)",
-                                                           "cameras": rig.names, "rule": PEOPLE_RULE}, indent=2) + "\n")
+            "cameras": rig.names, "rule": PEOPLE_RULE}, indent=2) + "\n")
         if own:
             observer.close()
     stopped = STOPPED_INTERRUPTED if any(r.stopped for _, _, r in results) else ""
