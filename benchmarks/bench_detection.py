@@ -4,7 +4,7 @@
 Usage::
 
     python benchmarks/bench_detection.py [--realdata DIR] [--out OUT] [--parts trials,sync,multi]
-        [--seed 0]
+        [--seed 0[,1,...]]
 
 * ``trials``: Pose2Sim's demo trials (balancing, static) from ``videos/`` and ``Calib.qca.txt`` only:
   ``detect_videos`` then ``pose_from_keypoints`` with default options; per joint (hips, knees, ankles,
@@ -13,8 +13,11 @@ Usage::
   after removing each joint's constant offset in the body's frame (lateral, forward, up), and the
   2D offset between our keypoints and the shipped OpenPose ones on frames where the two agree;
   seconds (detection, triangulation) and the detector's images per second.
-* ``sync``: two cameras of the balancing trial re-encoded starting 4-14 frames late (seeded); the offsets
-  ``--sync`` finds and the 3D result against the synchronised run's.
+* ``sync``: per seed (``--seed 0,1,2,3``), two cameras of the balancing trial re-encoded starting 4-14
+  frames late; per camera the true and found offsets, the error and the confidence, whether all are
+  within one frame, and the 3D result against the synchronised run's (when ``trials`` ran into the
+  same ``--out``).  Then the rigs in sync as recorded (the balancing trial, ``pose2sim_multiperson``):
+  the offsets found, which must all be 0.  Detections are kept under ``OUT`` and reused by a rerun.
 * ``multi``: ``pose2sim_multiperson`` from videos + ``Calib.qca.txt``, ``--multi-person``: the people
   found and how long each was followed; a picture per camera (``OUT/multiperson_cameras.jpg``).
 
@@ -163,38 +166,73 @@ def bench_trials(root: Path, out: Path, log) -> None:
         log("  " + ", ".join(f"{k} ({v[0]:+.0f}, {v[1]:+.0f})" for k, v in gap["median_offset_px"].items()))
 
 
-def bench_sync(root: Path, out: Path, seed: int, log) -> None:
-    from toolkit.io import VideoReader
-    from toolkit.io.video import write_video
-
-    trial = root / TRIALS["balancing"]
+def _late_starts(seed: int) -> dict[str, int]:
+    """Two of the four cameras starting 4-14 frames late, drawn from ``seed``."""
     rng = np.random.default_rng(seed)
     late = {c: 0 for c in ("cam01", "cam02", "cam03", "cam04")}
     for c in rng.choice(list(late), size=2, replace=False):
         late[str(c)] = int(rng.integers(4, 15))
-    videos = out / "sync_videos"
-    videos.mkdir(parents=True, exist_ok=True)
-    for c, k in late.items():   # every camera re-encoded alike, two of them starting late
-        with VideoReader(trial / "videos" / f"{c}.mp4") as r:
-            fps, frames = r.fps, [f for i, f in enumerate(r) if i >= k]
-        write_video(videos / f"{c}.mp4", frames, fps)
-    det = detect_videos(videos, out / "sync_keypoints", DetectConfig(progress=False, sync=True,
-                                                                    calibration=root / QCA), log=_quiet)
-    found = det.sync.offsets
-    log(f"\n== sync: cameras started late {late} ==")
-    log(f"found {found}; trusted {det.sync.trusted}")
-    errs = {c: abs(found[c] - late[c]) for c in late}
-    log(f"offset errors (frames): {errs}: {'all within one frame' if max(errs.values()) <= 1 else 'MISSED'}")
-    _, _ = triangulate(out / "sync_keypoints", root / QCA, out / "sync_run")
-    ref = out / "balancing_run" / "poses3d.npz"
-    if ref.is_file():
-        a, b = np.load(ref), np.load(out / "sync_run" / "poses3d.npz")
-        common = np.intersect1d(a["frames"], b["frames"])
-        ja = a["joints"][np.searchsorted(a["frames"], common)]
-        jb = b["joints"][np.searchsorted(b["frames"], common)]
-        d = 1000 * np.linalg.norm(ja - jb, axis=-1)
-        log(f"3D against the synchronised run on {len(common)} common frames: median {np.nanmedian(d):.1f} mm, "
-            f"p90 {np.nanpercentile(d, 90):.1f} mm (frames seen by only two cameras after the cut included)")
+    return late
+
+
+def bench_sync(root: Path, out: Path, seeds: list[int], log) -> None:
+    """Late starts found per seed (error per camera, all within one frame?), and in-sync rigs kept at 0."""
+    from toolkit.io import VideoReader
+    from toolkit.io.video import write_video
+    from toolkit.pipeline.detect_keypoints import synchronise
+
+    trial = root / TRIALS["balancing"]
+    rows = []
+    for seed in seeds:
+        late = _late_starts(seed)
+        base = out / f"sync_seed{seed}"
+        videos = base / "videos"
+        videos.mkdir(parents=True, exist_ok=True)
+        for c, k in late.items():   # every camera re-encoded alike, two of them starting late
+            if not (videos / f"{c}.mp4").is_file():
+                with VideoReader(trial / "videos" / f"{c}.mp4") as r:
+                    fps, frames = r.fps, [f for i, f in enumerate(r) if i >= k]
+                write_video(videos / f"{c}.mp4", frames, fps)
+        t0 = time.perf_counter()
+        det = detect_videos(videos, base / "keypoints", DetectConfig(progress=False, sync=True,
+                                                                      calibration=root / QCA), log=_quiet)
+        found, conf = det.sync.offsets, det.sync.confidence
+        errs = {c: found[c] - late[c] for c in late}
+        ok = max(abs(e) for e in errs.values()) <= 1
+        rows.append((seed, late, found, errs, ok))
+        log(f"\n== sync, seed {seed}: cameras started late {late} ({time.perf_counter() - t0:.0f} s, "
+            "detection included unless kept from an earlier run) ==")
+        log(f"{'camera':<8}{'true':>6}{'found':>7}{'error':>7}{'confidence':>12}{'trusted':>9}")
+        for c in late:
+            log(f"{c:<8}{late[c]:>6}{found[c]:>7}{errs[c]:>+7}{conf.get(c, float('nan')):>12.3f}"
+                f"{str(det.sync.trusted[c]):>9}")
+        log("all within one frame" if ok else "MISSED: an offset off by more than one frame")
+        triangulate(base / "keypoints", root / QCA, base / "run")
+        ref = out / "balancing_run" / "poses3d.npz"
+        if ref.is_file():
+            a, b = np.load(ref), np.load(base / "run" / "poses3d.npz")
+            common = np.intersect1d(a["frames"], b["frames"])
+            ja = a["joints"][np.searchsorted(a["frames"], common)]
+            jb = b["joints"][np.searchsorted(b["frames"], common)]
+            d = 1000 * np.linalg.norm(ja - jb, axis=-1)
+            log(f"3D against the synchronised run on {len(common)} common frames: median {np.nanmedian(d):.1f} mm, "
+                f"p90 {np.nanpercentile(d, 90):.1f} mm (frames seen by only two cameras after the cut included)")
+    if len(rows) > 1:
+        log(f"\n== sync summary: {sum(r[4] for r in rows)} of {len(rows)} seeds with every offset within one frame ==")
+        for seed, late, found, errs, ok in rows:
+            log(f"seed {seed}: true {list(late.values())} found {list(found.values())} errors "
+                f"{list(errs.values())} {'ok' if ok else 'MISSED'}")
+    # rigs in sync as recorded: every offset must come out 0
+    in_sync = [("balancing", trial, root / QCA, out / "balancing_keypoints")]
+    if (root / MULTI).is_dir():
+        in_sync.append(("multiperson", root / MULTI, root / MULTI / "calibration" / "Calib.qca.txt",
+                        out / "multiperson_keypoints"))
+    for label, source, calib, kp in in_sync:
+        detect_videos(source / "videos", kp, DetectConfig(progress=False), log=_quiet)
+        res = synchronise(kp, DetectConfig().max_sync_offset, calib)
+        zero = all(v == 0 for v in res.offsets.values())
+        log(f"in sync as recorded, {label}: offsets {res.offsets}, confidence "
+            f"{ {c: round(v, 3) for c, v in res.confidence.items()} }: {'all 0' if zero else 'NOT all 0'}")
 
 
 def bench_multi(root: Path, out: Path, log) -> None:
@@ -256,7 +294,8 @@ def main(argv=None) -> int:
                     default=Path(os.environ.get("TOOLKIT_REALDATA", REPO.parent / "shared" / "realdata")))
     ap.add_argument("--out", type=Path, default=None, help="keep outputs here (default: a temporary folder)")
     ap.add_argument("--parts", default="trials,sync,multi")
-    ap.add_argument("--seed", type=int, default=0, help="which cameras start late in the sync part, and by how much")
+    ap.add_argument("--seed", default="0",
+                    help="which cameras start late in the sync part, and by how much: a seed or a list (0,1,2,3)")
     args = ap.parse_args(argv)
     if not (args.realdata / DEMO).is_dir():
         print(f"real data not found under {args.realdata}; skipping (set TOOLKIT_REALDATA).")
@@ -268,7 +307,7 @@ def main(argv=None) -> int:
         if "trials" in parts:
             bench_trials(args.realdata, out, print)
         if "sync" in parts:
-            bench_sync(args.realdata, out, args.seed, print)
+            bench_sync(args.realdata, out, [int(v) for v in args.seed.split(",")], print)
         if "multi" in parts and (args.realdata / MULTI).is_dir():
             bench_multi(args.realdata, out, print)
     return 0

@@ -7,6 +7,14 @@ Usage::
     python recipes/free_viewpoint.py out/default --out out/default_fvv
     python recipes/import_pose2sim.py TRIAL --out out/demo      # real footage with OpenPose keypoints
     python recipes/free_viewpoint.py out/demo --out out/demo_fvv --hold-out cam_01
+    python recipes/free_viewpoint.py TRIAL --out out/trial_fvv [--sync]   # a Pose2Sim trial directly
+
+The positional argument is a dataset (docs/dataset_layout.md) or a Pose2Sim
+trial folder, with keypoints or with videos and a calibration only: a trial is
+imported first into OUT/dataset (toolkit.pipeline.trial_input; its people
+detected when it has no keypoints, on the --max-frames frames only unless
+--sync, which lines the cameras up by their late starts) and the results below
+go to OUT/results instead of OUT.  A rerun with the same OUT reuses that import.
 
 Per frame: foreground silhouettes, 2D poses and the multi-view selection with
 calibration offsets (stage 1; from a detector's 2D keypoints instead of the
@@ -15,20 +23,30 @@ with silhouettes given (--masks), from clean plates, or seeded by the
 keypoints) -> template fit and body-part segmentation -> seams and the 3D joint
 optimisation by the position score -> articulated billboards -> view-dependent
 rendering (source 000 §4) of every novel camera of the dataset, of a held-out
-source camera (--hold-out) and of three camera paths.  Writes into OUT:
+source camera (--hold-out) and of three camera paths.  With keypoints every
+participant goes through the stages on its own and the views draw the people
+far to near (--people; toolkit/pipeline/people.py).  The people are drawn over
+the scene model built from the source videos (--background; toolkit/scene/:
+each camera's empty view estimated over time, carried on a ground plane and a
+cylinder of walls, blended view-dependently), so every view is a whole frame.
+Writes into OUT:
 
-  poses3d.npz            joints (T, 14, 3) metres, names, joints_stage1, status (str per frame)
-  parts/<camera>/NNNNNN.png      part labels per source camera
-  novel/<camera>/NNNNNN.png      articulated-billboard rendering of each novel camera
-  novel_alpha/<camera>/NNNNNN.png   its opacity, uint8 (255 = opaque subject, 0 = background)
-  baselines/<method>/<camera>/NNNNNN.png   standard billboards and visual hull, same views
-  baselines/plate/<camera>/NNNNNN.png      the background alone (what the subject is drawn over)
+  poses3d.npz            joints (T, 14, 3) metres, names, joints_stage1, status (str per frame): the main person
+  people3d.npz           with several people: joints (P, T, 14, 3), people (P,) names, names (14,)
+  scene/                 the scene model: scene.json (proxy, how it was chosen), background/ and confidence/
+                         per source camera
+  parts/<camera>/NNNNNN.png      part labels per source camera (every person's; the nearest where they overlap)
+  novel/<camera>/NNNNNN.png      articulated-billboard rendering of each novel camera (a whole frame)
+  novel_alpha/<camera>/NNNNNN.png   its opacity, uint8 (255 = opaque people, 0 = background)
+  baselines/<method>/<camera>/NNNNNN.png   standard billboards and visual hull, same views, same background;
+                                 nearest_source: the closest source camera's frame carried through the scene proxy
+  baselines/plate/<camera>/NNNNNN.png      the background alone (what the people are drawn over)
   paths/<path>/NNNNNN.png, paths/<path>.mp4   orbit, sweep through the sources, bird's-eye
   heldout/<CAM>/NNNNNN.png       with --hold-out CAM: CAM's view rendered from the other cameras (articulated);
                                  heldout_alpha/ its opacity, heldout_region/ the person's region it is judged in,
                                  baselines/<method>/<CAM>/ the baselines; metrics.json "heldout" their scores
-  metrics.json           per method: PSNR / SSIM in the subject's box, psnr_subject (PSNR on the true mask
-                         + 2 px), coverage (share of the true mask rendered with opacity > 0.5; mean and
+  metrics.json           per method: psnr_frame (PSNR of the whole frame), PSNR / SSIM in the subject's box,
+                         psnr_subject (PSNR on the true mask + 2 px), coverage (share of the true mask rendered with opacity > 0.5; mean and
                          coverage_min, the worst view); pose error, timings (with ground truth)
   recording.rrd          every intermediate of this run, with a blueprint; a resumed run writes
                          recording.resume-<k>.rrd beside it (same recording id: rerun OUT/recording*.rrd)
@@ -52,16 +70,19 @@ from dataclasses import replace
 from pathlib import Path
 
 from toolkit.errors import InputError
-from toolkit.pipeline.free_viewpoint import (FOREGROUNDS, KEYPOINT_FORMATS, RENDERERS, SILHOUETTES,
+from toolkit.pipeline.free_viewpoint import (BACKGROUNDS, FOREGROUNDS, KEYPOINT_FORMATS, RENDERERS, SILHOUETTES,
                                              FreeViewpointRunConfig, run, summary_lines)
+from toolkit.pipeline.people import PEOPLE_CHOICES
 from toolkit.pipeline.run import load_config
+from toolkit.pipeline.trial_input import prepare_run_input
 
 
 def parser() -> argparse.ArgumentParser:
     """The recipe's command line (defaults of valued options: None, so a --config file's values stand)."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
-    ap.add_argument("dataset", type=Path, help="dataset folder (docs/dataset_layout.md)")
+    ap.add_argument("dataset", type=Path,
+                    help="dataset folder (docs/dataset_layout.md), or a Pose2Sim trial (imported into OUT/dataset)")
     ap.add_argument("--out", type=Path, required=True, help="output folder")
     ap.add_argument("--config", type=Path, default=None, help="options from a TOML file (flags given here win)")
     ap.add_argument("--db", type=Path, default=None, help="silhouette database .npz (default: the cached one)")
@@ -104,6 +125,14 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                     help="frames on a running Dask cluster (dask scheduler / dask worker; the dataset and OUT on a "
                          "file system every worker sees: docs/parallel.md)")
+    ap.add_argument("--background", choices=BACKGROUNDS, default=None,
+                    help="what the people are drawn over: the scene model built from the source videos (default; "
+                         "OUT/scene/) or the dataset's clean plates (an evaluation aid: the synthetic scene's true "
+                         "surroundings, a held-out camera's own plate or inpainted frame)")
+    ap.add_argument("--people", choices=PEOPLE_CHOICES, default=None,
+                    help="with keypoints: every participant (default all; OUT/people3d.npz) or the main person only")
+    ap.add_argument("--sync", action="store_true",
+                    help="a Pose2Sim trial without keypoints: synchronise its cameras and line them up on import")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
     return ap
 
@@ -114,7 +143,7 @@ def config_from_args(args: argparse.Namespace) -> FreeViewpointRunConfig:
                          max_frames=args.max_frames, renderer=args.renderer, jpeg_quality=args.jpeg_quality,
                          keypoints=args.keypoints, keypoint_format=args.keypoint_format, masks=args.masks,
                          silhouettes=args.silhouettes, hold_out=args.hold_out, workers=args.workers,
-                         scheduler=args.scheduler)
+                         scheduler=args.scheduler, background=args.background, people=args.people)
     frame = replace(config.frame, optimize=config.frame.optimize and not args.no_optimize,
                     baselines=config.frame.baselines and not args.no_baselines)
     return replace(config, frame=frame, refine_calibration=config.refine_calibration and not args.keep_calibration,
@@ -130,7 +159,11 @@ def main(argv=None) -> int:
     if args.jpeg_quality is not None and not 1 <= args.jpeg_quality <= 100:
         ap.error(f"--jpeg-quality: expected an integer in 1..100, found {args.jpeg_quality}")
     try:
-        result = run(config_from_args(args), dataset=args.dataset, out=args.out)
+        config = config_from_args(args)
+        source = prepare_run_input(args.dataset, args.out, max_frames=config.max_frames, sync=args.sync)
+        if source.lines:
+            print("\n".join(source.lines))
+        result = run(config, dataset=source.dataset, out=source.out)
     except InputError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

@@ -266,3 +266,153 @@ def test_geometric_sync_finds_a_late_camera_and_keeps_a_synchronised_one_at_zero
     res = find_offsets_geometric(people, {c.name: c for c in rig.cameras}, max_offset=15)
     assert res.offsets == late, (res.trusted, res.peaks, res.second)
     assert all(res.trusted.values())
+
+
+# --------------------------------------------------------------------------- trials of videos only, imported
+
+#: Pixels a blob's centre may move through one or two mp4v round trips (and its rounding to whole pixels).
+BLOB_TOL_PX = 1.5
+
+
+def _videos_only_trial(root: Path, rig, centres: dict) -> Path:
+    """``root/Trial`` as Pose2Sim's current demos: ``videos/<camera>.mp4`` and ``calibration/Calib.qca.txt``."""
+    from tests.io.test_io_qualisys import qca_text
+
+    trial = root / "Trial"
+    (trial / "videos").mkdir(parents=True)
+    (trial / "calibration").mkdir()
+    (trial / "calibration" / "Calib.qca.txt").write_text(qca_text(rig))
+    for cam in rig:
+        _video(trial / "videos" / f"{cam.name}.mp4", centres[cam.name], size=cam.size)
+    return trial
+
+
+def _blob_centre(image: np.ndarray) -> np.ndarray:
+    ys, xs = np.nonzero(image[..., 0] > 128)
+    return np.array([xs.mean(), ys.mean()])
+
+
+def _small_trial(tmp_path: Path, n_frames: int = 8) -> Path:
+    from tests.io.conftest import random_rig
+
+    rig = random_rig(np.random.default_rng(0), n_cams=2, size=(80, 64), names=["cam01", "cam02"])
+    return _videos_only_trial(tmp_path, rig, {c.name: _path(n_frames, 5 + i) for i, c in enumerate(rig)})
+
+
+def test_a_videos_only_trial_imports_with_its_keypoints_detected(tmp_path, blob_backend, capsys):
+    from recipes.import_pose2sim import main
+    from toolkit.io import Dataset
+
+    trial = _small_trial(tmp_path)
+    assert main([str(trial), "--out", str(tmp_path / "ds"), "--detector", "blob", "--workers", "1", "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert "keypoints detected (blob: bright pixels)" in printed and "8 frames" in printed
+    ds = Dataset.open(tmp_path / "ds")
+    assert ds.camera_names == ["cam01", "cam02"] and ds.n_frames == 8 and ds.has_keypoints
+    rep = json.loads((tmp_path / "ds" / "import.json").read_text())
+    assert rep["pose_model"] == "blazepose_33" and rep["detection"]["detector"] == "blob"
+    assert rep["frame_offsets"] is None and rep["detection"]["people_per_frame"]["cam02"] == {"1": 8}
+    for name in ds.camera_names:
+        files = sorted(ds.keypoint_dir(name).iterdir())
+        assert len(files) == 8
+        # links into the dataset's own detection/ folder, relative: the dataset can be moved
+        assert all(f.is_symlink() and not os.path.isabs(os.readlink(f)) for f in files)
+        assert files[3].resolve().parent == (tmp_path / "ds" / "detection" / name).resolve()
+        x, y = json.loads(files[3].read_text())["people"][0]["pose_keypoints_2d"][48:50]
+        np.testing.assert_allclose([x, y], _blob_centre(ds.frame(name, 3)), atol=BLOB_TOL_PX)
+
+
+def test_sync_lines_the_cameras_up_in_the_imported_dataset(tmp_path, blob_backend):
+    """Cameras that started 0, 6 and 11 frames late: after the import every frame 0 shows the same instant."""
+    from dataclasses import replace
+
+    from toolkit.cameras import Camera, Rig
+    from toolkit.io import Dataset
+    from toolkit.io.openpose import frame_files
+    from toolkit.pipeline.trial_input import import_lines, import_trial
+
+    size = (160, 120)
+    rig = Rig(tuple(Camera.look_at(f"cam{i + 1:02d}", [4 * np.cos(a), 4 * np.sin(a), 1.5], [0, 0, 1], size=size,
+                                   focal_px=120.0) for i, a in enumerate(np.linspace(0, 2 * np.pi, 3, endpoint=False))))
+    rng = np.random.default_rng(0)
+    T = 120
+    # a point wandering in jerks (still spells, sudden steps) around (0, 0, 1), metres
+    X = np.cumsum(np.where(rng.random((T, 3)) < 0.3, rng.normal(0, 0.08, (T, 3)), 0.0), axis=0).clip(-0.6, 0.6)
+    X += [0, 0, 1.0]
+    late = {"cam01": 0, "cam02": 6, "cam03": 11}
+    trial = _videos_only_trial(tmp_path, rig, {c.name: c.project(X[late[c.name]:]) for c in rig})
+    res = import_trial(trial, tmp_path / "ds", detect_config=replace(blob_backend, sync=True), log=lambda *_: None)
+    assert res.report["frame_offsets"] == late
+    start = max(late.values())
+    assert {c["name"]: c["frames_dropped_at_start"] for c in res.report["cameras"]} == \
+        {n: start - k for n, k in late.items()}
+    assert res.report["n_frames"] == min(T - k - (start - k) for k in late.values()) == T - start
+    lines = import_lines(res)
+    assert any("cam01 11, cam02 5" in line for line in lines)
+    assert any("cam02 started 6 frames late, its first 5 frames dropped" in line for line in lines)
+    ds = Dataset.open(tmp_path / "ds")
+    for cam in rig:
+        files, nums = frame_files(ds.keypoint_dir(cam.name), "keypoints")
+        assert nums.tolist() == list(range(T - start))
+        for t in (0, 40):
+            truth = cam.project(X[start + t])       # the same instant in every camera
+            np.testing.assert_allclose(_blob_centre(ds.frame(cam.name, t)), truth, atol=BLOB_TOL_PX)
+            kp = json.loads(files[t].read_text())["people"][0]["pose_keypoints_2d"]
+            np.testing.assert_allclose(kp[48:50], truth, atol=BLOB_TOL_PX)
+
+
+def test_free_viewpoint_input_imports_a_trial_once_and_passes_a_dataset_through(tmp_path, blob_backend):
+    from toolkit.pipeline.trial_input import prepare_run_input
+
+    trial = _small_trial(tmp_path, n_frames=8)
+    out = tmp_path / "fvv"
+    first = prepare_run_input(trial, out, max_frames=4, detect_config=blob_backend, log=lambda *_: None)
+    assert first.dataset == out / "dataset" and first.out == out / "results"
+    assert first.imported.report["n_frames"] == 4 and first.imported.report["detection"]["max_frames"] == 4
+    assert "is a Pose2Sim trial: imported into" in first.lines[0]
+    again = prepare_run_input(trial, out, max_frames=3, detect_config=blob_backend, log=lambda *_: None)
+    assert again.imported.reused and again.imported.report["n_frames"] == 4
+    more = prepare_run_input(trial, out, detect_config=blob_backend, log=lambda *_: None)
+    assert not more.imported.reused and more.imported.report["n_frames"] == 8
+    assert len(list((out / "dataset" / "keypoints" / "cam01").iterdir())) == 8
+    # a dataset is used as it is, with the results where asked
+    given = prepare_run_input(out / "dataset", tmp_path / "other")
+    assert given.dataset == out / "dataset" and given.out == tmp_path / "other" and given.lines == []
+
+
+def test_a_trial_without_videos_is_a_clear_error(tmp_path, blob_backend):
+    from toolkit.pipeline.trial_input import import_trial, prepare_run_input
+
+    trial = _small_trial(tmp_path)
+    for v in (trial / "videos").iterdir():
+        v.unlink()
+    with pytest.raises(InputError, match=r"Trial.*videos/ and a calibration folder"):
+        import_trial(trial, tmp_path / "ds", detect_config=blob_backend)
+    with pytest.raises(InputError, match=r"Trial.*a dataset folder .* or a Pose2Sim trial"):
+        prepare_run_input(trial, tmp_path / "fvv")
+    # an --out holding something else than an earlier run on a trial
+    trial = _small_trial(tmp_path / "b")
+    (tmp_path / "busy").mkdir()
+    (tmp_path / "busy" / "notes.txt").write_text("x")
+    with pytest.raises(InputError, match=r"busy.*notes.txt"):
+        prepare_run_input(trial, tmp_path / "busy", detect_config=blob_backend)
+
+
+@pytest.mark.realdata
+def test_multiperson_trial_of_videos_only_imports_with_detection(tmp_path):
+    trial = REALDATA / "pose2sim_multiperson"
+    if not (trial / "videos").is_dir():
+        pytest.skip(f"real data not found at {trial}")
+    pytest.importorskip("mediapipe")
+    from toolkit.io import Dataset
+    from toolkit.pipeline.trial_input import import_trial
+
+    res = import_trial(trial, tmp_path / "ds", detect_config=DetectConfig(max_frames=5, progress=False),
+                       log=lambda *_: None)
+    ds = Dataset.open(tmp_path / "ds")
+    assert ds.camera_names == ["cam01", "cam02", "cam03", "cam04"] and ds.n_frames == 5
+    assert res.report["pose_model"] == "blazepose_33"
+    for name in ds.camera_names:
+        assert len(list(ds.keypoint_dir(name).glob("*.json"))) == 5
+    people = res.report["detection"]["people_per_frame"]
+    assert all(sum(n for k, n in h.items() if k != "0") >= 3 for h in people.values())   # somebody seen

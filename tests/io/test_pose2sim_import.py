@@ -173,3 +173,36 @@ def test_demo_balancing_trial_imports_and_opens(pose2sim_demo, tmp_path):
     for name in ds.camera_names:
         assert len(list(ds.keypoint_dir(name).glob("*.json"))) == 100
     assert res.report["pose_model"] == "body_25b" and res.report["keypoints"].endswith("pose-associated")
+
+
+def test_frame_offsets_line_the_cameras_up(tmp_path):
+    # frame t of camera c is grey 40 c + 25 t, its keypoints at y = h / 2 + t
+    trial = make_trial(tmp_path, n_frames=5)
+    # keys may name the camera, its video or its keypoint folder
+    res = import_pose2sim_trial(trial, tmp_path / "ds", frame_offsets={"cam01": 2, "cam_02": 1, "cam03_json": 0})
+    assert res.shifts == {"cam_01": 0, "cam_02": 1, "cam_03": 2} and res.n_frames == 3
+    assert res.report["frame_offsets"] == {"cam_01": 2, "cam_02": 1, "cam_03": 0}
+    assert any("cam_03 started 0 frames late, its first 2 frames dropped" in m for m in res.messages)
+    ds = Dataset.open(tmp_path / "ds")
+    assert ds.n_frames == 3
+    for c, (name, shift) in enumerate(res.shifts.items()):
+        assert ds.frame(name, 0)[0, 0, 0] == pytest.approx(40 * c + 25 * shift, abs=GREY_TOL)
+        files = sorted(ds.keypoint_dir(name).iterdir())
+        assert len(files) == 3
+        first = files[0] if shift == 0 else ds.keypoint_dir(name) / f"{name}_000000000000_keypoints.json"
+        y = json.loads(first.read_text())["people"][0]["pose_keypoints_2d"][1]
+        assert y == pytest.approx(VIDEO_SIZE[1] / 2 + shift)
+    assert res.report["cameras"][2]["frames_dropped_at_start"] == 2
+    assert res.report["cameras"][2]["video_action"] == "re-encoded (mp4v) to its frames 2..4"
+
+
+def test_bad_frame_offsets_and_a_trial_of_videos_only_are_errors(tmp_path):
+    trial = make_trial(tmp_path, n_frames=3)
+    with pytest.raises(InputError, match=r"frame_offsets.*cam09"):
+        import_pose2sim_trial(trial, tmp_path / "ds", frame_offsets={"cam09": 1})
+    with pytest.raises(InputError, match="no common frame"):
+        import_pose2sim_trial(trial, tmp_path / "ds", frame_offsets={"cam_01": 5})
+    shutil.rmtree(trial / "pose")
+    (trial / "calibration").mkdir()   # Pose2Sim's current layout: videos and a calibration folder, no keypoints
+    with pytest.raises(InputError, match="videos only"):
+        import_pose2sim_trial(trial, tmp_path / "ds2")

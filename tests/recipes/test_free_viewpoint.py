@@ -102,7 +102,11 @@ def test_free_viewpoint_end_to_end_and_resume(dataset, tmp_path, capsys):
     root, db_path = dataset
     recipe = _load_recipe()
     out = tmp_path / "out"
-    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet"])
+    # the truth is the body over black: judged over the "plates" background (black without a scene.toml)
+    conf = tmp_path / "plates.toml"
+    conf.write_text('background = "plates"\n')
+    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",
+                      "--config", str(conf)])
     assert rc == 0
     z = np.load(out / "poses3d.npz")
     assert z["joints"].shape == (N_FRAMES, 14, 3) and list(z["names"]) == list(SKELETON_14.joint_names)
@@ -132,7 +136,8 @@ def test_free_viewpoint_end_to_end_and_resume(dataset, tmp_path, capsys):
         assert np.isfinite(s["psnr_subject"]) and 0.0 <= s["coverage_min"] <= s["coverage"] <= 1.0
     assert m["methods"]["articulated"]["coverage_min"] >= MIN_COVERAGE
     frame0 = json.loads((out / "frames" / "000000.json").read_text())
-    assert {"psnr", "ssim", "psnr_subject", "coverage"} <= set(frame0["scores"]["articulated"]["novel_0"])
+    assert {"psnr", "ssim", "psnr_subject", "coverage", "psnr_frame"} <= set(frame0["scores"]["articulated"]["novel_0"])
+    assert not (out / "scene").exists()
     assert m["pose"]["mpjpe_m"] < MPJPE_BOUND_M
     assert sum(m["optimize"].values()) == 14 * N_FRAMES  # how stage 3 ended for every joint of every frame
     # every second of a frame has a key: its parts add up to its total (issue 20); stage 1 is outside it
@@ -150,7 +155,8 @@ def test_free_viewpoint_end_to_end_and_resume(dataset, tmp_path, capsys):
     before = novel0.stat().st_mtime_ns
     first_rec = (out / "recording.rrd").stat()
     (out / "frames" / "000001.json").unlink()
-    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet"])
+    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",
+                      "--config", str(conf)])
     assert rc == 0
     printed = capsys.readouterr().out
     assert "resuming: 1 of 2" in printed and "(1 this run" in printed
@@ -169,20 +175,21 @@ def test_free_viewpoint_end_to_end_and_resume(dataset, tmp_path, capsys):
         ids.append(re.search(r'"free_viewpoint",\s*"([0-9a-f-]+)"', p.stdout).group(1))
     assert ids[0] == ids[1]
     # nothing left to do: no new recording part
-    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet"])
+    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",
+                      "--config", str(conf)])
     assert rc == 0 and "already finished" in capsys.readouterr().out
     assert not (out / "recording.resume-2.rrd").exists()
 
     # other options (or another dataset): the finished frames are not resumed ...
     rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",
-                      "--no-recording", "--no-baselines", "--no-optimize", "--max-frames", "1"])
+                      "--config", str(conf), "--no-recording", "--no-baselines", "--no-optimize", "--max-frames", "1"])
     assert rc == 2
     err = capsys.readouterr().err
     assert str(out) in err and "optimize" in err and "--replace-stale" in err
     assert (out / "frames" / "000001.json").exists()
     # ... unless asked: then they are moved aside, not deleted
     rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",
-                      "--no-recording", "--no-baselines", "--no-optimize", "--max-frames", "1", "--replace-stale"])
+                      "--config", str(conf), "--no-recording", "--no-baselines", "--no-optimize", "--max-frames", "1", "--replace-stale"])
     assert rc == 0
     assert (tmp_path / (out.name + ".stale-1") / "frames" / "000001.json").exists()
     assert (out / "frames" / "000000.json").exists() and not (out / "frames" / "000001.json").exists()
@@ -213,8 +220,12 @@ def test_each_frame_is_decoded_once(dataset, tmp_path, monkeypatch):
         return original(self)
 
     monkeypatch.setattr(video.VideoReader, "_decode_next", counting)
+    # the scene model (background "scene") reads its sample of frames once more, before the run: left out here
+    conf = tmp_path / "plates.toml"
+    conf.write_text('background = "plates"\n')
     rc = _load_recipe().main([str(root), "--out", str(tmp_path / "o"), "--db", str(db_path), "--foreground",
-                              "chroma", "--quiet", "--no-recording", "--no-optimize", "--no-baselines"])
+                              "chroma", "--quiet", "--no-recording", "--no-optimize", "--no-baselines",
+                              "--config", str(conf)])
     assert rc == 0
     assert len(decoded) == 2 * N_FRAMES  # every (camera, frame) was read
     assert set(decoded.values()) == {1}, f"frames decoded more than once: {decoded}"

@@ -150,6 +150,38 @@ def test_masks_given_are_the_silhouettes(studio, tmp_path, capsys):
     assert m["heldout"]["methods"]["articulated"]["coverage"] > HELDOUT_COVERAGE
 
 
+@pytest.mark.timeout(600)
+def test_held_out_whole_frame_uses_no_pixel_of_the_held_out_camera(studio, tmp_path, capsys):
+    """The held-out camera's video painted over: its rendered whole frame and the baselines are unchanged
+    (the background comes from the other cameras' scene model), only the scores differ."""
+    import shutil
+
+    from toolkit.io import write_video
+
+    painted = tmp_path / "painted"
+    shutil.copytree(studio, painted, symlinks=False)
+    rng = np.random.default_rng(0)
+    write_video(painted / "videos" / f"{HELD}.mp4",
+                [rng.integers(0, 256, (240, 320, 3)).astype(np.uint8) for _ in range(N_FRAMES)], 25.0)
+    outs = []
+    for data in (studio, painted):
+        out = tmp_path / f"run_{data.name}"
+        rc = _load_recipe().main([str(data), "--out", str(out), "--hold-out", HELD, "--keypoint-format", "body_25",
+                                  "--max-frames", "1", "--no-optimize", "--no-recording", "--quiet"])
+        assert rc == 0, capsys.readouterr()
+        outs.append(out)
+    name = "000000.png"
+    produced = [Path("heldout") / HELD / name, Path("heldout_alpha") / HELD / name]
+    produced += [Path("baselines") / m / HELD / name for m in ("plate", "standard", "visual_hull", "nearest_source")]
+    for rel in produced:
+        a, b = (read_png(o / rel) for o in outs)
+        assert np.array_equal(a, b), rel
+    whole = read_png(outs[0] / "heldout" / HELD / name)
+    assert whole.shape == (240, 320, 3) and whole.std() > 10  # a whole frame, not a person on black
+    scores = [json.loads((o / "metrics.json").read_text())["heldout"]["methods"]["articulated"] for o in outs]
+    assert scores[0]["psnr_frame"] > scores[1]["psnr_frame"] + 1  # judged against the painted frame
+
+
 def test_hold_out_unknown_camera_is_a_clear_error(studio, tmp_path, capsys):
     rc = _load_recipe().main([str(studio), "--out", str(tmp_path / "r"), "--hold-out", "cam_9", "--no-recording"])
     assert rc == 2

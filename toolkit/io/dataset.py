@@ -13,13 +13,17 @@
         calibration.toml               true cameras (same names as the measured ones)
         joints3d.npz                   joints (T, J, 3) metres, world z up; names (J,)
         joints2d.npz                   one (T, J, 2) pixel array per camera, key = camera name
-        masks/<camera>/NNNNNN.png      uint8, 0 background / 255 subject
+        people.npz                     optional, several people: joints (P, T, J, 3), names (J,);
+                                       person 0 is the subject of joints3d.npz
+        masks/<camera>/NNNNNN.png      uint8, 0 background / 255 subject (every person)
         parts/<camera>/NNNNNN.png      uint8, 0 background / k = body-part id
+        instances/<camera>/NNNNNN.png  with people.npz: uint8, 0 background / k = person k - 1
         depth/<camera>/NNNNNN.png      uint16 millimetres, 0 = no depth
         novel/calibration.toml         virtual cameras for free-viewpoint evaluation
         novel/<camera>/NNNNNN.png      RGB images seen by the virtual cameras
         novel/masks/<camera>/NNNNNN.png
         novel/parts/<camera>/NNNNNN.png
+        novel/instances/<camera>/NNNNNN.png
 
 Frames are numbered from 000000.  Real footage uses the same layout without
 ``groundtruth/``.  See ``docs/dataset_layout.md`` for units and conventions.
@@ -48,6 +52,7 @@ from toolkit.io.layout import (
     camera_of,
     check_joints2d,
     check_joints3d,
+    check_people,
     load_npz,
 )
 from toolkit.io.video import VideoReader, probe_video
@@ -88,6 +93,7 @@ class Dataset:
         self._novel_rig: Rig | None = None
         self._joints3d: tuple[np.ndarray, np.ndarray] | None = None
         self._joints2d: dict[str, np.ndarray] | None = None
+        self._people: tuple[np.ndarray, np.ndarray] | None = None
 
     # -- opening and validation
     @classmethod
@@ -235,7 +241,9 @@ class Dataset:
                 n_joints = a.shape[1]
                 out[key] = a
             self._joints2d = out
-        for kind in (L.MASKS, L.PARTS, L.DEPTH):
+        if L.people.exists():
+            self._people = self._load_people(n_joints)
+        for kind in (L.MASKS, L.PARTS, L.DEPTH, L.INSTANCES):
             self._validate_frame_folders(L.groundtruth / kind, self.rig.names)
         if L.novel.exists():
             self._novel_rig = read_calibration_toml(L.novel_calibration)
@@ -255,6 +263,34 @@ class Dataset:
                 self._validate_frames(L.novel / cam)
             for kind in NOVEL_RESERVED:
                 self._validate_frame_folders(L.novel / kind, self._novel_rig.names)
+
+    def _load_people(self, n_joints: int | None) -> tuple[np.ndarray, np.ndarray]:
+        """``groundtruth/people.npz`` checked: (P, n_frames, J, 3), person 0 = ``joints3d.npz``."""
+        L = self.layout
+        z = load_npz(L.people)
+        for key in ("joints", "names"):
+            if key not in z:
+                raise InputError(
+                    f"{L.people}: {key}", f"a '{key}' array", f"fields {sorted(z)}"
+                )
+        j, n = check_people(str(L.people), z["joints"], z["names"])
+        if j.shape[1] != self.n_frames or (n_joints is not None and j.shape[2] != n_joints):
+            jj = "J" if n_joints is None else str(n_joints)
+            raise InputError(
+                f"{L.people}: joints",
+                f"shape (P, {self.n_frames}, {jj}, 3) (frames as the videos, joints as "
+                f"{L.JOINTS3D})",
+                f"shape {j.shape}",
+            )
+        if self._joints3d is not None and not np.array_equal(
+            j[0], self._joints3d[0], equal_nan=True
+        ):
+            raise InputError(
+                f"{L.people}: joints[0]",
+                f"the joints of {L.joints3d} (person 0 is the subject)",
+                "other joints",
+            )
+        return j, n
 
     def _validate_frame_folders(self, folder: Path, names: list[str]) -> None:
         if not folder.exists():
@@ -385,6 +421,46 @@ class Dataset:
             )
         return img
 
+    @property
+    def people_count(self) -> int:
+        """How many people the ground truth tells apart: ``P`` of ``people.npz``, else 1."""
+        return 1 if self._people is None else int(self._people[0].shape[0])
+
+    def gt_people_joints3d(self) -> np.ndarray:
+        """Every person's true world joints, ``(people_count, n_frames, J, 3)`` metres (a copy).
+
+        Person ``p`` is instance id ``p + 1`` of :meth:`gt_instances`; NaN where a person is
+        absent.  A dataset without ``people.npz`` has one person, the subject of
+        :meth:`gt_joints3d`.
+        """
+        if self._people is not None:
+            return self._people[0].copy()
+        return self.gt_joints3d()[None]
+
+    def _instances(self, path: Path, cam: Camera, mask) -> np.ndarray:
+        if self._people is None and not path.exists():  # one person: the mask is the instance map
+            return mask().astype(np.uint8)
+        ids = self._read(path, cam, 1, np.uint8)
+        if ids.max(initial=0) > self.people_count:
+            raise InputError(
+                str(path),
+                f"person ids 0..{self.people_count} ({self.layout.PEOPLE} holds "
+                f"{self.people_count})",
+                f"id {int(ids.max())}",
+            )
+        return ids
+
+    def gt_instances(self, camera: str, i: int) -> np.ndarray:
+        """Which person each pixel shows, ``(H, W)`` uint8: 0 background, ``k`` = person ``k - 1``.
+
+        The front-most body per pixel (``groundtruth/instances/``).  For a dataset without
+        ``people.npz`` (one subject) it is the mask as 0 / 1.
+        """
+        i = self._index(i)
+        cam = self._truth_cam(camera)
+        path = self.layout.instances(camera, i)
+        return self._instances(path, cam, lambda: self.gt_mask(camera, i))
+
     def gt_mask(self, camera: str, i: int) -> np.ndarray:
         """Subject mask, ``(H, W)`` bool (True where the stored value is non-zero)."""
         return (
@@ -432,6 +508,14 @@ class Dataset:
         """Body-part labels in a virtual camera, ``(H, W)`` uint8."""
         cam = self._novel_cam(camera)
         return self._read(self.layout.novel_parts(camera, self._index(i)), cam, 1, np.uint8)
+
+    def novel_instances(self, camera: str, i: int) -> np.ndarray:
+        """Which person each pixel of a virtual camera shows, ``(H, W)`` uint8 (see
+        :meth:`gt_instances`)."""
+        i = self._index(i)
+        cam = self._novel_cam(camera)
+        path = self.layout.novel_instances(camera, i)
+        return self._instances(path, cam, lambda: self.novel_mask(camera, i))
 
     def frames_to_process(self, max_frames: int | None = None) -> int:
         """How many frames to process: all, or the first ``max_frames`` (the recipes' ``--max-frames``).

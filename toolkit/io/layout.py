@@ -21,12 +21,14 @@ from toolkit.io.frames import FRAME_DIGITS, frame_filename
 __all__ = [
     "DatasetLayout",
     "FPS_RELATIVE_TOLERANCE",
+    "MAX_PEOPLE",
     "NOVEL_RESERVED",
     "camera_of",
     "check_image",
     "check_index",
     "check_joints2d",
     "check_joints3d",
+    "check_people",
     "load_npz",
 ]
 
@@ -34,7 +36,9 @@ __all__ = [
 #: (containers round rates such as 30000/1001 differently).
 FPS_RELATIVE_TOLERANCE = 1e-3
 #: Names reserved inside ``groundtruth/novel/`` (a novel camera cannot be called so).
-NOVEL_RESERVED = ("masks", "parts")
+NOVEL_RESERVED = ("masks", "parts", "instances")
+#: Most people an instance map can tell apart (ids 1..255 in a uint8 PNG).
+MAX_PEOPLE = 255
 
 
 @dataclass(frozen=True)
@@ -55,7 +59,9 @@ class DatasetLayout:
     GROUNDTRUTH = "groundtruth"
     JOINTS3D = "joints3d.npz"
     JOINTS2D = "joints2d.npz"
+    PEOPLE = "people.npz"
     MASKS = "masks"
+    INSTANCES = "instances"
     PARTS = "parts"
     DEPTH = "depth"
     NOVEL = "novel"
@@ -130,8 +136,17 @@ class DatasetLayout:
     def joints2d(self) -> Path:
         return self.groundtruth / self.JOINTS2D
 
+    @property
+    def people(self) -> Path:
+        """``groundtruth/people.npz``: every person's joints (scenes with several people)."""
+        return self.groundtruth / self.PEOPLE
+
     def mask(self, camera: str, index: int) -> Path:
         return self.groundtruth / self.MASKS / camera / frame_filename(index)
+
+    def instances(self, camera: str, index: int) -> Path:
+        """``groundtruth/instances/<camera>/NNNNNN.png``: uint8, 0 background, k = person k - 1."""
+        return self.groundtruth / self.INSTANCES / camera / frame_filename(index)
 
     def parts(self, camera: str, index: int) -> Path:
         return self.groundtruth / self.PARTS / camera / frame_filename(index)
@@ -155,6 +170,9 @@ class DatasetLayout:
 
     def novel_parts(self, camera: str, index: int) -> Path:
         return self.novel / self.PARTS / camera / frame_filename(index)
+
+    def novel_instances(self, camera: str, index: int) -> Path:
+        return self.novel / self.INSTANCES / camera / frame_filename(index)
 
 
 # ------------------------------------------------------------ shared checks
@@ -202,6 +220,29 @@ def check_joints3d(where: str, joints, names) -> tuple[np.ndarray, np.ndarray]:
         raise InputError(
             f"{where}: names",
             f"{j.shape[1]} joint names (one per joint of joints)",
+            f"shape {n.shape}, dtype {n.dtype}",
+        )
+    return j.astype(np.float64), n.astype(str)
+
+
+def check_people(where: str, joints, names) -> tuple[np.ndarray, np.ndarray]:
+    """All people's joints ``(P, T, J, 3)`` as float64 and ``names`` (J,) as str, or an InputError.
+
+    ``1 <= P <= MAX_PEOPLE`` (person ``p`` is instance id ``p + 1``).
+    """
+    j = np.asarray(joints)
+    if (j.ndim != 4 or j.shape[3] != 3 or not np.issubdtype(j.dtype, np.number)
+            or not 1 <= j.shape[0] <= MAX_PEOPLE):
+        raise InputError(
+            f"{where}: joints",
+            f"a numeric array of shape (P, T, J, 3) in metres with 1 <= P <= {MAX_PEOPLE}",
+            f"shape {j.shape}, dtype {j.dtype}",
+        )
+    n = np.asarray(names)
+    if n.ndim != 1 or n.dtype.kind not in "UO" or len(n) != j.shape[2]:
+        raise InputError(
+            f"{where}: names",
+            f"{j.shape[2]} joint names (one per joint of joints)",
             f"shape {n.shape}, dtype {n.dtype}",
         )
     return j.astype(np.float64), n.astype(str)

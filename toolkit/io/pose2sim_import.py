@@ -8,7 +8,12 @@
       calibration.toml          the calibration's cameras, sizes set to the videos' (see below)
       videos/<camera>.mp4       links to the trial's videos (or copies; re-encoded only to trim them)
       keypoints/<camera>/       links to (or copies of) the per-frame OpenPose JSON files, names kept
+                                (renumbered ``<camera>_<frame:012d>_keypoints.json`` when shifted)
       import.json               what was found and what was done (written last)
+
+A trial with videos and no keypoints is imported from a keypoints folder given (``keypoints``: one
+sub-folder per camera, e.g. what ``toolkit.pipeline.detect_keypoints`` wrote;
+``toolkit.pipeline.trial_input.import_trial`` detects and then calls this function).
 
 Cameras keep the calibration's names; the videos and keypoint folders are matched
 to them with :func:`toolkit.io.keypoint_files.match_cameras` (by name:
@@ -33,6 +38,11 @@ never ignored:
   keypoint files beyond it are left out.
 * **Frame rates.** Videos with different rates are an error; a ``frame_rate`` of
   the Pose2Sim settings unlike the videos' is reported (the videos' is kept).
+* **Late starts** (``frame_offsets``: camera ``c`` started ``k_c`` frames late, the meaning of
+  ``sync.json``, toolkit.detection.sync).  Every camera's frame 0 is made to show the same instant,
+  the start of the camera that started last: camera ``c`` loses its first ``max(k) - k_c`` frames
+  (its video re-encoded, its keypoint files renumbered by as much, those before dropped), then all
+  are trimmed to the common length.
 """
 
 from __future__ import annotations
@@ -40,7 +50,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 
@@ -63,7 +73,6 @@ __all__ = ["IMPORT_JSON", "PAD_TOLERANCE_PX", "VIDEO_SUFFIXES", "ImportResult", 
 PAD_TOLERANCE_PX = 16
 #: Relative aspect-ratio difference below which a video of another size is the calibrated image resized.
 ASPECT_TOLERANCE = 2e-3
-#: Suffixes of the trial's video files (case-insensitive).
 #: The import's report, written last into the dataset folder.
 IMPORT_JSON = "import.json"
 
@@ -80,6 +89,8 @@ class ImportResult:
         The cameras written to ``calibration.toml``.
     n_frames : int
         Frames of every video (and the keypoint frames kept: numbers below it).
+    shifts : dict of str to int
+        Per camera, frames dropped at its start to line the cameras up (0 without offsets).
     report : dict
         The content of ``import.json``.
     messages : list of str
@@ -91,6 +102,7 @@ class ImportResult:
     n_frames: int
     report: dict
     messages: list[str]
+    shifts: dict = field(default_factory=dict)
 
 
 def fit_camera_to_video(cam: Camera, video_size: tuple[int, int], where: str) -> tuple[Camera, str | None]:
@@ -168,50 +180,93 @@ def _match(names: list[str], sources: list[Path], what: str, kind: str) -> tuple
     return [sources[i] for i in order], how
 
 
-def _link_or_copy(src: Path, dst: Path, copy: bool) -> None:
-    """``dst`` becomes a copy of ``src`` or a symbolic link to it (absolute), atomically."""
+def _link_or_copy(src: Path, dst: Path, copy: bool, root: Path | None = None) -> None:
+    """``dst`` becomes a copy of ``src`` or a symbolic link to it, atomically.
+
+    The link is absolute, but relative when ``src`` lies inside ``root`` (the dataset folder: files
+    made in it, such as detected keypoints, stay found when the folder is moved).
+    """
     dst.parent.mkdir(parents=True, exist_ok=True)
     if copy:
         with atomic_path(dst) as tmp:
             shutil.copyfile(src, tmp)
         return
+    target = src.resolve()
+    if root is not None and root.resolve() in target.parents:
+        target = Path(os.path.relpath(target, dst.parent.resolve()))
     tmp = temp_path(dst)
     tmp.unlink()
     try:
-        os.symlink(src.resolve(), tmp)
+        os.symlink(target, tmp)
         os.replace(tmp, dst)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
 
 
-def _trim_video(src: Path, dst: Path, n_frames: int, fps: float) -> None:
+def _trim_video(src: Path, dst: Path, start: int, n_frames: int, fps: float) -> None:
+    """``dst``: frames ``start .. start + n_frames - 1`` of ``src``, re-encoded."""
     with VideoReader(src) as reader, VideoWriter(dst, fps) as writer:
         for t, rgb in enumerate(reader):
-            if t >= n_frames:
+            if t >= start + n_frames:
                 break
-            writer.write(rgb)
+            if t >= start:
+                writer.write(rgb)
+
+
+def _offsets_per_camera(frame_offsets: dict | None, names: list[str], videos: list[Path],
+                        folders: list[Path]) -> list[int]:
+    """Per camera (calibration order) the frames it started late, from offsets keyed by camera, video or folder."""
+    if not frame_offsets:
+        return [0] * len(names)
+    keys = [{n, v.stem, f.name if f.is_dir() else f.stem} for n, v, f in zip(names, videos, folders)]
+    unknown = sorted(str(k) for k in frame_offsets if not any(k in ks for ks in keys))
+    if unknown:
+        raise InputError("frame_offsets", f"offsets of the cameras {names} (or of their videos "
+                                          f"{[v.stem for v in videos]})", f"offsets for {unknown}")
+    out = []
+    for n, ks in zip(names, keys):
+        found = [int(v) for k, v in frame_offsets.items() if k in ks]
+        if len(set(found)) > 1:
+            raise InputError("frame_offsets", f"one offset for camera {n}", f"{found}")
+        out.append(found[0] if found else 0)
+    return out
 
 
 def import_pose2sim_trial(trial: str | os.PathLike, out: str | os.PathLike, *,
                           calibration: str | os.PathLike | None = None, pose: str | None = None,
+                          keypoints: str | os.PathLike | None = None, keypoint_format: str | None = None,
+                          frame_offsets: dict[str, int] | None = None, detection: dict | None = None,
                           copy: bool = False, overwrite: bool = False) -> ImportResult:
     """Write a Pose2Sim trial as a dataset folder (module docstring).
 
     Parameters
     ----------
     trial : path-like
-        The trial folder (``videos/``, ``pose/`` and/or ``pose-associated/``).
+        The trial folder (``videos/``, ``pose/`` and/or ``pose-associated/``, or ``videos/`` and a
+        calibration folder with ``keypoints`` given).
     out : path-like
         The dataset folder to write; it must not exist or be empty unless ``overwrite``.
     calibration : path-like, optional
-        A calibration file (TOML or OpenCV YAML) instead of the session's ``Calib*.toml``.
+        A calibration file (TOML, OpenCV YAML or ``.qca.txt``) instead of the session's ``Calib*.toml``.
     pose : {"pose", "pose-associated"}, optional
         The keypoint folder to import; by default ``pose-associated`` when there, else ``pose``.
+    keypoints : path-like, optional
+        A keypoints folder to import instead of the trial's (one sub-folder of per-frame OpenPose JSON
+        files per camera, named after the camera or its video; other files in it are ignored).
+    keypoint_format : str, optional
+        The keypoints' format, recorded as ``pose_model`` (default: the Pose2Sim settings').
+    frame_offsets : dict of str to int, optional
+        Per camera (its calibration name, its video's stem or its keypoint folder's name), the frames
+        it started late (``sync.json``'s ``offsets``); the cameras are lined up (module docstring).
+        Cameras not named have offset 0.
+    detection : dict, optional
+        How ``keypoints`` were made, recorded as ``detection`` in ``import.json``.
     copy : bool
         Copy the videos and keypoint files instead of linking to them.
     overwrite : bool
-        Write into a non-empty ``out`` (files of the import are replaced).
+        Write into a non-empty ``out`` (files of the import are replaced, and the JSON files of its
+        ``keypoints/<camera>/`` folders removed first).
 
     Returns
     -------
@@ -221,14 +276,19 @@ def import_pose2sim_trial(trial: str | os.PathLike, out: str | os.PathLike, *,
     ------
     InputError
         Naming the file or folder at fault: no trial, no calibration (neither found nor given), no
-        videos, fewer (or more) videos or keypoint folders than cameras, keypoint folders that
-        name no camera, video sizes that are not the calibrated ones (padded, cropped or resized),
-        videos of different frame rates, an ``out`` that is not empty, an unknown ``pose``.
+        videos, no keypoints (a trial of videos only, none given), fewer (or more) videos or keypoint
+        folders than cameras, keypoint folders that name no camera, video sizes that are not the
+        calibrated ones (padded, cropped or resized), videos of different frame rates, offsets that
+        name no camera or leave no common frame, an ``out`` that is not empty, an unknown ``pose``,
+        ``pose`` and ``keypoints`` both given.
     """
     trial = Path(trial)
     if not trial.is_dir():
         raise InputError(str(trial), "a Pose2Sim trial folder", "no such folder")
     if pose is not None:
+        if keypoints is not None:
+            raise InputError("pose, keypoints", "the trial's keypoint folder (pose) or a folder given (keypoints)",
+                             "both")
         if pose not in POSE_FOLDERS:
             raise InputError("pose", f"one of {list(POSE_FOLDERS)}", repr(pose))
         if not (trial / pose).is_dir():
@@ -236,6 +296,11 @@ def import_pose2sim_trial(trial: str | os.PathLike, out: str | os.PathLike, *,
         info = read_pose2sim_trial(trial / pose)
     else:
         info = read_pose2sim_trial(trial)
+    kp_root = Path(keypoints) if keypoints is not None else info.keypoints
+    if kp_root is None:
+        raise InputError(str(trial), f"keypoints: one of {list(POSE_FOLDERS)} in the trial, or a keypoints folder "
+                                     "given (recipes/import_pose2sim.py detects them)",
+                         f"videos only ({info.videos})")
     calib_path = Path(calibration) if calibration is not None else info.calibration
     if calib_path is None:
         raise InputError(str(trial), "a calibration: S00_Calibration/Calib*.toml in the session above the trial, "
@@ -245,17 +310,17 @@ def import_pose2sim_trial(trial: str | os.PathLike, out: str | os.PathLike, *,
     messages: list[str] = []
 
     videos, how_v = _match(names, _videos(trial), str(trial / "videos"), "video")
-    folders = camera_sources(info.keypoints)
+    folders = camera_sources(kp_root)
     if any(not f.is_dir() for f in folders):
-        raise InputError(str(info.keypoints), "one folder of per-frame JSON files per camera",
+        raise InputError(str(kp_root), "one folder of per-frame JSON files per camera",
                          f"{[f.name for f in folders]}")
-    folders, how_k = _match(names, folders, str(info.keypoints), "keypoint folder")
+    folders, how_k = _match(names, folders, str(kp_root), "keypoint folder")
     if how_k == "by order":
         # folder names that mention no camera: they may name the videos instead (front_json, front.mp4)
-        order, how_kv = match_cameras([v.stem for v in videos], folders, str(info.keypoints))
+        order, how_kv = match_cameras([v.stem for v in videos], folders, str(kp_root))
         if how_kv == "by order" and how_v != "by order":
-            raise InputError(str(info.keypoints), f"keypoint folders named after the cameras {names} or their "
-                                                  f"videos {[v.name for v in videos]}",
+            raise InputError(str(kp_root), f"keypoint folders named after the cameras {names} or their "
+                                           f"videos {[v.name for v in videos]}",
                              f"folders that match none: {[f.name for f in folders]}")
         folders, how_k = [folders[i] for i in order], f"{how_kv}, through the videos' names"
     for how, what in ((how_v, "videos"), (how_k, "keypoint folders")):
@@ -279,13 +344,22 @@ def import_pose2sim_trial(trial: str | os.PathLike, out: str | os.PathLike, *,
             messages.append(msg)
     rig = Rig(tuple(cams))
 
+    late = _offsets_per_camera(frame_offsets, list(names), videos, folders)
+    shifts = [max(late) - k for k in late]     # frames dropped at each camera's start
     kp_files = [frame_files(f, "per-frame OpenPose JSON files") for f in folders]
-    kp_lengths = [int(nums.max()) + 1 for _, nums in kp_files]
-    n_frames = min([p.n_frames for p in probes] + kp_lengths)
-    lengths = {f"video {v.name}": p.n_frames for v, p in zip(videos, probes)}
+    kp_lengths = [int(nums.max()) + 1 - s for (_, nums), s in zip(kp_files, shifts)]
+    n_frames = min([p.n_frames - s for p, s in zip(probes, shifts)] + kp_lengths)
+    if any(shifts):
+        messages.append("cameras lined up by their late starts (frame offsets): " + ", ".join(
+            f"{n} started {k} frames late, its first {s} frames dropped" for n, k, s in zip(names, late, shifts)))
+    if n_frames < 1:
+        raise InputError("frame_offsets", "offsets that leave the cameras frames in common",
+                         f"{dict(zip(names, late))}: no common frame")
+    lengths = {f"video {v.name}": p.n_frames - s for v, p, s in zip(videos, probes, shifts)}
     lengths.update({f"keypoints {f.name}": n for f, n in zip(folders, kp_lengths)})
     if len(set(lengths.values())) > 1:
-        messages.append(f"frame counts differ ({', '.join(f'{k}: {n}' for k, n in lengths.items())}): "
+        after = " after the shift" if any(shifts) else ""
+        messages.append(f"frame counts differ{after} ({', '.join(f'{k}: {n}' for k, n in lengths.items())}): "
                         f"trimmed to the common length {n_frames}")
 
     out = Path(out)
@@ -294,22 +368,30 @@ def import_pose2sim_trial(trial: str | os.PathLike, out: str | os.PathLike, *,
     if out.is_dir() and any(out.iterdir()) and not overwrite:
         raise InputError(str(out), "a new or empty folder (else overwrite)", "a folder with files")
     layout = DatasetLayout(out)
+    if layout.keypoints_dir.resolve() in (kp_root.resolve(), *kp_root.resolve().parents):
+        raise InputError(str(kp_root), f"a keypoints folder outside the dataset's {layout.keypoints_dir}",
+                         "the dataset's own keypoints (the import would replace its sources)")
     layout.root.mkdir(parents=True, exist_ok=True)
     (layout.root / IMPORT_JSON).unlink(missing_ok=True)  # a dataset without import.json is unfinished
     write_calibration_toml(layout.calibration, rig, metadata={"source": str(calib_path.resolve())})
     cameras = []
-    for cam, v, p, folder, (files, nums) in zip(rig, videos, probes, folders, kp_files):
+    for cam, v, p, folder, (files, nums), k, shift in zip(rig, videos, probes, folders, kp_files, late, shifts):
         dst = layout.video(cam.name)
-        if p.n_frames > n_frames:
-            _trim_video(v, dst, n_frames, fps)
-            video_action = f"re-encoded (mp4v) to its first {n_frames} frames"
+        if shift or p.n_frames > n_frames:
+            _trim_video(v, dst, shift, n_frames, fps)
+            video_action = (f"re-encoded (mp4v) to its frames {shift}..{shift + n_frames - 1}" if shift
+                            else f"re-encoded (mp4v) to its first {n_frames} frames")
         else:
-            _link_or_copy(v, dst, copy)
+            _link_or_copy(v, dst, copy, layout.root)
             video_action = "copied" if copy else "linked"
-        kept = [(f, int(n)) for f, n in zip(files, nums) if n < n_frames]
+        kept = [(f, int(n) - shift) for f, n in zip(files, nums) if 0 <= n - shift < n_frames]
         kdir = layout.keypoint_dir(cam.name)
-        for f, _ in kept:
-            _link_or_copy(f, kdir / f.name, copy)
+        if kdir.is_dir():   # overwriting: no file of an earlier import stays among these
+            for old in kdir.glob("*.json"):
+                old.unlink()
+        for f, t in kept:
+            name = f.name if not shift else f"{cam.name}_{t:012d}_keypoints.json"
+            _link_or_copy(f, kdir / name, copy, layout.root)
         src = rig_in[cam.name]
         cameras.append({
             "name": cam.name, "video": str(v.resolve()), "video_action": video_action,
@@ -317,13 +399,17 @@ def import_pose2sim_trial(trial: str | os.PathLike, out: str | os.PathLike, *,
             "keypoint_files_left_out": len(files) - len(kept),
             "calibrated_size": list(src.size), "video_size": list(p.size), "size": list(cam.size),
             "video_frames": p.n_frames, "keypoint_frames": int(nums.max()) + 1,
+            "started_late": k, "frames_dropped_at_start": shift,
         })
     report = {
         "trial": str(trial.resolve()), "calibration": str(calib_path.resolve()),
-        "keypoints": str(info.keypoints.resolve()), "pose_model": info.pose_model,
+        "keypoints": str(kp_root.resolve()),
+        "pose_model": keypoint_format if keypoint_format is not None else info.pose_model,
         "settings_frame_rate": info.frame_rate, "fps": fps, "n_frames": n_frames,
         "files": "copied" if copy else "linked", "videos_matched": how_v, "keypoints_matched": how_k,
-        "cameras": cameras, "messages": messages,
+        "frame_offsets": dict(zip(names, late)) if frame_offsets else None,
+        "detection": detection, "cameras": cameras, "messages": messages,
     }
     atomic_write_text(layout.root / IMPORT_JSON, json.dumps(report, indent=2) + "\n")
-    return ImportResult(out=layout.root, rig=rig, n_frames=n_frames, report=report, messages=messages)
+    return ImportResult(out=layout.root, rig=rig, n_frames=n_frames, report=report, messages=messages,
+                        shifts=dict(zip(names, shifts)))

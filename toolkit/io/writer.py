@@ -23,6 +23,7 @@ from toolkit.io.layout import (
     check_index,
     check_joints2d,
     check_joints3d,
+    check_people,
 )
 from toolkit.io.video import DEFAULT_FOURCC, VideoWriter
 
@@ -215,6 +216,22 @@ class DatasetWriter:
         d = check_image(where, depth_m, cam, 1)
         return atomic_write_png(self.layout.depth(camera, index), depth_to_mm(d, where))
 
+    def write_instances(self, camera: str, index: int, ids: np.ndarray) -> Path:
+        """Write ``groundtruth/instances/<camera>/NNNNNN.png``: which person each pixel shows.
+
+        Parameters
+        ----------
+        ids : ndarray of shape (H, W), integer
+            0 background, ``k`` = person ``k - 1`` of ``people.npz`` (the front-most body),
+            at most 255.
+        """
+        cam = self._truth_cam("write_instances", camera)
+        index = check_index("DatasetWriter.write_instances: index", index)
+        where = f"DatasetWriter.write_instances({camera!r}, {index}): ids"
+        return atomic_write_png(
+            self.layout.instances(camera, index), self._labels(where, ids, cam)
+        )
+
     @staticmethod
     def _labels(where: str, labels, cam: Camera) -> np.ndarray:
         a = check_image(where, labels, cam, 1)
@@ -253,6 +270,15 @@ class DatasetWriter:
             self.layout.novel_parts(camera, index), self._labels(where, labels, cam)
         )
 
+    def write_novel_instances(self, camera: str, index: int, ids: np.ndarray) -> Path:
+        """Write ``groundtruth/novel/instances/<camera>/NNNNNN.png`` (uint8 person ids)."""
+        cam = self._novel_cam("write_novel_instances", camera)
+        index = check_index("DatasetWriter.write_novel_instances: index", index)
+        where = f"DatasetWriter.write_novel_instances({camera!r}, {index}): ids"
+        return atomic_write_png(
+            self.layout.novel_instances(camera, index), self._labels(where, ids, cam)
+        )
+
     # -- joints and scene
     def write_joints3d(self, joints: np.ndarray, names: Sequence[str]) -> Path:
         """Write ``groundtruth/joints3d.npz``.
@@ -266,6 +292,20 @@ class DatasetWriter:
         self._open_check("write_joints3d")
         j, n = check_joints3d("DatasetWriter.write_joints3d", joints, list(names))
         return atomic_save_npz(self.layout.joints3d, joints=j, names=n)
+
+    def write_people(self, joints: np.ndarray, names: Sequence[str]) -> Path:
+        """Write ``groundtruth/people.npz``: every person's joints.
+
+        Parameters
+        ----------
+        joints : ndarray of shape (P, T, J, 3)
+            World joints in metres (z up) of the ``P`` people (person ``p`` is instance id
+            ``p + 1``); NaN where a person is absent.
+        names : sequence of str, length J
+        """
+        self._open_check("write_people")
+        j, n = check_people("DatasetWriter.write_people", joints, list(names))
+        return atomic_save_npz(self.layout.people, joints=j, names=n)
 
     def write_joints2d(self, joints2d: Mapping[str, np.ndarray]) -> Path:
         """Write ``groundtruth/joints2d.npz``: one (T, J, 2) pixel array per camera name."""

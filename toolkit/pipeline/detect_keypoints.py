@@ -385,20 +385,28 @@ def synchronise(kp_dir, max_offset: int = 60, calibration=None):
     max_offset : int
         Largest offset searched, frames.
     calibration : path-like, optional
-        The rig's calibration: offsets from where the cameras' rays meet
-        (:func:`toolkit.detection.sync.find_offsets_geometric`, sharp); without it, from the
-        correlation of the people's motion (:func:`toolkit.detection.sync.find_offsets`).
+        The rig's calibration: all offsets solved at once from where the rays of every pair of
+        cameras meet (:func:`toolkit.detection.sync.find_offsets_geometric`, sharp); without it, from
+        the correlation of the people's motion (:func:`toolkit.detection.sync.find_offsets`).
 
     Returns
     -------
     SyncResult
+        Also written to ``sync.json``: the offsets, then the evidence (per camera its cost or
+        correlation curve over lags and its confidence; with a calibration, every pair's cost curve),
+        and the calibration file used.
+
+    Raises
+    ------
+    InputError
+        A camera of ``kp_dir`` that the calibration lacks, or fewer than two cameras.
     """
     from toolkit.detection.sync import find_offsets, find_offsets_geometric, motion_signal
     from toolkit.io.atomic import atomic_write_text
     from toolkit.io.keypoint_files import camera_sources, read_camera_detections
 
     kp_dir = Path(kp_dir)
-    signals, per_camera = {}, {}
+    per_camera = {}
     for src in camera_sources(kp_dir):
         cam = read_camera_detections(src)
         frames = np.asarray(cam.frames)
@@ -406,7 +414,6 @@ def synchronise(kp_dir, max_offset: int = 60, calibration=None):
         per_frame: list[list[np.ndarray]] = [[] for _ in range(T)]
         for f, people in zip(frames, cam.people):
             per_frame[int(f)] = [np.asarray(p, float) for p in people]
-        signals[src.name] = motion_signal(per_frame)
         per_camera[src.name] = per_frame
     if calibration is not None:
         from toolkit.io.calibration import read_calibration
@@ -417,8 +424,10 @@ def synchronise(kp_dir, max_offset: int = 60, calibration=None):
         cameras = {n: by_norm[normalise_name(n)] for n in per_camera if normalise_name(n) in by_norm}
         result = find_offsets_geometric(per_camera, cameras, max_offset=max_offset)
     else:
-        result = find_offsets(signals, max_offset=max_offset)
-    atomic_write_text(kp_dir / SYNC_FILE, json.dumps(result.to_json(), indent=1))
+        result = find_offsets({n: motion_signal(p) for n, p in per_camera.items()}, max_offset=max_offset)
+    doc = result.to_json()
+    doc["calibration"] = None if calibration is None else str(calibration)
+    atomic_write_text(kp_dir / SYNC_FILE, json.dumps(doc, indent=1))
     return result
 
 

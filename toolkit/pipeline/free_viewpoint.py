@@ -23,6 +23,7 @@ import numpy as np
 
 from toolkit.errors import InputError
 from toolkit.pipeline.parallel import Cluster, ParallelConfig, drop_cached, worker_cache
+from toolkit.pipeline.people import PEOPLE_CHOICES
 from toolkit.pipeline.run import FrameRecords, RunResult, open_run, run_frames
 from toolkit.rendering.freeviewpoint import FreeViewpointConfig
 
@@ -34,6 +35,13 @@ FOREGROUNDS = ("median", "mog2", "knn", "chroma")
 RENDERERS = ("cpu", "open3d")
 #: Keypoint formats a detector's files may be in.
 KEYPOINT_FORMATS = ("body_25", "body_25b", "coco_17", "coco_18", "halpe_26", "coco_133", "blazepose_33")
+#: What the people are drawn over: ``"scene"`` the scene model built from the source videos
+#: (:mod:`toolkit.scene`, ``OUT/scene/``), ``"plates"`` the dataset's clean plates (synthetic: the
+#: true surroundings of every view; a held-out camera's own plate or its own frame with the person
+#: filled in), an evaluation aid that isolates the people's rendering.
+BACKGROUNDS = ("scene", "plates")
+#: Camera paths' backgrounds are drawn at this share of their size (they are not judged).
+PATH_BACKGROUND_SCALE = 0.5
 #: Where the silhouettes come from when stage 1 uses keypoints.
 SILHOUETTES = ("auto", "masks", "background", "seeded")
 #: Parts of a frame's ``total`` (its work after stage 1) in ``seconds_per_frame``: ``views`` the novel (and
@@ -81,6 +89,12 @@ class FreeViewpointRunConfig:
         With keypoints: one of :data:`SILHOUETTES`.
     hold_out : str, optional
         A source camera left out and judged (``OUT/heldout/``).
+    background : str
+        One of :data:`BACKGROUNDS`.
+    people : str
+        With keypoints: ``"all"`` follows every participant (:mod:`toolkit.pipeline.people`),
+        ``"main"`` the person the cameras agree on.  Stage 1 from the silhouette database
+        follows one person.
     progress : bool
         Show a progress bar.
     workers : int
@@ -106,6 +120,8 @@ class FreeViewpointRunConfig:
     masks: Path | None = None
     silhouettes: str = "auto"
     hold_out: str | None = None
+    background: str = "scene"
+    people: str = "all"
     progress: bool = True
     workers: int = 1
     scheduler: str | None = None
@@ -114,7 +130,8 @@ class FreeViewpointRunConfig:
     RUNTIME = ("max_frames", "recording", "jpeg_quality", "replace_stale", "progress", "workers", "scheduler")
 
     def __post_init__(self):
-        for name, allowed in (("foreground", FOREGROUNDS), ("renderer", RENDERERS), ("silhouettes", SILHOUETTES)):
+        for name, allowed in (("foreground", FOREGROUNDS), ("renderer", RENDERERS), ("silhouettes", SILHOUETTES),
+                              ("background", BACKGROUNDS), ("people", PEOPLE_CHOICES)):
             if getattr(self, name) not in allowed:
                 raise InputError(f"FreeViewpointRunConfig.{name}", f"one of {allowed}", repr(getattr(self, name)))
         if self.keypoint_format is not None and self.keypoint_format not in KEYPOINT_FORMATS:
@@ -170,12 +187,44 @@ def _camera_paths(rig, n: int) -> dict:
 #: (synthetic scenes); removed when every frame is finished.
 PLATE_STORE = ".plates"
 
+def _foreground(config: FreeViewpointRunConfig):
+    """The foreground stage's options of a run."""
+    from toolkit.foreground import BackgroundConfig, ForegroundConfig
+
+    return ForegroundConfig(method="chroma") if config.foreground == "chroma" else \
+        ForegroundConfig(background=replace(BackgroundConfig(), method=config.foreground))
+
+
+#: The run's scene model (``OUT/scene/``, :class:`toolkit.scene.SceneModel`).
+SCENE_FOLDER = "scene"
+
+
+def _scene_model(ds, rig, config: FreeViewpointRunConfig, out: Path, n: int, log) -> None:
+    """Build the run's scene model from the source videos into ``OUT/scene`` (kept when a resumed run
+    finds it made for the same cameras)."""
+    from toolkit.scene import SceneModel, build_scene_model
+
+    folder = out / SCENE_FOLDER
+    if (folder / "scene.json").exists():
+        try:
+            SceneModel.load(folder, rig)
+            return
+        except InputError:
+            shutil.rmtree(folder, ignore_errors=True)
+    t0 = time.perf_counter()
+    model = build_scene_model(ds, rig, n, foreground=_foreground(config), log=log)
+    model.save(folder)
+    if log is not None:
+        log(f"scene model of {len(rig)} cameras from {len(model.evidence['frames_sampled'])} frames each "
+            f"({time.perf_counter() - t0:.1f} s): {folder}")
+
+
 class _Stage1:
     """Stage 1 of the run: the silhouette database or a detector's keypoints, over the frames to do."""
 
-    def __init__(self, ds, rig, config: FreeViewpointRunConfig, kp_dir, masks_dir, out: Path, observer):
+    def __init__(self, ds, rig, config: FreeViewpointRunConfig, kp_dir, masks_dir, out: Path, observer, log=None):
         self.ds, self.rig, self.config, self.kp_dir, self.masks_dir = ds, rig, config, kp_dir, masks_dir
-        self.out, self.observer = out, observer
+        self.out, self.observer, self.log = out, observer, log
 
     @property
     def name(self) -> str:
@@ -184,7 +233,6 @@ class _Stage1:
     def estimates(self, frames: list):
         """Yields ``(estimate, masks)`` per frame of ``frames``."""
         from toolkit.calibration import refined_cameras
-        from toolkit.foreground import BackgroundConfig, ForegroundConfig
         from toolkit.pipeline.keypoints import KeypointStage1Config, declared_format, estimate_from_keypoints
         from toolkit.silhouettes import Stage1Config
         from toolkit.silhouettes.pipeline import estimate_dataset
@@ -192,10 +240,15 @@ class _Stage1:
         c = self.config
         if not frames:
             return iter(())
-        fg = ForegroundConfig(method="chroma") if c.foreground == "chroma" else \
-            ForegroundConfig(background=replace(BackgroundConfig(), method=c.foreground))
+        fg = _foreground(c)
         if self.kp_dir is not None:
             kconf = KeypointStage1Config(fmt=c.keypoint_format or declared_format(self.ds.root))
+            if c.people == "all":
+                from toolkit.pipeline.people import estimate_people
+
+                return ((p, None) for p in estimate_people(
+                    self.ds, self.kp_dir, self.rig, kconf, frames=frames, silhouettes=c.silhouettes,
+                    masks_dir=self.masks_dir, foreground=fg, observer=self.observer, log=self.log))
             return estimate_from_keypoints(self.ds, self.kp_dir, self.rig, kconf, frames=frames,
                                            silhouettes=c.silhouettes, masks_dir=self.masks_dir, foreground=fg,
                                            observer=self.observer)
@@ -273,8 +326,13 @@ class _Frames:
             self.compositor = Open3DRenderer(job.rig[0].size)
         else:
             self.compositor = CpuCompositor()
+        self.scene = None
+        if config.background == "scene":
+            from toolkit.scene import SceneModel
+
+            self.scene = SceneModel.load(self.out / SCENE_FOLDER, job.rig)
         self.plates = BackgroundPlates(ds.scene_toml, store=self.out / PLATE_STORE) \
-            if ds.scene_toml is not None else None
+            if ds.scene_toml is not None and self.scene is None else None
         self.source_plates = {c: p for c in job.rig.names if (p := ds.background(c)) is not None}
         self.records = FrameRecords(self.out, job.n)
         self.observer = None
@@ -289,15 +347,39 @@ class _Frames:
         if self.plates is not None:
             self.plates.share(self.novel + [self.paths["birds_eye"][0]])
 
-    def _views(self, t: int, res) -> list:
+    def _background(self, cam, scale: float = 1.0) -> np.ndarray:
+        """What the people are drawn over in view ``cam``: the scene model's view (drawn at ``scale`` of
+        the size), the synthetic scene's true surroundings (``background="plates"``), or black."""
+        if self.scene is not None:
+            if scale == 1.0:
+                return self.scene.render(cam)[0]
+            import cv2
+
+            return cv2.resize(self.scene.render(cam.scaled(scale))[0], cam.size, interpolation=cv2.INTER_LINEAR)
+        if self.plates is not None:
+            return self.plates.plate(cam)
+        return np.zeros(cam.size[::-1] + (3,), np.float32)
+
+    def _views(self, t: int, res, images: dict, everyone: list) -> list:
         from toolkit.pipeline.views import EvaluationView
 
-        views = [EvaluationView(cam, "novel", self.plates.plate(cam) if self.plates is not None else
-                                np.zeros(cam.size[::-1] + (3,), np.float32),
-                                self.ds.novel_image(cam.name, t), self.ds.novel_mask(cam.name, t))
-                 for cam in self.novel]
+        views = []
+        several = getattr(self.ds, "people_count", 1) > 1
+        for cam in self.novel:
+            carried = None
+            if self.scene is not None:
+                near = self.scene.nearest_source(cam)
+                carried = self.scene.carry(cam, near, images[near])
+            regions = None
+            if several:
+                inst = self.ds.novel_instances(cam.name, t)
+                regions = [inst == k + 1 for k in range(self.ds.people_count)]
+            views.append(EvaluationView(cam, "novel", self._background(cam), self.ds.novel_image(cam.name, t),
+                                        self.ds.novel_mask(cam.name, t), carried, regions))
         if self.held is not None:
-            views.append(self.region_of.view(t, res.joints if res.ok else None))
+            people = [r.joints for r in everyone] if len(everyone) > 1 else None
+            views.append(self.region_of.view(t, res.joints if res.ok else None, scene=self.scene, images=images,
+                                             people=people))
         return views
 
     def __call__(self, est, masks, images: dict, observer=None) -> None:
@@ -308,30 +390,45 @@ class _Frames:
         from toolkit.pipeline.views import render_evaluation
         from toolkit.rendering.freeviewpoint import render_methods
 
+        from toolkit.pipeline.people import PeopleFrame, combined_labels
+
         t0 = time.perf_counter()
         t = est.frame
         self.observer = observer
         self.processor.observer = as_observer(observer)
-        res = self.processor.process(t, images, masks, est, plates=self.source_plates)
+        people = list(zip(est.estimates, est.masks)) if isinstance(est, PeopleFrame) else [(est, masks)]
+        everyone = [self.processor.process(t, images, m, e, plates=self.source_plates) for e, m in people]
+        res = everyone[0]
+        labels = res.labels if len(everyone) == 1 else combined_labels(everyone, self.rig)
         for c in self.rig.names:
-            atomic_write_png(self.out / "parts" / c / frame_filename(t), res.labels[c])
+            if c in labels:
+                atomic_write_png(self.out / "parts" / c / frame_filename(t), labels[c])
+        drawn = res if len(everyone) == 1 else everyone
         t1 = time.perf_counter()
         scores, heldout = {}, {}
-        for v in self._views(t, res):
-            for m, sc in render_evaluation(res, v, self.out, t, self.compositor, observer=self.observer).items():
+        for v in self._views(t, res, images, everyone):
+            for m, sc in render_evaluation(drawn, v, self.out, t, self.compositor, observer=self.observer).items():
                 (scores if v.kind == "novel" else heldout).setdefault(m, {})[v.camera.name] = sc
         t2 = time.perf_counter()
         for p, cams in self.paths.items():
-            bg = self.plates.plate(cams[t]) if self.plates is not None else np.zeros(cams[t].size[::-1] + (3,))
-            img = render_methods(res, cams[t], bg, self.compositor, methods=("articulated",))["articulated"]
+            bg = self._background(cams[t], 1.0 if p == "birds_eye" else PATH_BACKGROUND_SCALE)
+            img = render_methods(drawn, cams[t], bg, self.compositor, methods=("articulated",))["articulated"]
             atomic_write_png(self.out / "paths" / p / frame_filename(t), img)
-        timings = {**res.timings, **{k: v for k, v in est.timings.items()
+        summed = {}
+        for r in everyone:
+            for k, v in r.timings.items():
+                summed[k] = summed.get(k, 0.0) + v
+        timings = {**summed, **{k: v for k, v in est.timings.items()
                                      if k in ("stage1", "foreground", "keypoints")},
                    "views": t2 - t1, "paths": time.perf_counter() - t2, "total": time.perf_counter() - t0}
         timings["other"] = timings["total"] - sum(timings.get(k, 0.0) for k in WITHIN_TOTAL)
         record = {"frame": t, "status": res.status, "joints": res.joints.tolist(),
                   "joints_stage1": res.joints_stage1.tolist(), "offsets": image_offsets(est.offsets).tolist(),
                   "scores": scores, "timings": timings, "optimize": res.optimize}
+        if isinstance(est, PeopleFrame):
+            record["people"] = [{"name": n, "status": r.status, "joints": r.joints.tolist(),
+                                 "joints_stage1": r.joints_stage1.tolist(), "optimize": r.optimize}
+                                for n, r in zip(est.names, everyone)]
         if self.held is not None:
             record["heldout"] = heldout
             record["heldout_region"] = self.region_of.how.get(t, "")
@@ -380,6 +477,33 @@ def _warm_imports() -> None:
         importlib.import_module(m)
 
 
+def _write_people(out: Path, records: list, n: int) -> dict:
+    """``people3d.npz`` (``joints`` (P, T, 14, 3) metres, ``people`` (P,) names, ``names`` (14,) joint names)
+    when the run followed several people; returns per person the frames drawn (empty otherwise)."""
+    import io
+
+    from toolkit.io import atomic_write_bytes
+    from toolkit.skeleton import SKELETON_14
+
+    names: list = []
+    for r in records:
+        for p in r.get("people", []):
+            if p["name"] not in names:
+                names.append(p["name"])
+    if len(names) < 2:
+        return {}
+    J = np.full((len(names), n, 14, 3), np.nan)
+    drawn = dict.fromkeys(names, 0)
+    for r in records:
+        for p in r.get("people", []):
+            J[names.index(p["name"]), r["frame"]] = p["joints"]
+            drawn[p["name"]] += p["status"] == "ok"
+    buf = io.BytesIO()
+    np.savez(buf, joints=J, people=np.array(names), names=np.array(SKELETON_14.joint_names))
+    atomic_write_bytes(out / "people3d.npz", buf.getvalue())
+    return {"names": names, "frames_drawn": drawn}
+
+
 def _finish(ds, out: Path, records: list, n: int, novel: list, held, stage1: str) -> dict:
     """``poses3d.npz``, the paths' videos (when every frame is done) and the metrics (``metrics.json``)."""
     from toolkit.io import atomic_write_text, write_video
@@ -395,12 +519,13 @@ def _finish(ds, out: Path, records: list, n: int, novel: list, held, stage1: str
     for r in records:
         joints[r["frame"]], stage1_joints[r["frame"]], status[r["frame"]] = r["joints"], r["joints_stage1"], r["status"]
     write_free_viewpoint_poses(out, FreeViewpointPoses(joints, stage1_joints, status, SKELETON_14.joint_names))
+    people = _write_people(out, records, n)
     if len(records) == n:
         shutil.rmtree(out / PLATE_STORE, ignore_errors=True)
         for p in PATHS:
             write_video(out / "paths" / f"{p}.mp4", (read_png(out / "paths" / p / frame_filename(t))
                                                      for t in range(n)), ds.fps)
-    metrics = {"frames": n, "finished": len(records),
+    metrics = {"frames": n, "finished": len(records), **({"people": people} if people else {}),
                "optimize": dict(sum((Counter(r.get("optimize", {})) for r in records), Counter())),
                "stage1": stage1,
                "seconds_per_frame": {k: float(np.mean([r["timings"].get(k, np.nan) for r in records]))
@@ -480,10 +605,12 @@ def run(config: FreeViewpointRunConfig, *, dataset, out, observer=None, log=prin
         rig, held = (full_rig, None) if config.hold_out is None else split_rig(full_rig, config.hold_out)
         if obs is not None:
             obs.report("rig", rig=rig)
+        if config.background == "scene" and todo:
+            _scene_model(ds, rig, config, out, ds.frames_to_process(None), log)
         # a resumed run's stage 1 goes through the finished frames again (not reported): its temporal state
         # at the frames to do is then the one an uninterrupted run had
         wanted = set(todo)
-        stage1 = _Stage1(ds, rig, config, kp_dir, masks_dir, out, None if obs is None else _Only(obs, wanted))
+        stage1 = _Stage1(ds, rig, config, kp_dir, masks_dir, out, None if obs is None else _Only(obs, wanted), log)
         todo = list(range(todo[-1] + 1)) if todo else []
         task = _FrameTask(uuid.uuid4().hex, ds.root, out, config, rig, tuple(novel), held, n, kp_dir, masks_dir)
         if wanted:
@@ -516,16 +643,20 @@ def summary_lines(result: RunResult) -> list:
     from toolkit.rendering.freeviewpoint import METHODS
 
     m = result.metrics
+    shown = METHODS + ("nearest_source",)
     lines = [f"{'stopped early (' + result.stopped + '): ' if result.stopped else ''}{result.finished} of "
              f"{result.frames} frames finished ({result.processed} this run, {result.seconds:.1f} s)"]
     if result.extra.get("has_groundtruth") and result.finished:
-        for meth in METHODS:
+        for meth in shown:
             s = m.get("methods", {}).get(meth)
             if s:
-                lines.append(f"  {meth:12s} PSNR {s['psnr']:.2f} dB  SSIM {s['ssim']:.3f}  on the subject "
-                             f"{s['psnr_subject']:.2f} dB  coverage {s['coverage']:.3f} (worst view "
-                             f"{s['coverage_min']:.3f})  ({s['n']} views)")
+                lines.append(f"  {meth:14s} whole frame {s['psnr_frame']:.2f} dB  box PSNR {s['psnr']:.2f} dB  "
+                             f"SSIM {s['ssim']:.3f}  on the subject {s['psnr_subject']:.2f} dB  coverage "
+                             f"{s['coverage']:.3f} (worst view {s['coverage_min']:.3f})  ({s['n']} views)")
         lines.append(f"  pose error {m['pose']['mpjpe_m'] * 100:.1f} cm (stage 1: {m['pose_stage1']['mpjpe_m'] * 100:.1f} cm)")
+    if m.get("people"):
+        lines.append("  people: " + ", ".join(f"{k} drawn in {v} frames" for k, v in m["people"]["frames_drawn"].items())
+                     + " (people3d.npz)")
     h = m.get("heldout")
     if h and result.finished:
         off = h["offset_px_median"]
@@ -533,11 +664,14 @@ def summary_lines(result: RunResult) -> list:
                      + ", ".join(f"{k} {v} frames" for k, v in h["region"].items())
                      + ("; its calibration corrected by a 2D offset of ({:+.1f}, {:+.1f}) px".format(*off)
                         if off else "") + "):")
-        for meth in METHODS:
+        for meth in shown:
             s = h["methods"].get(meth)
             if s:
-                lines.append(f"  {meth:12s} on the person {s['psnr_subject']:.2f} dB  box PSNR {s['psnr']:.2f} dB  "
-                             f"SSIM {s['ssim']:.3f}  coverage {s['coverage']:.3f}  ({s['n']} frames)")
+                each = ("  each person " + " / ".join(f"{v:.2f}" for v in s["psnr_people"]) + " dB") \
+                    if s.get("psnr_people") else ""
+                lines.append(f"  {meth:14s} whole frame {s['psnr_frame']:.2f} dB  on the person "
+                             f"{s['psnr_subject']:.2f} dB{each}  box PSNR {s['psnr']:.2f} dB  SSIM {s['ssim']:.3f}  "
+                             f"coverage {s['coverage']:.3f}  ({s['n']} frames)")
     outcome = m.get("optimize") or {}
     if outcome:  # e.g. two cameras far apart: every joint "few_views", stage 3 changed nothing
         total = sum(outcome.values())

@@ -33,6 +33,7 @@ from toolkit.errors import InputError
 from toolkit.observe import Observer, as_observer
 
 __all__ = ["KeypointStage1Config", "KeypointStage1", "read_dataset_keypoints", "triangulate_dataset_keypoints",
+           "triangulate_keypoints", "SeededSilhouettes",
            "estimate_from_keypoints", "SILHOUETTE_SOURCES", "read_mask", "choose_silhouettes", "declared_format"]
 
 #: Where silhouettes come from: ``auto`` picks the first available of ``masks``, ``background`` (clean plates),
@@ -206,24 +207,53 @@ def triangulate_dataset_keypoints(keypoints: str | os.PathLike, camera_names: Se
     -------
     KeypointStage1
     """
+    sources, matching, data = read_dataset_keypoints(keypoints, camera_names, rig, config.fmt, config.person, fps)
+    return triangulate_keypoints(data.keypoints, data, rig, n_frames, config, str(keypoints), sources=sources,
+                                 matching=matching, observer=observer)
+
+
+def triangulate_keypoints(kp: np.ndarray, data, rig: Rig, n_frames: int, config: KeypointStage1Config,
+                          where: str, *, sources: tuple = (), matching: str = "",
+                          observer: Observer | None = None) -> KeypointStage1:
+    """Triangulate one person's keypoints over the sequence.
+
+    Parameters
+    ----------
+    kp : ndarray of shape (n_views, T, K, 3)
+        The person's ``(x, y, confidence)`` per view and frame, in ``data``'s format.
+    data : toolkit.io.keypoint_formats.KeypointInput
+        Where they were read from (frame numbers, format).
+    rig : Rig
+    n_frames : int
+        The dataset's frame count (keypoint frame numbers outside it are refused).
+    config : KeypointStage1Config
+    where : str
+        For messages: the keypoints' folder.
+    sources, matching : optional
+        Kept in the result.
+    observer : Observer, optional
+
+    Returns
+    -------
+    KeypointStage1
+    """
     from toolkit.multiview import keypoints_to_candidates
     from toolkit.multiview.keypoint_sequence import triangulate_keypoint_sequence
     from toolkit.skeleton.mappings import to_skeleton14
 
-    sources, matching, data = read_dataset_keypoints(keypoints, camera_names, rig, config.fmt, config.person, fps)
     frames = np.asarray(data.frames, int)
     bad = frames[(frames < 0) | (frames >= n_frames)]
     if bad.size:
-        raise InputError(f"{keypoints}", f"keypoint frame numbers in [0, {n_frames}) (the dataset's video frames)",
+        raise InputError(where, f"keypoint frame numbers in [0, {n_frames}) (the dataset's video frames)",
                          f"{bad[:5].tolist()}" + (" ..." if bad.size > 5 else ""))
-    kp14 = to_skeleton14(data.keypoints, data.format.fmt, confidence=True, min_confidence=config.min_confidence)
+    kp14 = to_skeleton14(kp, data.format.fmt, confidence=True, min_confidence=config.min_confidence)
     cand = [keypoints_to_candidates(kp14[:, t], config.min_confidence, config.min_view_confidence)
             for t in range(kp14.shape[1])]
     V = len(rig)
     pts = np.stack([c[0][:, 0] for c in cand], axis=1) if cand else np.full((V, 0, 14, 2), np.nan)
     wts = np.stack([c[1][:, 0] for c in cand], axis=1) if cand else np.zeros((V, 0, 14))
     seq = triangulate_keypoint_sequence(pts, rig, config.keypoint, weights=wts, observer=observer, frames=frames)
-    return KeypointStage1(rig, sources, matching, f"{data.format.fmt} ({data.format.reason})", frames, seq)
+    return KeypointStage1(rig, tuple(sources), matching, f"{data.format.fmt} ({data.format.reason})", frames, seq)
 
 
 def declared_format(root: str | os.PathLike) -> str | None:
@@ -306,7 +336,7 @@ class SeededSilhouettes:
         self.observer = observer
         self.previous: dict = {}
 
-    def segment_frame(self, frame: int, images: dict, estimate) -> list:
+    def segment_frame(self, frame: int, images: dict, estimate, others: dict | None = None) -> list:
         """Masks of one frame, rig order (None where a camera has no image or no pose).
 
         Parameters
@@ -314,6 +344,8 @@ class SeededSilhouettes:
         frame : int
         images : dict of str -> ndarray (H, W, 3) uint8 or None
         estimate : toolkit.silhouettes.estimate.FrameEstimate
+        others : dict of str -> list of ndarray (14, 2), optional
+            Other people's joints per camera (pixels): kept out of this person's mask.
         """
         from toolkit.multiview import corrected_rig
 
@@ -332,7 +364,7 @@ class SeededSilhouettes:
             weights[cam.name] = np.isfinite(j2).all(-1).astype(float)
         masks, self.previous = self.segmenter.segment_views(
             imgs, joints2d, weights, rig=Rig(tuple(c for c in self.rig if c.name in imgs)),
-            joints3d=J if use3d else None, previous=self.previous, frame=frame)
+            joints3d=J if use3d else None, previous=self.previous, frame=frame, others=others)
         return [masks.get(c) if c in masks and masks[c].any() else None for c in self.rig.names]
 
 

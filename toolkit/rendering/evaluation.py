@@ -161,12 +161,13 @@ def summarise(per_frame: list[dict]) -> dict:
     Returns
     -------
     dict
-        ``{method: {"psnr", "ssim", "n", "psnr_subject", "coverage", "coverage_min"}}``: means over the
+        ``{method: {"psnr", "ssim", "n", "psnr_subject", "coverage", "coverage_min", "psnr_frame"}}``: means over the
         views with a subject (PSNR capped at :data:`PSNR_CAP_DB`), ``n`` their count, ``coverage_min`` the
-        worst view-frame; NaN where there is none (e.g. ``psnr_subject`` of frames scored before it existed).
+        worst view-frame; NaN where there is none (e.g. ``psnr_subject`` of frames scored before it existed);
+        with several people ``psnr_people``: per person the mean of its region's PSNR.
     """
     acc: dict = {}
-    keys = ("psnr", "ssim", "psnr_subject", "coverage")
+    keys = ("psnr", "ssim", "psnr_subject", "coverage", "psnr_frame")
     for f in per_frame:
         for method, cams in f.items():
             a = acc.setdefault(method, {k: [] for k in keys})
@@ -183,7 +184,17 @@ def summarise(per_frame: list[dict]) -> dict:
     def mean(v):
         return float(np.mean(v)) if v else float("nan")
 
+    people: dict = {}
+    for f in per_frame:
+        for method, cams in f.items():
+            for s in cams.values():
+                for k, v in enumerate(s.get("psnr_people") or []):
+                    if np.isfinite(v):
+                        people.setdefault(method, {}).setdefault(k, []).append(min(v, PSNR_CAP_DB))
     return {m: {"psnr": mean(v["psnr"]), "ssim": mean(v["ssim"]), "n": len(v["psnr"]),
+                **({"psnr_people": [mean(people[m].get(k, [])) for k in range(max(people[m]) + 1)]}
+                   if m in people else {}),
                 "psnr_subject": mean(v["psnr_subject"]), "coverage": mean(v["coverage"]),
+                "psnr_frame": mean(v["psnr_frame"]),
                 "coverage_min": float(np.min(v["coverage"])) if v["coverage"] else float("nan")}
             for m, v in acc.items()}

@@ -136,13 +136,21 @@ class RenderedView:
     alpha: np.ndarray
 
 
-def render_views(result: FrameResult, camera, background: np.ndarray, compositor=None,
+def _person_depth(result: FrameResult, camera) -> float:
+    """Distance (metres) from ``camera`` to a person's joints (their median depth); inf without joints."""
+    J = np.asarray(result.joints, float)
+    ok = np.isfinite(J).all(-1)
+    return float(np.median(camera.depth_of(J[ok]))) if ok.any() else float("inf")
+
+
+def render_views(result, camera, background: np.ndarray, compositor=None,
                  methods=METHODS, observer: Observer | None = None) -> dict:
-    """Render one frame's subject with each method into ``camera`` over ``background``, with its opacity.
+    """Render one frame's people with each method into ``camera`` over ``background``, with their opacity.
 
     Parameters
     ----------
-    result : FrameResult
+    result : FrameResult or sequence of FrameResult
+        One person, or several (drawn far to near: each over what is behind it).
     camera : Camera
         Virtual view (no calibration offset).
     background : ndarray of shape (H, W, 3)
@@ -151,13 +159,36 @@ def render_views(result: FrameResult, camera, background: np.ndarray, compositor
     methods : sequence of str
         Subset of :data:`METHODS`; methods whose model is missing are skipped.
     observer : Observer, optional
-        Passed to the articulated rendering.
+        Passed to the articulated rendering (of the first person).
 
     Returns
     -------
     dict of str -> RenderedView
-        The background alone (opacity 0) for an empty frame (``result.ok`` False).
+        The background alone (opacity 0) where no person is drawn (``result.ok`` False).
     """
+    results = [result] if isinstance(result, FrameResult) else list(result)
+    if len(results) == 1:
+        return _render_one(results[0], camera, background, compositor, methods, observer)
+    order = sorted(range(len(results)), key=lambda k: -_person_depth(results[k], camera))
+    bg = np.asarray(background, np.float32)
+    out: dict = {}
+    for m in methods:
+        img, clear = bg, None
+        for k in order:
+            v = _render_one(results[k], camera, img, compositor, (m,), observer if k == 0 else None).get(m)
+            if v is None:
+                continue
+            img = v.image.astype(np.float32)
+            clear = (1.0 - v.alpha) if clear is None else clear * (1.0 - v.alpha)
+        if clear is not None:
+            out[m] = RenderedView(np.clip(img + 0.5, 0, 255).astype(np.uint8) if img.dtype != np.uint8 else img,
+                                  (1.0 - clear).astype(np.float32))
+    return out
+
+
+def _render_one(result: FrameResult, camera, background: np.ndarray, compositor=None,
+                methods=METHODS, observer: Observer | None = None) -> dict:
+    """One person's :func:`render_views`."""
     from toolkit.rendering.baselines import render_points
     from toolkit.rendering.compositor import CpuCompositor
 
@@ -180,7 +211,7 @@ def render_views(result: FrameResult, camera, background: np.ndarray, compositor
     return out
 
 
-def render_methods(result: FrameResult, camera, background: np.ndarray, compositor=None,
+def render_methods(result, camera, background: np.ndarray, compositor=None,
                    methods=METHODS, observer: Observer | None = None) -> dict:
     """The images of :func:`render_views`: dict of str -> ndarray (H, W, 3) uint8."""
     return {m: v.image for m, v in render_views(result, camera, background, compositor, methods, observer).items()}

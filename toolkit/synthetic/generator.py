@@ -12,6 +12,13 @@ The flow of :func:`generate_scene`:
    achieved calibration error and subject size per camera.
 
 Every report goes to the observer (the recipe passes a rerun observer).
+
+A spec with a ``[players]`` table has several people (:mod:`toolkit.synthetic.players`):
+all are rendered and ray-cast together; the masks are their union, the part
+labels and depth the front-most body's, and the ground truth gains
+``people.npz`` (every person's joints) and ``instances/`` (which person each
+pixel shows).  Player 0 is the subject of ``joints3d.npz`` and ``joints2d.npz``.
+A spec without the table writes exactly what it wrote before the table existed.
 """
 
 from __future__ import annotations
@@ -32,11 +39,15 @@ from toolkit.skeleton import SKELETON_14
 from toolkit.body.model import BodyMesh, BodyModel, BodyShape, dress
 from toolkit.synthetic.depth_sensor import DepthCameraOutput, DepthCameraSpec, render_depth_camera
 from toolkit.synthetic.environment import BACKGROUND_COLOUR, SURROUNDING_COLOURS, field_model, make_environment
+from toolkit.synthetic.players import (Crossing, draw_players, frame_group, group_extent, place_players,
+                                       player_streams, turn_to_camera)
 from toolkit.synthetic.render import Raycaster, RaycastRenderer, SceneRenderer
 from toolkit.synthetic.rigs import make_rig, novel_rig, perturb_rig
 from toolkit.synthetic.spec import SceneSpec
 
-#: Names of the independent random streams drawn from the spec's seed (order matters).
+#: Names of the independent random streams drawn from the spec's seed (order matters).  The extra people
+#: of a ``[players]`` table draw from streams of their own (:func:`toolkit.synthetic.players.player_streams`,
+#: a child of the seed beyond these and the marker capture's), so one-person scenes keep their draws.
 RNG_STREAMS = ("body", "motion", "cameras", "calibration", "environment", "novel", "light", "depth", "outfit")
 
 
@@ -61,6 +72,15 @@ class Scene:
         Evaluation cameras.
     light_dir : ndarray of shape (3,)
         Direction towards the light (world).
+    rngs : dict of str to numpy.random.Generator
+        The streams of :data:`RNG_STREAMS` (as left by the draws above).
+    players : tuple of toolkit.synthetic.players.Player
+        Every person of a spec with a ``[players]`` table (player 0 is ``proportions``, ``body`` and
+        ``joints``); empty for a one-person spec.
+    crossing : Crossing or None
+        The pair crossing mid-sequence (``[players] path = "cross"``).
+    kit_kinds : tuple of str
+        Where each player's outfit comes from (``scene_info.json``).
     """
 
     spec: SceneSpec
@@ -73,16 +93,32 @@ class Scene:
     novel: Rig
     light_dir: np.ndarray
     rngs: dict
+    players: tuple = ()
+    crossing: Crossing | None = None
+    kit_kinds: tuple = ()
 
     def body_mesh(self, t: int) -> BodyMesh:
         """The posed body mesh of frame ``t``."""
         return self.body.mesh(self.joints[t])
 
+    @property
+    def people_joints(self) -> np.ndarray:
+        """Every person's joints, (P, T, 14, 3) metres (P = 1 for a one-person spec)."""
+        return np.stack([p.joints for p in self.players]) if self.players else self.joints[None]
+
+    def posed_bodies(self, t: int) -> list[tuple[int, BodyMesh]]:
+        """``(person index, posed mesh)`` of everyone present at frame ``t``."""
+        if not self.players:
+            return [(0, self.body_mesh(t))]
+        return [(p.index, p.body.mesh(p.joints[t])) for p in self.players if np.isfinite(p.joints[t]).all()]
+
 
 def build_scene(spec: SceneSpec) -> Scene:
-    """Draw the person, motion and cameras of ``spec`` (no rendering)."""
+    """Draw the person (or people), motion and cameras of ``spec`` (no rendering)."""
     seqs = np.random.SeedSequence(spec.seed).spawn(len(RNG_STREAMS))
     rngs = {name: np.random.default_rng(s) for name, s in zip(RNG_STREAMS, seqs)}
+    if spec.players is not None:
+        return _build_players_scene(spec, rngs)
     props = BodyProportions.sample(spec.height_m, rngs["body"])
     shape = BodyShape.sample(props, rngs["body"])  # the draws of BodyModel.sample, dressed in between
     if spec.outfit != "random" or spec.shirt_rgb or spec.trousers_rgb or spec.pattern:
@@ -108,6 +144,55 @@ def build_scene(spec: SceneSpec) -> Scene:
     el = rngs["light"].uniform(np.radians(35), np.radians(70))
     light = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
     return Scene(spec, props, body, joints, rig, measured, errs, novel, light, rngs)
+
+
+def _build_players_scene(spec: SceneSpec, rngs: dict) -> Scene:
+    """:func:`build_scene` of a spec with a ``[players]`` table.
+
+    The people are drawn and laid out first; the cameras are drawn around the
+    group's middle keeping its whole extent in view (``working_radius_m``);
+    then the group is turned about that middle so that the first camera looks
+    along the crossing pair, and cameras some player would leave are widened.
+    """
+    ps = spec.players
+    players, lines, kinds = draw_players(spec, rngs)
+    players, crossing = place_players(players, lines, ps.path, ps.spread_m, spec.fps,
+                                      player_streams(spec.seed)["place"])
+    centre, radius = group_extent(players)
+    kw = dict(working_radius_m=radius)  # the whole group in view
+    if spec.subject_px is not None:
+        kw["subject_px"] = spec.subject_px
+    rig = make_rig(spec.layout, spec.camera_count, spec.resolution, spec.height_m, rngs["cameras"], centre=centre,
+                   spacing_deg=spec.spacing_deg, baseline_m=spec.baseline_m, **kw)
+    if crossing is not None:
+        players = turn_to_camera(players, crossing, rig[0], centre)
+    rig = frame_group(rig, players)
+    points = np.concatenate([p.joints.reshape(-1, 3) for p in players])
+    measured, errs = perturb_rig(rig, spec.calibration_error_px, points, rngs["calibration"])
+    novel = frame_group(novel_rig(spec.layout, rig, spec.novel_count, spec.height_m, rngs["novel"], centre=centre,
+                                  placement=spec.novel_placement, **kw), players)
+    az = rngs["light"].uniform(0, 2 * np.pi)
+    el = rngs["light"].uniform(np.radians(35), np.radians(70))
+    light = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    p0 = players[0]
+    return Scene(spec, p0.proportions, p0.body, p0.joints, rig, measured, errs, novel, light, rngs,
+                 players=tuple(players), crossing=crossing, kit_kinds=tuple(kinds))
+
+
+def _players_info(scene: Scene) -> dict:
+    """The ``scene_info.json`` entries of a scene with several people."""
+    out = {"players": [{"index": p.index, "stature_m": p.proportions.height, "motion": p.motion, "path": p.path,
+                        "outfit": p.outfit(kind),
+                        "subject_height_px": dict(zip(scene.rig.names, _subject_heights_px(scene.rig, p.joints)))}
+                       for p, kind in zip(scene.players, scene.kit_kinds)]}
+    c = scene.crossing
+    if c is not None:
+        cam = scene.rig[0]
+        z = [float(np.nanmean(cam.to_cam(scene.players[k].joints[c.frame])[:, 2])) for k in (c.first, c.second)]
+        out["crossing"] = {"frame": c.frame, "players": [c.first, c.second], "camera": cam.name,
+                           "front": c.first if z[0] < z[1] else c.second, "gap_m": round(c.gap_m, 3),
+                           "sight_offset_deg": round(c.sight_offset_deg, 2)}
+    return out
 
 
 def make_renderer(spec: SceneSpec, surfaces):
@@ -171,6 +256,9 @@ def generate_scene(spec: SceneSpec, out: str | Path, observer: Observer | None =
         joints2d = {cam.name: cam.project(scene.joints) for cam in scene.rig}
         writer.write_joints3d(scene.joints, SKELETON_14.joint_names)
         writer.write_joints2d(joints2d)
+        several = bool(scene.players)  # a [players] table: per-person ground truth too
+        if several:
+            writer.write_people(scene.people_joints, SKELETON_14.joint_names)
         info = {
             "seed": spec.seed,
             "layout": spec.layout,
@@ -184,9 +272,11 @@ def generate_scene(spec: SceneSpec, out: str | Path, observer: Observer | None =
                        "long_trousers": scene.body.shape.long_trousers, "kind": spec.outfit,
                        "shirt_rgb": [round(float(v), 3) for v in scene.body.shape.colours[2]],
                        "trousers_rgb": [round(float(v), 3) for v in scene.body.shape.colours[3]]},
-            "camera_spacing_deg": _spacings_deg(scene.rig, scene.joints),
+            "camera_spacing_deg": _spacings_deg(scene.rig, scene.people_joints.reshape(-1, *scene.joints.shape[1:])),
             "novel_placement": spec.novel_placement,
         }
+        if several:
+            info.update(_players_info(scene))
         atomic_write_text(out / "groundtruth" / "scene_info.json", json.dumps(info, indent=2))
 
         obs.report("rig", rig=scene.rig, path="world/cams")
@@ -207,24 +297,33 @@ def generate_scene(spec: SceneSpec, out: str | Path, observer: Observer | None =
             from tqdm import tqdm
             frames = tqdm(frames, desc=f"rendering {out.name}", unit="frame")
         for t in frames:
-            mesh = scene.body_mesh(t)
-            renderer.set_bodies([(mesh, mesh.shaded_colors(scene.light_dir))])
+            bodies = scene.posed_bodies(t)
+            meshes = [m for _, m in bodies]
+            ids = np.array([0] + [k + 1 for k, _ in bodies], np.uint8)  # caster's body i + 1 -> person id
+            renderer.set_bodies([(m, m.shaded_colors(scene.light_dir)) for m in meshes])
             obs.report("joints3d", frame=t, joints=scene.joints[t], name="groundtruth/joints", skeleton=SKELETON_14)
+            for p in scene.players[1:]:
+                obs.report("joints3d", frame=t, joints=p.joints[t], name=f"groundtruth/people/{p.index}",
+                           skeleton=SKELETON_14)
             for rig, novel in ((scene.rig, False), (scene.novel, True)):
                 for cam in rig:
                     rgb = renderer.render(cam)
-                    labels, subject, depth = caster.cast(cam, [mesh])
+                    labels, subject, depth = caster.cast(cam, meshes)
                     mask = subject > 0
                     if novel:
                         writer.write_novel_image(cam.name, t, rgb)
                         writer.write_novel_mask(cam.name, t, mask)
                         writer.write_novel_parts(cam.name, t, labels)
+                        if several:
+                            writer.write_novel_instances(cam.name, t, ids[subject])
                         root = "world/novel"
                     else:
                         writer.write_frame(cam.name, t, rgb)
                         writer.write_mask(cam.name, t, mask)
                         writer.write_parts(cam.name, t, labels)
                         writer.write_depth(cam.name, t, depth)
+                        if several:
+                            writer.write_instances(cam.name, t, ids[subject])
                         root = "world/cams"
                     cam_path = f"{root}/{cam.name}"
                     obs.report("image", frame=t, camera=cam_path, image=rgb)

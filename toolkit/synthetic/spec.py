@@ -34,6 +34,18 @@ Optional tables: ``[render]`` (``engine``: ``"raycast"`` (default) or
 ``supersample``: rays per pixel side for the ray caster, default 2) and
 ``[depth_camera]`` (see :mod:`toolkit.synthetic.depth_sensor`) and ``[markers]`` (a marker
 capture without videos, see :mod:`toolkit.synthetic.marker_spec`).
+
+Optional ``[players]`` table: a scene with several people (:class:`PlayersSpec`,
+``docs/scene_spec.md``; drawn by :mod:`toolkit.synthetic.players`)::
+
+    [players]
+    count = 4                # 1-6 people; player 0 is the [subject]
+    path = "cross"           # or "spots"
+    kits = "teams"           # or "random"
+
+    [[players.player]]       # optional overrides of players 1, 2, ... in order
+    motion = "walk"
+    height_m = 1.70
 """
 
 from __future__ import annotations
@@ -63,6 +75,74 @@ NOVEL_PLACEMENTS = ("between", "around")
 SPACING_RANGE_DEG = (5.0, 180.0)
 #: Allowed ``[cameras] subject_px`` range, pixels.
 SUBJECT_PX_RANGE = (20.0, 4000.0)
+#: ``[players] count`` limit (player 0 is the ``[subject]``).
+MAX_PLAYERS = 6
+#: ``[players] path`` values: ``cross``: walks and runs along straight lines through the middle of the
+#: volume, the first two crossing mid-sequence; ``spots``: everyone moves on a spot of their own.
+PLAYER_PATHS = ("cross", "spots")
+#: ``[players] kits`` values: two team kits (players 0, 2, 4 and 1, 3, 5), or an outfit of one's own.
+PLAYER_KITS = ("teams", "random")
+#: Default ``[players] kits`` per camera layout.
+DEFAULT_KITS = {"broadcast": "teams", "studio": "random", "trinocular": "random"}
+#: Default stature range of players 1.. (``[players] height_m``), metres.
+PLAYER_HEIGHT_RANGE_M = (1.62, 1.95)
+#: Default ``[players] spread_m`` (radius of the crossing points or spots around the middle, metres) per
+#: path and layout: a pitch has room, a studio frames about 2 m.
+DEFAULT_SPREAD_M = {("cross", "broadcast"): 2.5, ("spots", "broadcast"): 3.0,
+                    ("cross", "studio"): 0.8, ("spots", "studio"): 1.2,
+                    ("cross", "trinocular"): 0.8, ("spots", "trinocular"): 1.2}
+#: Allowed ``[players] spread_m`` range, metres.
+SPREAD_RANGE_M = (0.3, 30.0)
+#: Motions that move along a path (the others stay on a spot).
+TRAVELLING_MOTIONS = ("walk", "run")
+
+
+@dataclass(frozen=True)
+class PlayerSpec:
+    """Overrides of one player (``[[players.player]]``); None = drawn."""
+
+    motion: str | None = None
+    height_m: float | None = None
+    shirt_rgb: tuple | None = None
+    trousers_rgb: tuple | None = None
+
+
+@dataclass(frozen=True)
+class PlayersSpec:
+    """The ``[players]`` table: several people in one scene (player 0 is the ``[subject]``).
+
+    Attributes
+    ----------
+    count : int
+        People in the scene, 1 .. :data:`MAX_PLAYERS`.
+    path : str
+        One of :data:`PLAYER_PATHS`.
+    motion : str
+        Motion of players 1.. (a name of :data:`toolkit.motion.MOTIONS`).
+    kits : str
+        One of :data:`PLAYER_KITS`.
+    team_shirts : tuple of 2 (r, g, b) tuples, optional
+        Shirt colours of the two teams (RGB in [0, 1]); drawn when None.
+    height_m : tuple of float
+        ``(lo, hi)`` stature range of players 1.., metres.
+    spread_m : float
+        Radius of the crossing points or spots around the middle, metres.
+    players : tuple of PlayerSpec
+        Overrides of players 1, 2, ... (at most ``count - 1``).
+    """
+
+    count: int
+    path: str = "cross"
+    motion: str = "walk"
+    kits: str = "teams"
+    team_shirts: tuple | None = None
+    height_m: tuple = PLAYER_HEIGHT_RANGE_M
+    spread_m: float = 2.5
+    players: tuple = ()
+
+    def override(self, k: int) -> PlayerSpec:
+        """The overrides of player ``k`` (>= 1; an empty :class:`PlayerSpec` when none)."""
+        return self.players[k - 1] if 1 <= k <= len(self.players) else PlayerSpec()
 
 
 @dataclass(frozen=True)
@@ -93,6 +173,7 @@ class SceneSpec:
     markers: dict | None = None  # a marker capture (toolkit.synthetic.marker_spec)
     heads: int = 0
     baseline_m: tuple | None = None
+    players: PlayersSpec | None = None  # several people ([players]); None: the subject alone
     source: str = "<spec>"
     text: str = field(default="", repr=False)
 
@@ -173,6 +254,72 @@ def _trinocular(cams: dict, layout: str, count: int, source: str) -> tuple[int, 
     return heads, baseline
 
 
+def _motion_name(table: dict, key: str, where: str, source: str, default=None):
+    """An optional motion name of :data:`toolkit.motion.MOTIONS` (``where`` names the table)."""
+    v = _get(table, key, f"{source}: {where}.", str, default)
+    if v is not None and v not in MOTIONS:
+        raise InputError(f"{source}: {where}.{key}", f"one of {list(MOTIONS)}", repr(v))
+    return v
+
+
+def _players(d: dict, source: str, layout: str, subject_motion: str) -> PlayersSpec | None:
+    """The ``[players]`` table as a :class:`PlayersSpec` (None when absent)."""
+    if "players" not in d:
+        return None
+    S = lambda k: f"{source}: players.{k}"  # noqa: E731
+    t = _get(d, "players", f"{source}: ", dict)
+    _check_keys(t, {"count", "path", "motion", "kits", "team_shirts", "height_m", "spread_m", "player"},
+                "players", source)
+    count = _get(t, "count", f"{source}: players.", int)
+    if not 1 <= count <= MAX_PLAYERS:
+        raise InputError(S("count"), f"an integer from 1 to {MAX_PLAYERS}", str(count))
+    path = _get(t, "path", f"{source}: players.", str, "cross")
+    if path not in PLAYER_PATHS:
+        raise InputError(S("path"), f"one of {list(PLAYER_PATHS)}", repr(path))
+    suits = (lambda m: m in TRAVELLING_MOTIONS) if path == "cross" else \
+        (lambda m: m in MOTIONS and m not in TRAVELLING_MOTIONS)
+    default_motion = subject_motion if suits(subject_motion) else ("walk" if path == "cross" else "idle")
+    motion = _motion_name(t, "motion", "players", source, default_motion)
+    kits = _get(t, "kits", f"{source}: players.", str, DEFAULT_KITS[layout])
+    if kits not in PLAYER_KITS:
+        raise InputError(S("kits"), f"one of {list(PLAYER_KITS)}", repr(kits))
+    team_shirts = None
+    if "team_shirts" in t:
+        v = t["team_shirts"]
+        if kits != "teams":
+            raise InputError(S("team_shirts"), "no value unless kits = 'teams'", repr(v))
+        if not isinstance(v, list) or len(v) != 2:
+            raise InputError(S("team_shirts"), "two [r, g, b] shirt colours (one per team)", repr(v))
+        team_shirts = tuple(_rgb({f"team_shirts[{i}]": c}, f"team_shirts[{i}]", "players", source)
+                            for i, c in enumerate(v))
+    heights = _range(t, "height_m", "players", source, HEIGHT_RANGE_M) or PLAYER_HEIGHT_RANGE_M
+    spread = float(_get(t, "spread_m", f"{source}: players.", (int, float), DEFAULT_SPREAD_M[path, layout]))
+    if not SPREAD_RANGE_M[0] <= spread <= SPREAD_RANGE_M[1]:
+        raise InputError(S("spread_m"), f"a radius from {SPREAD_RANGE_M[0]:g} to {SPREAD_RANGE_M[1]:g} m",
+                         str(spread))
+    entries = _get(t, "player", f"{source}: players.", list, [])
+    if len(entries) > count - 1:
+        raise InputError(S("player"), f"at most {count - 1} entries for count = {count} (the overrides of "
+                         "players 1, 2, ...; player 0 is the [subject])", f"{len(entries)} entries")
+    overrides = []
+    for i, e in enumerate(entries):
+        where = f"players.player[{i}]"
+        if not isinstance(e, dict):
+            raise InputError(f"{source}: {where}", "a table ([[players.player]])", repr(e))
+        _check_keys(e, {"motion", "height_m", "shirt_rgb", "trousers_rgb"}, where, source)
+        h = e.get("height_m")
+        if h is not None:
+            h = float(_get(e, "height_m", f"{source}: {where}.", (int, float)))
+            if not HEIGHT_RANGE_M[0] <= h <= HEIGHT_RANGE_M[1]:
+                raise InputError(f"{source}: {where}.height_m",
+                                 f"a stature between {HEIGHT_RANGE_M[0]} and {HEIGHT_RANGE_M[1]} m", str(h))
+        overrides.append(PlayerSpec(motion=_motion_name(e, "motion", where, source), height_m=h,
+                                    shirt_rgb=_rgb(e, "shirt_rgb", where, source),
+                                    trousers_rgb=_rgb(e, "trousers_rgb", where, source)))
+    return PlayersSpec(count=count, path=path, motion=motion, kits=kits, team_shirts=team_shirts,
+                       height_m=heights, spread_m=spread, players=tuple(overrides))
+
+
 def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) -> SceneSpec:
     """Parse and validate a scene spec from TOML text.
 
@@ -195,7 +342,7 @@ def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) 
     except tomllib.TOMLDecodeError as e:
         raise InputError(source, "valid TOML", f"a syntax error: {e}") from None
     _check_keys(d, {"seed", "frames", "fps", "subject", "cameras", "novel", "render", "depth_camera", "name",
-                    "description", "markers"}, "", source)
+                    "description", "markers", "players"}, "", source)
     S = lambda k: f"{source}: {k}"  # noqa: E731
     seed = _get(d, "seed", f"{source}: ", int)
     if seed < 0:
@@ -284,12 +431,19 @@ def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) 
     if not 1 <= ss <= 4:
         raise InputError(S("render.supersample"), "an integer from 1 to 4", str(ss))
     depth = _get(d, "depth_camera", f"{source}: ", dict, None)
+    players = _players(d, source, layout, motion)
+    if players is not None and markers is not None:
+        raise InputError(S("players"), "no [players] table in a marker capture (one person wears the markers)",
+                         "a [players] table")
+    if players is not None and depth is not None:
+        raise InputError(S("players"), "no [players] table with a [depth_camera] (the depth camera sees the "
+                         "subject alone)", "a [players] table")
     return SceneSpec(seed=seed, frames=frames, fps=fps, height_m=h, motion=motion, camera_count=count,
                      layout=layout, resolution=(res[0], res[1]), calibration_error_px=err, novel_count=ncount,
                      outfit=outfit, shirt_rgb=shirt_rgb, trousers_rgb=trousers_rgb, pattern=pattern,
                      spacing_deg=spacing, subject_px=subject_px, novel_placement=placement,
                      sample_count=sc, engine=engine, supersample=ss, depth_camera=depth, heads=heads,
-                     baseline_m=baseline, markers=markers, source=source, text=text)
+                     baseline_m=baseline, markers=markers, players=players, source=source, text=text)
 
 
 def load_spec(path: str | Path) -> SceneSpec:

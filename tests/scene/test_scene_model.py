@@ -1,0 +1,134 @@
+"""The scene model: backgrounds without the people, the proxy, and view-dependent rendering from other cameras."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from toolkit.cameras import Camera, Rig
+from toolkit.errors import InputError
+from toolkit.scene import SceneModel, SceneProxy, SourceBackground, estimate_background, fit_proxy, people_exclusion
+from toolkit.scene.fit import RADIUS_CANDIDATES
+from toolkit.scene.proxy import SURFACE_GROUND, SURFACE_NONE, SURFACE_WALL
+
+SIZE = (160, 120)
+
+
+def _texture(points: np.ndarray, surface: np.ndarray) -> np.ndarray:
+    """A smooth colour per world point: stripes on the ground, angular bands on the wall, (N, 3) 0..255."""
+    x, y, z = points.T
+    ground = np.stack([128 + 90 * np.sin(x * 2.1), 128 + 90 * np.sin(y * 1.7), 128 + 60 * np.cos((x + y) * 1.3)], 1)
+    th = np.arctan2(y, x)
+    wall = np.stack([128 + 100 * np.sin(th * 9), 128 + 100 * np.cos(th * 7 + z), 90 + 40 * np.sin(z * 2.0)], 1)
+    out = np.where((surface == SURFACE_WALL)[:, None], wall, ground)
+    out[surface == SURFACE_NONE] = 0
+    return out.astype(np.float32)
+
+
+def _ring(n: int, radius: float = 5.0, start: float = 0.0, height: float = 1.6, pitch_to: float = 0.6) -> Rig:
+    cams = []
+    for i in range(n):
+        a = np.radians(start + i * 360.0 / n)
+        eye = [radius * np.cos(a), radius * np.sin(a), height]
+        cams.append(Camera.look_at(f"cam{i}", eye, [0.0, 0.0, pitch_to], size=SIZE, focal_px=110.0))
+    return Rig(tuple(cams))
+
+
+def _truth_view(cam: Camera, proxy: SceneProxy) -> np.ndarray:
+    w, h = cam.size
+    u, v = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
+    o, d = cam.rays(np.stack([u, v], -1).reshape(-1, 2))
+    pts, surf = proxy.intersect(o, d)
+    return _texture(pts, surf).reshape(h, w, 3)
+
+
+def _backgrounds(rig: Rig, proxy: SceneProxy) -> dict:
+    return {cam.name: SourceBackground(_truth_view(cam, proxy), np.ones(cam.size[::-1], np.float32), 1) for cam in rig}
+
+
+def test_background_leaves_out_a_passer_by_and_the_excluded_people():
+    rng = np.random.default_rng(0)
+    h, w = 60, 80
+    empty = rng.integers(40, 200, (h, w, 3)).astype(np.uint8)
+    frames, exclude = [], []
+    for t in range(12):
+        f = empty.copy()
+        x = 5 + 6 * t
+        f[20:40, x:x + 8] = (250, 20, 20)          # walks across: never more than a few frames on a pixel
+        f[5:15, 60:70] = (20, 250, 20)            # stands still all along, but a detector finds it
+        m = np.zeros((h, w), bool)
+        m[3:17, 58:72] = True
+        frames.append(f)
+        exclude.append(m)
+    bg = estimate_background(frames, exclude)
+    err = np.abs(bg.image - empty).max(-1)
+    seen = bg.confidence > 0
+    assert np.median(err[seen]) < 1.0 and np.percentile(err[20:40], 95) < 2.0
+    assert (bg.confidence[5:15, 60:70] == 0).all()     # never seen empty: no confidence
+    assert (bg.confidence[45:, :] == 1).all()
+    with pytest.raises(InputError, match="exclude"):
+        estimate_background(frames, exclude[:3])
+
+
+def test_people_exclusion_covers_the_body_beyond_its_keypoints():
+    kp = np.array([[50, 20, 0.9], [50, 40, 0.9], [40, 60, 0.9], [60, 60, 0.9], [45, 90, 0.9], [55, 90, 0.9],
+                   [10, 10, 0.0]], float)
+    m = people_exclusion([kp], (100, 120))
+    assert m[20:90, 45:55].all() and m[12, 50] and not m[10, 10] and not m[110, 5]
+
+
+def test_proxy_rays_meet_the_ground_and_the_wall():
+    p = SceneProxy((0.0, 0.0), 10.0)
+    o = np.array([[0, 0, 5.0]] * 5)
+    d = np.array([[0, 0, -1.0], [1, 0, 0.0], [0, 1, 1.0], [1, 0, -1.0], [1, 0, -0.1]])
+    pts, surf = p.intersect(o, d)
+    assert list(surf) == [SURFACE_GROUND, SURFACE_WALL, SURFACE_WALL, SURFACE_GROUND, SURFACE_WALL]
+    np.testing.assert_allclose(pts[0], [0, 0, 0], atol=1e-9)
+    np.testing.assert_allclose(pts[1], [10, 0, 5], atol=1e-9)
+    np.testing.assert_allclose(pts[2], [0, 10, 15], atol=1e-9)
+    np.testing.assert_allclose(pts[4], [10, 0, 4], atol=1e-9)  # the ground would be met 50 m out: the wall first
+    outside = p.intersect(np.array([[20.0, 0, 5]]), np.array([[1.0, 0, 0]]))
+    assert outside[1][0] == SURFACE_NONE and np.isnan(outside[0]).all()
+    with pytest.raises(InputError, match="radius"):
+        SceneProxy((0.0, 0.0), -1.0)
+
+
+def test_a_view_no_source_stood_at_is_drawn_from_the_others():
+    proxy = SceneProxy((0.0, 0.0), 12.0)
+    rig = _ring(4)
+    model = SceneModel(rig, _backgrounds(rig, proxy), proxy)
+    target = _ring(4, start=30.0, height=2.2)[0]
+    img, cover, surf = model.render(target, with_surface=True)
+    truth = _truth_view(target, proxy)
+    seen = cover > 0
+    assert seen.mean() > 0.9 and (surf == SURFACE_WALL).any() and (surf == SURFACE_GROUND).any()
+    assert np.median(np.abs(img - truth).max(-1)[seen]) < 4.0
+    # a source's own view comes back as it is (its own rays weigh most)
+    own = model.render(rig[1])[0]
+    assert np.median(np.abs(own - _truth_view(rig[1], proxy)).max(-1)) < 1.0
+    # one source carried alone: black where it does not see
+    carried = model.carry(target, model.nearest_source(target), truth.astype(np.uint8))
+    assert carried.shape == truth.shape and (carried.sum(-1) == 0).any()
+
+
+def test_the_wall_radius_is_found_from_the_sources_agreement():
+    rig = _ring(4, pitch_to=1.4)   # looking across the room: the walls fill the upper half of every view
+    far = 5.0
+    true_radius = far * RADIUS_CANDIDATES[4]
+    proxy, evidence = fit_proxy(rig, _backgrounds(rig, SceneProxy((0.0, 0.0), true_radius)))
+    assert evidence["chosen_by"] == "agreement"
+    assert proxy.radius_m == pytest.approx(true_radius, rel=1e-6), evidence
+    assert np.allclose(proxy.centre, (0.0, 0.0), atol=1e-6)
+
+
+def test_the_model_is_saved_and_loaded_for_the_same_cameras(tmp_path):
+    proxy = SceneProxy((0.5, -0.5), 9.0)
+    rig = _ring(3)
+    model = SceneModel(rig, _backgrounds(rig, proxy), proxy, {"chosen_by": "test"})
+    model.save(tmp_path / "scene")
+    back = SceneModel.load(tmp_path / "scene", rig)
+    assert back.proxy == proxy and back.evidence["chosen_by"] == "test"
+    for cam in rig:
+        assert np.abs(back.backgrounds[cam.name].image - model.backgrounds[cam.name].image).max() <= 0.5
+    with pytest.raises(InputError, match="sources"):
+        SceneModel.load(tmp_path / "scene", Rig(rig.cameras[:2]))

@@ -1,0 +1,309 @@
+"""Several people in one free-viewpoint run: each through stages 1-4, drawn in depth order.
+
+Stage 1 from keypoints (:mod:`toolkit.pipeline.keypoints`) follows one person.
+With ``people="all"`` a run follows every *participant*: the people of
+:func:`toolkit.multiview.tracking.track_people` (seen by two cameras or more, in
+the capture volume, tracked over time) followed in at least
+:data:`PARTICIPANT_MIN_SHARE` of the frames (passers-by are left to the scene
+model).  :func:`triangulate_people` triangulates each participant's own
+keypoints over the sequence, as the one-person stage does.
+
+:func:`estimate_people` then yields per frame a :class:`PeopleFrame`: each
+person's stage-1 estimate and silhouettes.  The silhouettes are made
+*exclusive* (:func:`exclusive_masks`): a pixel two people's silhouettes both
+claim belongs to the one nearer to that camera, and a pixel of a shared
+silhouette (masks given, background subtraction) to the person whose projected
+bones are nearest; so a person partly hidden in a source view is not textured
+with the one in front.  Each person then goes through stages 2-4 on its own
+(:class:`toolkit.pipeline.frame.FrameProcessor`), and
+:func:`toolkit.rendering.freeviewpoint.render_views` draws the people far to
+near in every view.
+
+People keep the index of their track over the whole run (``person_0`` is the
+one followed longest); ``OUT/people3d.npz`` holds their joints.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Iterator
+
+import cv2
+import numpy as np
+
+from toolkit.cameras import Rig
+from toolkit.errors import InputError
+from toolkit.observe import as_observer
+
+__all__ = ["PeopleFrame", "triangulate_people", "estimate_people", "exclusive_masks", "PARTICIPANT_MIN_SHARE",
+           "PEOPLE_CHOICES"]
+
+#: A person followed in at least this share of the frames is a participant (drawn); the others are passers-by.
+PARTICIPANT_MIN_SHARE = 0.25
+#: ``people`` options of a run: every participant, or only the main person (the one-person stage).
+PEOPLE_CHOICES = ("all", "main")
+#: A pixel within this share of a person's image height of its bones may be that person's (half a body's width).
+BODY_HALF_WIDTH_SHARE = 0.12
+
+
+@dataclass
+class PeopleFrame:
+    """Stage 1 of one frame with several people.
+
+    Attributes
+    ----------
+    frame : int
+    estimates : list of FrameEstimate
+        One per person (the run's people order).
+    masks : list of list of (ndarray (H, W) bool or None)
+        Per person, its exclusive silhouette per camera (rig order).
+    names : list of str
+    timings : dict of str -> float
+        The frame's stage-1 seconds (all people).
+    """
+
+    frame: int
+    estimates: list
+    masks: list
+    names: list
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def offsets(self):
+        """The first person's stage-1 offsets (the run's record keeps them)."""
+        return self.estimates[0].offsets
+
+
+def triangulate_people(keypoints, camera_names, rig: Rig, n_frames: int, config, *, fps: float | None = None,
+                       min_share: float = PARTICIPANT_MIN_SHARE, observer=None) -> tuple[list, list]:
+    """Every participant's keypoints triangulated over the sequence.
+
+    Parameters
+    ----------
+    keypoints : path-like
+        The keypoints folder (every person detected, per camera and frame).
+    camera_names : sequence of str
+        All the dataset's cameras.
+    rig : Rig
+        The cameras used (a held-out camera's keypoints are never read).
+    n_frames : int
+    config : toolkit.pipeline.keypoints.KeypointStage1Config
+    fps : float, optional
+    min_share : float
+        A person followed in fewer frames than this share is not a participant.
+    observer : Observer, optional
+
+    Returns
+    -------
+    stages : list of KeypointStage1
+        One per participant, the one followed longest first; the one-person stage's
+        consensus person when nobody is followed long enough.
+    summary : list of dict
+        Per participant: ``person`` (``person_<track>``), ``frames`` followed, ``share``.
+    """
+    from toolkit.multiview.tracking import DEFAULT_FPS, TrackingConfig, frame_detections, track_people
+    from toolkit.pipeline.keypoints import read_dataset_keypoints, triangulate_dataset_keypoints, triangulate_keypoints
+
+    _, _, data = read_dataset_keypoints(keypoints, camera_names, rig, config.fmt, person="most_confident", fps=fps)
+    dets = frame_detections(data.cameras, data.frames, data.keypoints.shape[2])
+    tracks = track_people(dets, rig, TrackingConfig(fps=fps or DEFAULT_FPS))
+    seen = tracks.views > 0 if tracks.n_people else np.zeros((0, len(data.frames)), bool)
+    order = sorted(range(tracks.n_people), key=lambda k: -int(seen[k].sum()))
+    stages, summary = [], []
+    for k in order:
+        share = float(seen[k].mean()) if seen.shape[1] else 0.0
+        if share < min_share:
+            continue
+        stages.append(triangulate_keypoints(tracks.keypoints(dets, k), data, rig, n_frames, config, str(keypoints),
+                                            observer=observer if not stages else None))
+        summary.append({"person": f"person_{k}", "frames": int(seen[k].sum()), "share": round(share, 3)})
+    if not stages:
+        stages = [triangulate_dataset_keypoints(keypoints, camera_names, rig, n_frames, config, fps=fps,
+                                                observer=observer)]
+        summary = [{"person": "person_0", "frames": int(np.sum(stages[0].sequence.success)),
+                    "share": round(float(np.mean(stages[0].sequence.success)), 3) if len(stages[0].frames) else 0.0}]
+    return stages, summary
+
+
+def _depth(cam, joints: np.ndarray) -> float:
+    """Distance (metres) from a camera to a person's joints (their median depth; inf without joints)."""
+    J = np.asarray(joints, float)
+    ok = np.isfinite(J).all(-1)
+    return float(np.median(cam.depth_of(J[ok]))) if ok.any() else float("inf")
+
+
+def _bone_distance(cam, joints: np.ndarray, size: tuple) -> np.ndarray:
+    """Per pixel, the distance (pixels) to the person's bones projected into ``cam`` (inf without joints)."""
+    from toolkit.skeleton import SKELETON_14
+
+    w, h = size
+    uv = cam.project(np.asarray(joints, float))
+    canvas = np.full((h, w), 255, np.uint8)
+    drawn = False
+    for a, b in SKELETON_14.bones:
+        if np.isfinite(uv[[a, b]]).all():
+            p, q = (np.round(uv[a]).astype(int), np.round(uv[b]).astype(int))
+            if max(abs(p).max(), abs(q).max()) < 10 * max(w, h):
+                cv2.line(canvas, tuple(int(v) for v in p), tuple(int(v) for v in q), 0, 1)
+                drawn = True
+    if not drawn:
+        return np.full((h, w), np.inf, np.float32)
+    return cv2.distanceTransform(canvas, cv2.DIST_L2, 3)
+
+
+def _height_px(cam, joints: np.ndarray) -> float:
+    """A person's height in ``cam``'s image (pixels; 0 without joints)."""
+    v = cam.project(np.asarray(joints, float))[:, 1]
+    v = v[np.isfinite(v)]
+    return float(np.ptp(v)) if v.size else 0.0
+
+
+def exclusive_masks(masks: list, joints: list, rig: Rig) -> list:
+    """Each pixel of the people's silhouettes given to one person.
+
+    Parameters
+    ----------
+    masks : list over people of list over cameras of (ndarray (H, W) bool or None)
+        Each person's silhouette per camera (rig order); the same array for several people
+        when the silhouette is shared (masks given, background subtraction).
+    joints : list over people of ndarray of shape (14, 3)
+        Their 3D joints this frame (NaN: unknown).
+    rig : Rig
+        The cameras (as stage 1 corrected them or not: only the order of the people matters).
+
+    Returns
+    -------
+    list over people of list over cameras of (ndarray (H, W) bool or None)
+        A pixel claimed by several people goes to the nearest to the camera among those
+        whose bones pass within a body's width of it, else to the one whose bones are
+        nearest; pixels nobody claims stay unclaimed.
+    """
+    P = len(masks)
+    if P <= 1:
+        return masks
+    out = [[None] * len(rig) for _ in range(P)]
+    for v, cam in enumerate(rig):
+        claimed = [masks[k][v] for k in range(P)]
+        have = [k for k in range(P) if claimed[k] is not None and claimed[k].any()]
+        if not have:
+            continue
+        size = cam.size
+        dist = np.stack([_bone_distance(cam, joints[k], size) for k in range(P)])
+        reach = np.array([max(8.0, BODY_HALF_WIDTH_SHARE * _height_px(cam, joints[k])) for k in range(P)])
+        reach = reach[:, None, None]
+        depth = np.array([_depth(cam, joints[k]) for k in range(P)])
+        # the nearest person among those whose bones reach the pixel, else the one whose bones are nearest
+        near = dist <= reach
+        key = np.where(near, depth[:, None, None], np.inf)
+        owner = np.where(near.any(0), np.argmin(key, 0), np.argmin(dist, 0))
+        for k in range(P):
+            if claimed[k] is None:
+                continue
+            out[k][v] = claimed[k] & (owner == k)
+    return out
+
+
+def estimate_people(dataset, keypoints, rig: Rig, config, *, frames=None, silhouettes: str = "auto",
+                    masks_dir=None, foreground=None, observer=None, min_share: float = PARTICIPANT_MIN_SHARE,
+                    log=None) -> Iterator[PeopleFrame]:
+    """Stage 1 of every participant, frame by frame (see the module docstring).
+
+    Parameters are those of :func:`toolkit.pipeline.keypoints.estimate_from_keypoints`, and
+    ``min_share`` (:func:`triangulate_people`) and ``log`` (told how many people are followed).
+
+    Yields
+    ------
+    PeopleFrame
+    """
+    from toolkit.pipeline.keypoints import SeededSilhouettes, choose_silhouettes, estimate_from_keypoints
+
+    obs = as_observer(observer)
+    t0 = time.perf_counter()
+    stages, summary = triangulate_people(keypoints, dataset.camera_names, rig, dataset.n_frames, config,
+                                         fps=getattr(dataset, "fps", None), min_share=min_share, observer=observer)
+    names = [s["person"] for s in summary]
+    t_kp = (time.perf_counter() - t0) / max(len(stages[0].frames), 1)
+    if log is not None:
+        log(f"people: {len(stages)} followed (" + ", ".join(f"{s['person']} in {s['frames']} frames"
+                                                         for s in summary) + ")")
+    obs.report("text", name="stage1/people", text=str(summary))
+    if len(stages) == 1:
+        for est, masks in estimate_from_keypoints(dataset, keypoints, rig, config, frames=frames,
+                                                  silhouettes=silhouettes, masks_dir=masks_dir,
+                                                  foreground=foreground, observer=observer, stage1=stages[0]):
+            yield PeopleFrame(est.frame, [est], [masks], names, dict(est.timings))
+        return
+    plates = {c: p for c in rig.names if (p := dataset.background(c)) is not None}
+    source = choose_silhouettes(silhouettes, masks_dir, len(plates) == len(rig.names))
+    if source != "seeded":
+        # a shared silhouette (masks given, background subtraction) split between the people
+        gens = estimate_from_keypoints(dataset, keypoints, rig, config, frames=frames, silhouettes=silhouettes,
+                                       masks_dir=masks_dir, foreground=foreground, observer=observer,
+                                       stage1=stages[0])
+        for est, masks in gens:
+            t1 = time.perf_counter()
+            ests = [est] + [s.estimate(est.frame) for s in stages[1:]]
+            shared = [masks] * len(stages)
+            excl = exclusive_masks(shared, [e.joints3d for e in ests], rig)
+            timings = dict(est.timings)
+            timings["stage1"] = timings.get("stage1", 0.0) + time.perf_counter() - t1 + t_kp * (len(stages) - 1)
+            yield PeopleFrame(est.frame, ests, excl, names, timings)
+        return
+    todo = list(range(dataset.n_frames)) if frames is None else [int(t) for t in frames]
+    seeded = [SeededSilhouettes(rig, observer=observer if k == 0 else None) for k in range(len(stages))]
+    for t in todo:
+        t1 = time.perf_counter()
+        ests = [s.estimate(t) for s in stages]
+        images = {}
+        for c in rig.names:
+            try:
+                images[c] = dataset.frame(c, t)
+            except (InputError, IndexError):
+                images[c] = None
+            if images[c] is not None:
+                obs.report("image", camera=c, image=images[c], frame=t)
+        masks = []
+        for k, e in enumerate(ests):
+            others = {}
+            for v, cam in enumerate(rig):
+                others[cam.name] = [cam.project(np.asarray(o.joints3d, float)) for j, o in enumerate(ests)
+                                    if j != k and np.isfinite(np.asarray(o.joints3d, float)).all(-1).sum() >= 6]
+            masks.append(seeded[k].segment_frame(t, images, e, others=others))
+        excl = exclusive_masks(masks, [e.joints3d for e in ests], rig)
+        for k, person in enumerate(excl):
+            for c, m in zip(rig.names, person):
+                if m is not None:
+                    obs.report("mask", camera=c, mask=m, name=f"stage1/silhouette/{names[k]}", frame=t)
+        dt = time.perf_counter() - t1
+        timings = {"foreground": dt, "keypoints": t_kp * len(stages), "stage1": dt + t_kp * len(stages)}
+        for e in ests:
+            e.timings.update(timings)
+        yield PeopleFrame(t, ests, excl, names, timings)
+
+
+def combined_labels(results: list, rig: Rig) -> dict:
+    """Every person's part labels in one image per camera, the nearest person's where they overlap.
+
+    Parameters
+    ----------
+    results : list of FrameResult
+        One per person (their ``labels`` per camera name).
+    rig : Rig
+
+    Returns
+    -------
+    dict of str -> ndarray (H, W) uint8
+    """
+    out = {}
+    for cam in rig:
+        order = sorted(range(len(results)), key=lambda k: -_depth(cam, results[k].joints))
+        lab = None
+        for k in order:
+            mine = results[k].labels.get(cam.name)
+            if mine is None:
+                continue
+            lab = mine.copy() if lab is None else np.where(mine > 0, mine, lab)
+        if lab is not None:
+            out[cam.name] = lab
+    return out

@@ -1,0 +1,269 @@
+"""The scene model: the sources' empty views carried on the proxy into any camera.
+
+:meth:`SceneModel.render` draws the static scene seen by a camera: each pixel's
+ray meets the proxy (:class:`~toolkit.scene.SceneProxy`) at a point, every
+source camera that sees that point in its image gives its background colour
+there, and the colours are blended view-dependently: a source's weight is its
+confidence in that pixel (:class:`~toolkit.scene.SourceBackground`) times
+``1 / (1 + angle / ANGLE_SCALE_DEG)^2``, the angle being between the view's ray
+and the source's ray at the point (the source that looks most alike counts
+most, as in unstructured lumigraph rendering).  A small
+:data:`CONFIDENCE_FLOOR` keeps places that no source ever saw empty drawn
+(from whichever source sees them) rather than black.
+
+:meth:`SceneModel.carry` draws a given image of ONE source the same way (the
+"nearest source carried through the proxy" baseline: the people in it lie flat
+on the ground).
+
+:func:`toolkit.scene.build.build_scene_model` estimates it from a dataset's videos (frames
+sampled over the run, the detected people left out) and
+:meth:`SceneModel.save` / :meth:`SceneModel.load` keep it in a run folder::
+
+    scene/scene.json                 proxy, sources, samples, evidence of the radius
+    scene/background/<camera>.png    the camera's estimated empty view, RGB uint8
+    scene/confidence/<camera>.png    its confidence, uint8 (255 = 1)
+"""
+
+from __future__ import annotations
+
+import json
+from collections import OrderedDict
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from toolkit.cameras import Camera, Rig
+from toolkit.errors import InputError
+from toolkit.scene.backgrounds import SourceBackground
+from toolkit.scene.proxy import SURFACE_NONE, SceneProxy
+
+__all__ = ["SceneModel", "ANGLE_SCALE_DEG", "CONFIDENCE_FLOOR", "RENDERS_KEPT"]
+
+#: Angle (degrees) at which a source's weight has fallen to a quarter.
+ANGLE_SCALE_DEG = 4.0
+#: Added to every source's confidence (a place never seen empty is still drawn).
+CONFIDENCE_FLOOR = 1e-4
+#: Renders of fixed cameras kept (an LRU; a camera path's views are drawn once each).
+RENDERS_KEPT = 8
+#: A source's image border, undistorted, is widened by this share when deciding what it sees.
+FRUSTUM_MARGIN = 0.02
+
+
+def _frustum(cam: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds ``(lo, hi)`` of the normalised image coordinates (x/z, y/z) a camera sees."""
+    w, h = cam.size
+    s = np.linspace(-0.5, 1.0, 65)
+    border = np.concatenate([np.stack([s * w, np.full_like(s, -0.5)], 1), np.stack([s * w, np.full_like(s, h - 0.5)], 1),
+                             np.stack([np.full_like(s, -0.5), s * h], 1), np.stack([np.full_like(s, w - 0.5), s * h], 1)])
+    n = cam.undistort_points(border)
+    lo, hi = np.nanmin(n, 0), np.nanmax(n, 0)
+    pad = FRUSTUM_MARGIN * (hi - lo)
+    return lo - pad, hi + pad
+
+
+#: Holes are filled on an image reduced to at most this many pixels on its long side.
+FILL_SIZE_PX = 320
+
+
+def _fill(img: np.ndarray, hole: np.ndarray) -> np.ndarray:
+    """``img`` (H, W, 3) float32 with ``hole`` (H, W) bool filled from the surroundings (OpenCV's
+    Telea inpainting on a reduced image: the fill is smooth anyway)."""
+    h, w = hole.shape
+    s = min(1.0, FILL_SIZE_PX / max(h, w))
+    size = (max(1, int(round(w * s))), max(1, int(round(h * s))))
+    small = cv2.resize(np.clip(img + 0.5, 0, 255).astype(np.uint8), size, interpolation=cv2.INTER_AREA)
+    # a reduced pixel is a hole only when all of it is (partly seen pixels keep their seen colour)
+    shole = (cv2.resize(hole.astype(np.float32), size, interpolation=cv2.INTER_AREA) > 0.999).astype(np.uint8)
+    filled = cv2.inpaint(small, shole, 3, cv2.INPAINT_TELEA)
+    big = cv2.resize(filled, (w, h), interpolation=cv2.INTER_LINEAR).astype(np.float32)
+    out = img.copy()
+    out[hole] = big[hole]
+    return out
+
+
+def _key(cam: Camera) -> bytes:
+    return cam.K.tobytes() + cam.dist.tobytes() + cam.cam_from_world.tobytes() + np.asarray(cam.size).tobytes()
+
+
+class SceneModel:
+    """The static scene of a capture: source backgrounds on a proxy.
+
+    Parameters
+    ----------
+    rig : Rig
+        The source cameras (a held-out camera is not among them).
+    backgrounds : dict of str -> SourceBackground
+        One per camera of ``rig``.
+    proxy : SceneProxy
+    evidence : dict, optional
+        How the proxy was chosen (kept in ``scene.json``).
+    fill_holes : bool
+        Fill the pixels no source sees from their surroundings (:func:`_fill`) rather than
+        leaving them black.
+    """
+
+    def __init__(self, rig: Rig, backgrounds: dict, proxy: SceneProxy, evidence: dict | None = None,
+                 fill_holes: bool = True):
+        self.fill_holes = bool(fill_holes)
+        missing = [c for c in rig.names if c not in backgrounds]
+        if missing:
+            raise InputError("SceneModel: backgrounds", f"one per source camera {rig.names}", f"none for {missing}")
+        for cam in rig:
+            b = backgrounds[cam.name]
+            if b.image.shape[:2] != cam.size[::-1]:
+                raise InputError(f"SceneModel: background of {cam.name}", f"an image of {cam.size[0]}x{cam.size[1]}",
+                                 f"{b.image.shape[1]}x{b.image.shape[0]}")
+        self.rig, self.backgrounds, self.proxy = rig, dict(backgrounds), proxy
+        self.evidence = dict(evidence or {})
+        self._frusta = {cam.name: _frustum(cam) for cam in rig}
+        self._kept: OrderedDict = OrderedDict()
+
+    # ------------------------------------------------------------------ rendering
+    def _geometry(self, camera: Camera):
+        """The proxy points (N, 3), surfaces (N,) and unit view rays (N, 3) of the camera's pixels."""
+        w, h = camera.size
+        u, v = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+        o, d = camera.rays(np.stack([u, v], -1).reshape(-1, 2))
+        pts, surf = self.proxy.intersect(o, d)
+        return pts, surf, d
+
+    def _sample(self, cam: Camera, pts: np.ndarray, images: list, shape: tuple) -> tuple[list, np.ndarray]:
+        """The images of source ``cam`` sampled at the proxy points, and where it sees them (N,) bool."""
+        pc = cam.to_cam(pts)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            n = pc[:, :2] / pc[:, 2:3]
+        lo, hi = self._frusta.get(cam.name) or _frustum(cam)
+        sees = (pc[:, 2] > 1e-6) & np.all((n >= lo) & (n <= hi), axis=1)
+        uv = np.full((pts.shape[0], 2), -1e4, np.float32)
+        if sees.any():
+            uv[sees] = cam.project(pts[sees])
+        sees &= np.isfinite(uv).all(1) & cam.in_image(uv)
+        mx = np.ascontiguousarray(uv[:, 0].reshape(shape))
+        my = np.ascontiguousarray(uv[:, 1].reshape(shape))
+        out = [cv2.remap(np.asarray(im, np.float32), mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+               .reshape(pts.shape[0], -1) for im in images]
+        return out, sees
+
+    def render(self, camera: Camera, with_surface: bool = False):
+        """The static scene seen by ``camera``.
+
+        Parameters
+        ----------
+        camera : Camera
+            Any camera whose centre lies inside the proxy's cylinder.
+        with_surface : bool
+            Also return which surface each pixel shows.
+
+        Returns
+        -------
+        image : ndarray of shape (H, W, 3) float32
+            0..255 (0 where no source sees the pixel's proxy point).
+        coverage : ndarray of shape (H, W) float32
+            In [0, 1]: the best confidence among the sources seeing the pixel (0: none).
+        surface : ndarray of shape (H, W) uint8
+            Only with ``with_surface``: :data:`toolkit.scene.proxy.SURFACE_GROUND`, ``_WALL`` or ``_NONE``.
+        """
+        key = _key(camera)
+        if not with_surface and key in self._kept:
+            self._kept.move_to_end(key)
+            return self._kept[key]
+        w, h = camera.size
+        pts, surf, view = self._geometry(camera)
+        acc = np.zeros((pts.shape[0], 3), np.float64)
+        wsum = np.zeros(pts.shape[0], np.float64)
+        cover = np.zeros(pts.shape[0], np.float32)
+        hit = surf != SURFACE_NONE
+        for cam in self.rig:
+            b = self.backgrounds[cam.name]
+            (col, conf), sees = self._sample(cam, pts, [b.image, b.confidence], (h, w))
+            sees &= hit
+            if not sees.any():
+                continue
+            src = pts[sees] - cam.center
+            src /= np.linalg.norm(src, axis=1, keepdims=True)
+            ang = np.degrees(np.arccos(np.clip((src * view[sees]).sum(1), -1.0, 1.0)))
+            wt = (conf[sees, 0] + CONFIDENCE_FLOOR) / (1.0 + ang / ANGLE_SCALE_DEG) ** 2
+            acc[sees] += wt[:, None] * col[sees]
+            wsum[sees] += wt
+            cover[sees] = np.maximum(cover[sees], conf[sees, 0])
+        img = np.zeros((pts.shape[0], 3), np.float32)
+        ok = wsum > 0
+        img[ok] = acc[ok] / wsum[ok, None]
+        img = img.reshape(h, w, 3)
+        if self.fill_holes and not ok.all() and ok.any():
+            img = _fill(img, ~ok.reshape(h, w))
+        out = (img, cover.reshape(h, w))
+        for a in out:
+            a.flags.writeable = False
+        if with_surface:
+            return out + (surf.reshape(h, w),)
+        self._kept[key] = out
+        while len(self._kept) > RENDERS_KEPT:
+            self._kept.popitem(last=False)
+        return out
+
+    def nearest_source(self, camera: Camera) -> str:
+        """The source camera whose view of the proxy's centre is closest in angle to ``camera``'s."""
+        c = np.r_[np.asarray(self.proxy.centre, float), self.proxy.ground_z + 1.0]
+        v = c - camera.center
+        v /= np.linalg.norm(v)
+        best, name = -2.0, self.rig.names[0]
+        for cam in self.rig:
+            s = c - cam.center
+            s /= np.linalg.norm(s)
+            if float(s @ v) > best:
+                best, name = float(s @ v), cam.name
+        return name
+
+    def carry(self, camera: Camera, source: str, image: np.ndarray) -> np.ndarray:
+        """One image of source camera ``source`` carried into ``camera`` through the proxy.
+
+        Returns
+        -------
+        ndarray of shape (H, W, 3) uint8
+            Black where the source does not see the pixel's proxy point.
+        """
+        cam = self.rig[source]
+        w, h = camera.size
+        pts, surf, _ = self._geometry(camera)
+        (col,), sees = self._sample(cam, pts, [image], (h, w))
+        sees &= surf != SURFACE_NONE
+        out = np.zeros((pts.shape[0], 3), np.float32)
+        out[sees] = col[sees]
+        return np.clip(out.reshape(h, w, 3) + 0.5, 0, 255).astype(np.uint8)
+
+    # ------------------------------------------------------------------ storage
+    def save(self, folder: str | Path) -> Path:
+        """Write ``scene.json`` and the backgrounds into ``folder`` (``scene.json`` last)."""
+        from toolkit.io import atomic_write_png, atomic_write_text
+
+        folder = Path(folder)
+        for name, b in self.backgrounds.items():
+            atomic_write_png(folder / "background" / f"{name}.png", np.clip(b.image + 0.5, 0, 255).astype(np.uint8))
+            atomic_write_png(folder / "confidence" / f"{name}.png",
+                             np.clip(np.rint(b.confidence * 255), 0, 255).astype(np.uint8))
+        info = {"sources": self.rig.names, "samples": {n: b.samples for n, b in self.backgrounds.items()},
+                "proxy": self.proxy.to_json(), "evidence": self.evidence}
+        return atomic_write_text(folder / "scene.json", json.dumps(info, indent=2, allow_nan=True))
+
+    @classmethod
+    def load(cls, folder: str | Path, rig: Rig) -> "SceneModel":
+        """The model saved in ``folder`` for the cameras ``rig`` (the run's calibration)."""
+        from toolkit.io.frames import read_png
+
+        folder = Path(folder)
+        path = folder / "scene.json"
+        try:
+            info = json.loads(path.read_text())
+        except (OSError, ValueError) as e:
+            raise InputError(str(path), "a scene model's scene.json", str(e)) from e
+        if sorted(info.get("sources", [])) != sorted(rig.names):
+            raise InputError(f"{path}: sources", f"the run's cameras {rig.names}", repr(info.get("sources")))
+        bgs = {}
+        for cam in rig:
+            img = read_png(folder / "background" / f"{cam.name}.png")
+            conf = read_png(folder / "confidence" / f"{cam.name}.png")
+            bgs[cam.name] = SourceBackground(np.asarray(img, np.float32), np.asarray(conf, np.float32) / 255.0,
+                                             int(info.get("samples", {}).get(cam.name, 0)))
+        return cls(rig, bgs, SceneProxy.from_json(info.get("proxy", {}), str(path)), info.get("evidence"))
