@@ -361,6 +361,28 @@ def test_sync_lines_the_cameras_up_in_the_imported_dataset(tmp_path, blob_backen
             np.testing.assert_allclose(kp[48:50], truth, atol=BLOB_TOL_PX)
 
 
+def test_sync_of_a_trial_uses_its_calibration_without_being_told(tmp_path, blob_backend):
+    """detect_keypoints.py TRIAL --sync: the trial's own calibration makes it the ray-geometry solve."""
+    from dataclasses import replace
+
+    from toolkit.cameras import Camera, Rig
+    from toolkit.pipeline.detect_keypoints import detect_videos
+
+    size = (160, 120)
+    rig = Rig(tuple(Camera.look_at(f"cam{i + 1:02d}", [4 * np.cos(a), 4 * np.sin(a), 1.5], [0, 0, 1], size=size,
+                                   focal_px=120.0) for i, a in enumerate(np.linspace(0, 2 * np.pi, 3, endpoint=False))))
+    rng = np.random.default_rng(1)
+    T = 90
+    X = np.cumsum(np.where(rng.random((T, 3)) < 0.3, rng.normal(0, 0.08, (T, 3)), 0.0), axis=0).clip(-0.6, 0.6)
+    X += [0, 0, 1.0]
+    late = {"cam01": 0, "cam02": 5, "cam03": 0}
+    trial = _videos_only_trial(tmp_path, rig, {c.name: c.project(X[late[c.name]:]) for c in rig})
+    lines = []
+    res = detect_videos(trial, tmp_path / "kp", replace(blob_backend, sync=True), log=lines.append)
+    assert res.sync.method == "rays" and res.sync.offsets == late
+    assert any("the trial's calibration" in line for line in lines)
+
+
 def test_free_viewpoint_input_imports_a_trial_once_and_passes_a_dataset_through(tmp_path, blob_backend):
     from toolkit.pipeline.trial_input import prepare_run_input
 

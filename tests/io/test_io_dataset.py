@@ -288,6 +288,18 @@ def test_bad_frame_folders(dataset_root):
     _expect(dataset_root, "000003.png", "000002.png")
 
 
+def test_keypoints_folder_holds_cameras_and_the_detectors_records(dataset_root):
+    """keypoints/: one folder per camera, plus detection.json / sync.json of recipes/detect_keypoints.py."""
+    kp = dataset_root / "keypoints"
+    (kp / "cam_a").mkdir(parents=True)
+    for name in ("detection.json", "sync.json"):
+        (kp / name).write_text("{}")
+    with Dataset.open(dataset_root) as ds:
+        assert ds.has_keypoints and ds.keypoint_dir("cam_a") == kp / "cam_a"
+    (kp / "notes.json").write_text("{}")
+    _expect(dataset_root, kp / "notes.json", "'notes.json'")
+
+
 def test_novel_folder_needs_calibration(dataset_root):
     (dataset_root / "groundtruth/novel/calibration.toml").unlink()
     _expect(dataset_root, dataset_root / "groundtruth/novel/calibration.toml", "no such file")

@@ -23,6 +23,7 @@ offset 0 and is reported as not synchronised.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -285,6 +286,13 @@ POLISH_SWEEPS = 3
 EXHAUSTIVE_LIMIT = 2_000_000
 
 
+def _nanmedian(x: np.ndarray, axis: int) -> np.ndarray:
+    """``np.nanmedian`` without the warning for all-NaN slices (they give NaN)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmedian(x, axis=axis, keepdims=True)
+
+
 def _camera_rays(people_per_frame: list, camera, min_confidence: float) -> np.ndarray:
     """Unit ray directions ``(T, P, K, 3)`` of every person's keypoints (NaN where missing or unsure)."""
     n_people = max([len(f) for f in people_per_frame] + [1])
@@ -344,7 +352,7 @@ def _signed_residuals(oa: np.ndarray, da: np.ndarray, ob: np.ndarray, db: np.nda
     with np.errstate(invalid="ignore", divide="ignore"):
         s = (n @ (ob - oa)) / sine
     s[~(sine >= MIN_RAY_SINE)] = np.nan            # near-parallel rays, or NaN
-    med = np.abs(_nanmedian(s, -1))[..., 0]
+    med = _nanmedian(np.abs(s), -1)[..., 0]
     med[np.isfinite(s).sum(-1) < MIN_SHARED_KEYPOINTS] = np.inf
     seen_a = (np.isfinite(a[..., 0]).sum(-1) >= MIN_SHARED_KEYPOINTS).sum((1, 2))
     seen_b = (np.isfinite(b[..., 0]).sum(-1) >= MIN_SHARED_KEYPOINTS).sum((1, 2))
@@ -401,15 +409,6 @@ def _frame_costs(residuals: np.ndarray, unpaired: np.ndarray) -> np.ndarray:
     total = np.nansum(per_pair, axis=1) + unpaired * RESIDUAL_CLIP_M
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(count > 0, total / np.maximum(count, 1), np.nan)
-
-
-def _nanmedian(x: np.ndarray, axis: int) -> np.ndarray:
-    """``np.nanmedian`` without the warning for all-NaN slices (they give NaN)."""
-    import warnings
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return np.nanmedian(x, axis=axis, keepdims=True)
 
 
 def _lag_curve(costs: np.ndarray, max_offset: int, min_overlap: int, sweeps: int = POLISH_SWEEPS) -> np.ndarray:

@@ -47,6 +47,7 @@ from toolkit.io.field_model import read_field_model
 from toolkit.io.frames import FRAME_DIGITS, frame_filename, mm_to_depth, read_png
 from toolkit.io.layout import (
     FPS_RELATIVE_TOLERANCE,
+    KEYPOINT_RECORDS,
     NOVEL_RESERVED,
     DatasetLayout,
     camera_of,
@@ -193,7 +194,7 @@ class Dataset:
             if not L.keypoints_dir.is_dir():
                 raise InputError(str(L.keypoints_dir), "a folder of one keypoint folder per camera", "a file")
             for p in sorted(L.keypoints_dir.iterdir()):
-                if p.name.startswith("."):
+                if p.name.startswith(".") or (p.is_file() and p.name in KEYPOINT_RECORDS):
                     continue
                 if not p.is_dir() or p.name not in self.rig.names:
                     raise InputError(str(p), f"a folder named after a camera {self.rig.names}", f"{p.name!r}")

@@ -21,6 +21,7 @@ from toolkit.io.frames import FRAME_DIGITS, frame_filename
 __all__ = [
     "DatasetLayout",
     "FPS_RELATIVE_TOLERANCE",
+    "KEYPOINT_RECORDS",
     "MAX_PEOPLE",
     "NOVEL_RESERVED",
     "camera_of",
@@ -37,6 +38,9 @@ __all__ = [
 FPS_RELATIVE_TOLERANCE = 1e-3
 #: Names reserved inside ``groundtruth/novel/`` (a novel camera cannot be called so).
 NOVEL_RESERVED = ("masks", "parts", "instances")
+#: Files ``recipes/detect_keypoints.py`` writes beside the camera folders of a keypoints folder (what it did,
+#: the cameras' frame offsets): allowed in a dataset's ``keypoints/``.
+KEYPOINT_RECORDS = ("detection.json", "sync.json")
 #: Most people an instance map can tell apart (ids 1..255 in a uint8 PNG).
 MAX_PEOPLE = 255
 

@@ -65,7 +65,7 @@ class TrackingConfig:
     gate_m, max_speed_m_s, max_gap_s : float
         The matching gate and the longest gap (see the module docstring).
     min_frames : int
-        Shortest track kept, frames.
+        Shortest track kept, frames (a sequence shorter than that keeps the tracks seen in all its frames).
     max_unexplained_share : float
         Tracks unexplained by a camera in sight in more than this share of their frames
         are dropped (:data:`MAX_UNEXPLAINED_SHARE`).
@@ -236,7 +236,8 @@ def track_people(detections, rig: Rig, config: TrackingConfig = TrackingConfig()
                 [", ".join(f"{rig[v].name}#{i}" for v, i in enumerate(g) if i >= 0) + f" ({1000 * c:.0f} mm)"
                  for g, c in zip(fa.groups, fa.cost)]
                 + [f"one view only: {rig[v].name}#{i}" for v, i in fa.unassigned]))
-    kept = [tr for tr in tracks if len(tr["rows"]) >= config.min_frames
+    shortest = min(config.min_frames, T)  # a sequence shorter than that keeps the people seen all along it
+    kept = [tr for tr in tracks if len(tr["rows"]) >= shortest
             and np.mean([per_frame[t].unexplained[p] > 0 for t, p in tr["rows"].items()])
             <= config.max_unexplained_share]
     n = len(kept)

@@ -368,9 +368,25 @@ def detect_videos(source, out, config: DetectConfig = DetectConfig(), log=print)
            "detector_fps": round(result.detector_fps, 2) if np.isfinite(result.detector_fps) else None}
     atomic_write_text(out / DETECTION_FILE, json.dumps(doc, indent=1))
     if config.sync:
-        result.sync = synchronise(out, config.max_sync_offset, config.calibration)
+        calibration = config.calibration if config.calibration is not None else _trial_calibration(source)
+        if calibration is not None and config.calibration is None:
+            log(f"sync: by the rays of the trial's calibration {calibration}")
+        result.sync = synchronise(out, config.max_sync_offset, calibration)
         log("sync: " + ", ".join(f"{k} {v:+d}" for k, v in result.sync.offsets.items()))
     return result
+
+
+def _trial_calibration(source):
+    """The calibration file of a Pose2Sim trial given as the videos' source (None otherwise): ``--sync``
+    then solves by ray geometry, which finds offsets the motion correlation misses."""
+    from toolkit.io.pose2sim import is_pose2sim_trial, read_pose2sim_trial
+
+    if isinstance(source, (list, tuple)) or not Path(source).is_dir():
+        return None
+    try:
+        return read_pose2sim_trial(source).calibration if is_pose2sim_trial(source) else None
+    except InputError:
+        return None
 
 
 # --------------------------------------------------------------------------- synchronisation
@@ -501,5 +517,7 @@ def summary_lines(result: DetectResult) -> list[str]:
     if result.sync is not None:
         s = result.sync
         lines.append("sync offsets (frames started late): " + ", ".join(
-            f"{k} {v}" + ("" if s.trusted[k] else " (untrusted: weak correlation)") for k, v in s.offsets.items()))
+            f"{k} {v}" + ("" if s.trusted[k] else " (untrusted: " + (
+                "other offsets fit the rays almost as well)" if s.method == "rays" else "weak correlation)"))
+            for k, v in s.offsets.items()))
     return lines

@@ -199,21 +199,22 @@ def _foreground(config: FreeViewpointRunConfig):
 SCENE_FOLDER = "scene"
 
 
-def _scene_model(ds, rig, config: FreeViewpointRunConfig, out: Path, n: int, log) -> None:
+def _scene_model(ds, rig, config: FreeViewpointRunConfig, out: Path, n: int, log, observer=None) -> None:
     """Build the run's scene model from the source videos into ``OUT/scene`` (kept when a resumed run
-    finds it made for the same cameras)."""
+    finds it made for the same cameras); shown to ``observer``."""
     from toolkit.scene import SceneModel, build_scene_model
 
     folder = out / SCENE_FOLDER
     if (folder / "scene.json").exists():
         try:
-            SceneModel.load(folder, rig)
+            SceneModel.load(folder, rig).report(observer)
             return
         except InputError:
             shutil.rmtree(folder, ignore_errors=True)
     t0 = time.perf_counter()
     model = build_scene_model(ds, rig, n, foreground=_foreground(config), log=log)
     model.save(folder)
+    model.report(observer)
     if log is not None:
         log(f"scene model of {len(rig)} cameras from {len(model.evidence['frames_sampled'])} frames each "
             f"({time.perf_counter() - t0:.1f} s): {folder}")
@@ -477,6 +478,22 @@ def _warm_imports() -> None:
         importlib.import_module(m)
 
 
+def _match_people(estimated: np.ndarray, truth: np.ndarray) -> list:
+    """Each estimated person's true person (Hungarian on the mean joint distance; None when unmatched)
+    and joints: ``[(true index or None, (T, 14, 3)), ...]`` for ``estimated`` (P, T, 14, 3)."""
+    from scipy.optimize import linear_sum_assignment
+
+    cost = np.full((len(estimated), len(truth)), 1e6)
+    for i, E in enumerate(estimated):
+        for k, G in enumerate(truth):
+            d = np.linalg.norm(E - G, axis=-1)
+            if np.isfinite(d).any():
+                cost[i, k] = float(np.nanmean(d))
+    rows, cols = linear_sum_assignment(cost)
+    hit = {int(r): int(c) for r, c in zip(rows, cols) if cost[r, c] < 1e6}
+    return [(hit.get(i), E) for i, E in enumerate(estimated)]
+
+
 def _write_people(out: Path, records: list, n: int) -> dict:
     """``people3d.npz`` (``joints`` (P, T, 14, 3) metres, ``people`` (P,) names, ``names`` (14,) joint names)
     when the run followed several people; returns per person the frames drawn (empty otherwise)."""
@@ -532,6 +549,14 @@ def _finish(ds, out: Path, records: list, n: int, novel: list, held, stage1: str
                                      for k in TIMED} if records else {}}
     if ds.has_groundtruth:
         gt = ds.gt_joints3d()[:n]
+        if people and getattr(ds, "people_count", 1) > 1:  # the main person is judged against its true person
+            truth = ds.gt_people_joints3d()[:, :n]
+            matched = _match_people(np.load(out / "people3d.npz")["joints"], truth)
+            people["pose"] = [{"person": name, "true_person": k, **pose_errors(J, truth[k])} if k is not None
+                              else {"person": name, "true_person": None}
+                              for name, (k, J) in zip(people["names"], matched)]
+            if matched[0][0] is not None:
+                gt = truth[matched[0][0]]
         metrics.update({"methods": summarise([r["scores"] for r in records]),
                         "pose": pose_errors(joints, gt), "pose_stage1": pose_errors(stage1_joints, gt),
                         "novel_cameras": [c.name for c in novel]})
@@ -606,7 +631,7 @@ def run(config: FreeViewpointRunConfig, *, dataset, out, observer=None, log=prin
         if obs is not None:
             obs.report("rig", rig=rig)
         if config.background == "scene" and todo:
-            _scene_model(ds, rig, config, out, ds.frames_to_process(None), log)
+            _scene_model(ds, rig, config, out, ds.frames_to_process(None), log, obs)
         # a resumed run's stage 1 goes through the finished frames again (not reported): its temporal state
         # at the frames to do is then the one an uninterrupted run had
         wanted = set(todo)
@@ -655,8 +680,11 @@ def summary_lines(result: RunResult) -> list:
                              f"{s['coverage']:.3f} (worst view {s['coverage_min']:.3f})  ({s['n']} views)")
         lines.append(f"  pose error {m['pose']['mpjpe_m'] * 100:.1f} cm (stage 1: {m['pose_stage1']['mpjpe_m'] * 100:.1f} cm)")
     if m.get("people"):
-        lines.append("  people: " + ", ".join(f"{k} drawn in {v} frames" for k, v in m["people"]["frames_drawn"].items())
-                     + " (people3d.npz)")
+        err = {p["person"]: p.get("mpjpe_m") for p in m["people"].get("pose", [])}
+        lines.append("  people: " + ", ".join(
+            f"{k} drawn in {v} frames" + (f" ({100 * err[k]:.1f} cm from its true person)" if err.get(k) is not None
+                                          else "") for k, v in m["people"]["frames_drawn"].items())
+            + " (people3d.npz)")
     h = m.get("heldout")
     if h and result.finished:
         off = h["offset_px_median"]

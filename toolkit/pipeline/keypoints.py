@@ -36,6 +36,8 @@ __all__ = ["KeypointStage1Config", "KeypointStage1", "read_dataset_keypoints", "
            "triangulate_keypoints", "SeededSilhouettes",
            "estimate_from_keypoints", "SILHOUETTE_SOURCES", "read_mask", "choose_silhouettes", "declared_format"]
 
+#: A joint missing in a frame is taken from frames at most this far away (:meth:`KeypointStage1.filled_joints`).
+MAX_FILL_FRAMES = 12
 #: Where silhouettes come from: ``auto`` picks the first available of ``masks``, ``background`` (clean plates),
 #: ``seeded`` (keypoint-seeded segmentation).
 SILHOUETTE_SOURCES = ("auto", "masks", "background", "seeded")
@@ -103,6 +105,32 @@ class KeypointStage1:
         hit = np.flatnonzero(self.frames == int(frame))
         return int(hit[0]) if hit.size else None
 
+    def filled_joints(self, r: int) -> np.ndarray:
+        """Row ``r``'s 3D joints (14, 3), a joint no view pair saw taken from the frames around it.
+
+        A joint missing in a frame the sequence triangulated (an arm hidden from all but one
+        camera) is interpolated between the nearest frames that have it, or held from the
+        nearest one, when they lie within :data:`MAX_FILL_FRAMES`; otherwise it stays NaN (and
+        the frame has no 3D pose for the later stages).
+        """
+        seq = self.sequence
+        J = np.asarray(seq.joints3d, float)
+        out = J[r].copy()
+        if not bool(seq.success[r]):
+            return out
+        rows = np.arange(len(J))
+        for j in np.flatnonzero(~np.isfinite(out).all(-1)):
+            known = rows[np.isfinite(J[:, j]).all(-1) & np.asarray(seq.success, bool)]
+            before, after = known[known < r], known[known > r]
+            p = before[-1] if before.size and r - before[-1] <= MAX_FILL_FRAMES else None
+            n = after[0] if after.size and after[0] - r <= MAX_FILL_FRAMES else None
+            if p is not None and n is not None:
+                w = (r - p) / (n - p)
+                out[j] = (1 - w) * J[p, j] + w * J[n, j]
+            elif p is not None or n is not None:
+                out[j] = J[p if p is not None else n, j]
+        return out
+
     def estimate(self, frame: int):
         """The stage-1 estimate of one dataset frame.
 
@@ -127,7 +155,7 @@ class KeypointStage1:
             candidates_px=np.full((V, 1, 14, 2), np.nan),
             poses2d=seq.poses2d_raw[:, r].copy() if r is not None else nan2,
             offsets=seq.offsets[r].copy() if r is not None else np.full((V, 2), np.nan),
-            joints3d=seq.joints3d[r].copy() if r is not None else np.full((14, 3), np.nan),
+            joints3d=self.filled_joints(r) if r is not None else np.full((14, 3), np.nan),
             cost=float(seq.cost[r]) if r is not None else float("nan"), edited=np.zeros(V, bool))
 
 
@@ -176,6 +204,9 @@ def read_dataset_keypoints(keypoints: str | os.PathLike, camera_names: Sequence[
     sources = tuple(by_name[c] for c in rig.names)
     data = read_keypoints(list(sources), fmt, "format",
                           person="most_confident" if person == "consensus" else person)
+    if data.keypoints.ndim < 3 or data.keypoints.shape[2] == 0:
+        raise InputError(f"{root}", "keypoints of at least one person in some frame of the cameras used",
+                         "nobody in any file (the detector found no one: people too small, or not in view)")
     if person == "consensus":
         from toolkit.multiview.tracking import DEFAULT_FPS, TrackingConfig, frame_detections, main_person
 

@@ -360,6 +360,9 @@ class HeldOutRegions:
             cam = cam.replace(K=K)
         region, how = self.region(frame, ref)
         self.how[int(frame)] = how
+        regions = self.people_regions(frame, ref, people) if region is not None else None
+        if regions is not None and how == "seeded by its keypoints":
+            region = np.logical_or.reduce(regions)  # every person's, not only the most confident one's
         if region is not None and self.out is not None:
             from toolkit.io import atomic_write_png
             from toolkit.io.frames import frame_filename
@@ -380,7 +383,6 @@ class HeldOutRegions:
                 bg = blanked_background(ref, region)
             else:
                 bg = np.asarray(ref, np.float32)
-        regions = self.people_regions(frame, ref, people) if region is not None else None
         return EvaluationView(cam, "heldout", bg, ref if region is not None else None, region, carried, regions)
 
 

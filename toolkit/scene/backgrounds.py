@@ -190,10 +190,15 @@ def people_exclusion(people, size: tuple[int, int], min_confidence: float = 0.3,
         tall = float(xy[:, 1].max() - xy[:, 1].min())
         wide = float(xy[:, 0].max() - xy[:, 0].min())
         r = int(round(grow * max(tall, wide, 8.0)))
-        hull = cv2.convexHull(np.round(xy).astype(np.int32))
-        person = np.zeros((h, w), np.uint8)
-        cv2.fillConvexPoly(person, hull, 1)
-        if r > 0:
-            person = cv2.dilate(person, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
-        out |= person
+        # the hull grown by r: a distance transform on the person's box (any r costs the same)
+        x0, y0 = (int(np.floor(v)) - r - 1 for v in xy.min(0))
+        x1, y1 = (int(np.ceil(v)) + r + 2 for v in xy.max(0))
+        x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
+        if x1 <= x0 or y1 <= y0:
+            continue
+        crop = np.full((y1 - y0, x1 - x0), 255, np.uint8)
+        hull = cv2.convexHull(np.round(xy - [x0, y0]).astype(np.int32))
+        cv2.fillConvexPoly(crop, hull, 0)
+        grown = cv2.distanceTransform(crop, cv2.DIST_L2, 3) <= r
+        out[y0:y1, x0:x1] |= grown.astype(np.uint8)
     return out > 0

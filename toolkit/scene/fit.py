@@ -5,8 +5,9 @@
 candidate radius (:data:`RADIUS_CANDIDATES`) carries every source's background
 into every other source (leave one out, :data:`FIT_DOWNSCALE` times smaller),
 and the radius whose carried views agree best with the sources' own on the
-wall wins.  With no evidence (all the cameras look down at the ground) the
-largest candidate is kept.
+wall wins.  With no evidence (all the cameras look down at the ground, or no two
+of them see the same wall) the smallest candidate is kept: the ground ends just
+behind the farthest camera, where a room's walls stand.
 """
 
 from __future__ import annotations
@@ -93,8 +94,8 @@ def fit_proxy(rig: Rig, backgrounds: dict, ground_z: float = 0.0, log=None) -> t
     if ok:
         best = min(ok, key=lambda i: errors[i])
         how = "agreement"
-    else:
-        best = len(radii) - 1
+    else:  # a room's size: the ground ends near the cameras (the walls seen behind a source stand there)
+        best = 0
         how = "no evidence"
     proxy = SceneProxy(tuple(float(v) for v in centre), float(radii[best]), ground_z)
     if log is not None:

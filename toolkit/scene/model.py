@@ -7,9 +7,10 @@ there, and the colours are blended view-dependently: a source's weight is its
 confidence in that pixel (:class:`~toolkit.scene.SourceBackground`) times
 ``1 / (1 + angle / ANGLE_SCALE_DEG)^2``, the angle being between the view's ray
 and the source's ray at the point (the source that looks most alike counts
-most, as in unstructured lumigraph rendering).  A small
-:data:`CONFIDENCE_FLOOR` keeps places that no source ever saw empty drawn
-(from whichever source sees them) rather than black.
+most, as in unstructured lumigraph rendering).  A place no source saw empty
+(someone stood there in every sample of every camera that sees it) and a place
+no source sees at all are filled from their surroundings (:func:`_fill`), not
+drawn with a person's ghost nor left black.
 
 :meth:`SceneModel.carry` draws a given image of ONE source the same way (the
 "nearest source carried through the proxy" baseline: the people in it lie flat
@@ -38,12 +39,10 @@ from toolkit.errors import InputError
 from toolkit.scene.backgrounds import SourceBackground
 from toolkit.scene.proxy import SURFACE_NONE, SceneProxy
 
-__all__ = ["SceneModel", "ANGLE_SCALE_DEG", "CONFIDENCE_FLOOR", "RENDERS_KEPT"]
+__all__ = ["SceneModel", "ANGLE_SCALE_DEG", "RENDERS_KEPT"]
 
 #: Angle (degrees) at which a source's weight has fallen to a quarter.
 ANGLE_SCALE_DEG = 4.0
-#: Added to every source's confidence (a place never seen empty is still drawn).
-CONFIDENCE_FLOOR = 1e-4
 #: Renders of fixed cameras kept (an LRU; a camera path's views are drawn once each).
 RENDERS_KEPT = 8
 #: A source's image border, undistorted, is widened by this share when deciding what it sees.
@@ -99,7 +98,7 @@ class SceneModel:
     evidence : dict, optional
         How the proxy was chosen (kept in ``scene.json``).
     fill_holes : bool
-        Fill the pixels no source sees from their surroundings (:func:`_fill`) rather than
+        Fill the pixels no source sees empty from their surroundings (:func:`_fill`) rather than
         leaving them black.
     """
 
@@ -183,7 +182,7 @@ class SceneModel:
             src = pts[sees] - cam.center
             src /= np.linalg.norm(src, axis=1, keepdims=True)
             ang = np.degrees(np.arccos(np.clip((src * view[sees]).sum(1), -1.0, 1.0)))
-            wt = (conf[sees, 0] + CONFIDENCE_FLOOR) / (1.0 + ang / ANGLE_SCALE_DEG) ** 2
+            wt = conf[sees, 0] / (1.0 + ang / ANGLE_SCALE_DEG) ** 2
             acc[sees] += wt[:, None] * col[sees]
             wsum[sees] += wt
             cover[sees] = np.maximum(cover[sees], conf[sees, 0])
@@ -232,6 +231,30 @@ class SceneModel:
         out = np.zeros((pts.shape[0], 3), np.float32)
         out[sees] = col[sees]
         return np.clip(out.reshape(h, w, 3) + 0.5, 0, 255).astype(np.uint8)
+
+    def report(self, observer) -> None:
+        """Show the model: each source's empty view and confidence over its camera
+        (``scene/background``, ``scene/confidence``), the proxy's outline in the world
+        (``scene/proxy``: the ground's edge, the wall up to 3 m) and how it was chosen."""
+        import json as _json
+
+        from toolkit.observe import as_observer
+
+        obs = as_observer(observer)
+        for cam in self.rig:
+            b = self.backgrounds[cam.name]
+            obs.report("image", camera=cam.name, image=np.clip(b.image + 0.5, 0, 255).astype(np.uint8),
+                       name="scene/background")
+            obs.report("image", camera=cam.name, image=np.clip(np.rint(b.confidence * 255), 0, 255).astype(np.uint8),
+                       name="scene/confidence")
+        c, r, z = np.asarray(self.proxy.centre, float), float(self.proxy.radius_m), float(self.proxy.ground_z)
+        th = np.linspace(0, 2 * np.pi, 97)
+        ring = np.stack([c[0] + r * np.cos(th), c[1] + r * np.sin(th), np.full_like(th, z)], 1)
+        posts = [np.array([[c[0] + r * np.cos(a), c[1] + r * np.sin(a), z],
+                           [c[0] + r * np.cos(a), c[1] + r * np.sin(a), z + 3.0]]) for a in th[:-1:12]]
+        obs.report("lines3d", name="scene/proxy", strips=[ring, ring + [0, 0, 3.0], *posts])
+        obs.report("text", name="scene/proxy", text=_json.dumps({"proxy": self.proxy.to_json(),
+                                                                   "evidence": self.evidence}, default=str))
 
     # ------------------------------------------------------------------ storage
     def save(self, folder: str | Path) -> Path:

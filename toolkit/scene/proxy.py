@@ -14,8 +14,8 @@ surfaces every view can be intersected with exactly and cheaply:
 chooses the radius from the source backgrounds themselves: each candidate
 radius carries every source's background into every other source (leave one
 out, at a reduced resolution), and the radius whose carried views agree best
-with the sources' own where the cylinder matters wins.  With no evidence (all
-the cameras look down at the ground) the largest candidate is kept.
+with the sources' own where the cylinder matters wins; with no evidence the
+smallest candidate is kept.
 
 Lengths are metres, world frame, z up.
 """
