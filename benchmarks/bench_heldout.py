@@ -158,14 +158,7 @@ def main(argv=None) -> int:
     if args.orbit and args.pictures is not None:
         out = args.out / f"{args.trial}_all"
         n = ORBIT_FRAMES
-        orbit_ds = dataset
-        if args.scale != 1:  # its own copy with enough frames
-            from toolkit.io.resample import resample_dataset
-
-            orbit_ds = args.out / f"dataset_{args.trial}_x{args.scale:g}_{n}f"
-            if not (orbit_ds / "calibration.toml").exists():
-                with Dataset.open(args.out / f"dataset_{args.trial}") as full:
-                    resample_dataset(full, orbit_ds, args.scale, max_frames=n).close()
+        orbit_ds = dataset  # the copy of SCENE_FRAMES frames or more: the people tracked and the scene learnt on all
         argv_run = [str(orbit_ds), "--out", str(out), "--max-frames", str(n), "--no-recording", "--quiet"]
         rc = fvv.main(argv_run + ([] if args.reuse_runs else ["--replace-stale"]))
         if rc == 0:

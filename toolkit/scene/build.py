@@ -2,7 +2,8 @@
 
 :func:`build_scene_model` samples each source camera's frames evenly over the
 video, leaves out the people (:func:`_exclusions`: the dataset's keypoints of
-every person when it has them, else the run's own foreground stage), estimates
+every person, and every person the cameras agree on projected from 3D, when it
+has keypoints; else the run's own foreground stage), estimates
 each camera's empty view (:func:`toolkit.scene.estimate_background`) and fits
 the proxy (:func:`toolkit.scene.fit_proxy`).
 """
@@ -25,28 +26,66 @@ __all__ = ["build_scene_model", "SILHOUETTE_GROW"]
 SILHOUETTE_GROW = 0.01
 
 
-def _exclusions(dataset, camera: str, frames: list, images: list, size: tuple, foreground=None) -> tuple[list, str]:
-    """Per sampled frame, the pixels where the camera's people may be, and where that came from.
+def _detections(dataset, rig: Rig) -> dict | None:
+    """Per camera of ``rig``, its detections by frame ``{frame: (P, K, 3)}`` (None without keypoints)."""
+    if not dataset.has_keypoints:
+        return None
+    from toolkit.io.keypoint_files import read_camera_detections
 
-    From the first of: the dataset's keypoints of that camera (every person detected,
-    :func:`people_exclusion`); the run's own foreground stage (the background model stage 1
-    uses: a source camera's clean plate when the dataset has one, else one learned over its
-    video), its raw silhouettes grown by :data:`SILHOUETTE_GROW` of the image height.
-    """
-    kp = dataset.keypoint_dir(camera) if dataset.has_keypoints else None
-    if kp is not None:
-        from toolkit.io.keypoint_files import read_camera_detections
-
+    out = {}
+    for cam in rig:
+        kp = dataset.keypoint_dir(cam.name)
+        if kp is None:
+            return None
         try:
             det = read_camera_detections(kp)
         except InputError:
-            det = None
-        if det is not None:
-            at = {int(f): i for i, f in enumerate(det.frames)}
-            return [people_exclusion(det.people[at[t]], size) if t in at else None for t in frames], "keypoints"
+            return None
+        out[cam.name] = {int(f): np.asarray(p, float) for f, p in zip(det.frames, det.people)}
+    return out
+
+
+def _people_in_3d(detections: dict, rig: Rig, frames: list) -> dict:
+    """Per sampled frame, every person the cameras agree on, their keypoints in 3D ``(K, 3)`` (metres)."""
+    from toolkit.multiview.association import associate_frame
+
+    K = next((p.shape[1] for d in detections.values() for p in d.values() if p.ndim == 3 and p.shape[1]), 0)
+    out = {}
+    for t in frames:
+        views = [detections[c.name].get(t, np.zeros((0, K, 3))).reshape(-1, K, 3) for c in rig]
+        try:
+            fa = associate_frame(views, rig)
+        except InputError:
+            continue
+        out[t] = [X for X in fa.joints3d if np.isfinite(X).all(-1).sum() >= 3]
+    return out
+
+
+def _exclusions(dataset, camera, frames: list, images: list, foreground=None, detections=None,
+                people3d=None) -> tuple[list, str]:
+    """Per sampled frame, the pixels where the camera's people may be, and where that came from.
+
+    With keypoints: every person this camera detected, and every person the cameras agree
+    on projected into it (so a person this camera's detector missed in a sample is still
+    left out), each as its keypoints' hull grown by a quarter of its height
+    (:func:`people_exclusion`).  Without: the run's own foreground stage (the background
+    model stage 1 uses: a source camera's clean plate when the dataset has one, else one
+    learned over its video), its raw silhouettes grown by :data:`SILHOUETTE_GROW` of the
+    image height.
+    """
+    size = camera.size
+    if detections is not None:
+        out = []
+        for t in frames:
+            people = list(detections[camera.name].get(t, np.zeros((0, 0, 3))))
+            for X in (people3d or {}).get(t, []):
+                uv = camera.project(X)
+                people.append(np.concatenate([uv, np.isfinite(uv).all(-1, keepdims=True).astype(float)], -1))
+            out.append(people_exclusion(people, size))
+        return out, "keypoints"
     from toolkit.foreground import ForegroundConfig, ForegroundExtractor
 
-    plate = dataset.background(camera)
+    plate = dataset.background(camera.name)
     ex = ForegroundExtractor(foreground or ForegroundConfig()).fit([plate] if plate is not None else images)
     r = max(1, int(round(SILHOUETTE_GROW * size[1])))
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
@@ -82,6 +121,8 @@ def build_scene_model(dataset, rig: Rig, frames: int, samples: int = SAMPLES, gr
     idx = sorted(set(np.linspace(0, n - 1, min(samples, n)).round().astype(int).tolist()))
     want = set(idx)
     bgs, how = {}, {}
+    detections = _detections(dataset, rig)
+    people3d = _people_in_3d(detections, rig, idx) if detections is not None and len(rig) >= 2 else None
     for cam in rig:
         imgs = []
         for t, f in enumerate(dataset.frames(cam.name)):
@@ -89,7 +130,7 @@ def build_scene_model(dataset, rig: Rig, frames: int, samples: int = SAMPLES, gr
                 imgs.append(f)
             if t >= idx[-1]:
                 break
-        masks, how[cam.name] = _exclusions(dataset, cam.name, idx, imgs, cam.size, foreground)
+        masks, how[cam.name] = _exclusions(dataset, cam, idx, imgs, foreground, detections, people3d)
         bgs[cam.name] = estimate_background(imgs, masks)
     proxy, evidence = fit_proxy(rig, bgs, ground_z=ground_z, log=log)
     return SceneModel(rig, bgs, proxy, {**evidence, "people_from": how, "frames_sampled": idx})

@@ -61,23 +61,30 @@ def _frustum(cam: Camera) -> tuple[np.ndarray, np.ndarray]:
     return lo - pad, hi + pad
 
 
-#: Holes are filled on an image reduced to at most this many pixels on its long side.
-FILL_SIZE_PX = 320
-
-
 def _fill(img: np.ndarray, hole: np.ndarray) -> np.ndarray:
-    """``img`` (H, W, 3) float32 with ``hole`` (H, W) bool filled from the surroundings (OpenCV's
-    Telea inpainting on a reduced image: the fill is smooth anyway)."""
-    h, w = hole.shape
-    s = min(1.0, FILL_SIZE_PX / max(h, w))
-    size = (max(1, int(round(w * s))), max(1, int(round(h * s))))
-    small = cv2.resize(np.clip(img + 0.5, 0, 255).astype(np.uint8), size, interpolation=cv2.INTER_AREA)
-    # a reduced pixel is a hole only when all of it is (partly seen pixels keep their seen colour)
-    shole = (cv2.resize(hole.astype(np.float32), size, interpolation=cv2.INTER_AREA) > 0.999).astype(np.uint8)
-    filled = cv2.inpaint(small, shole, 3, cv2.INPAINT_TELEA)
-    big = cv2.resize(filled, (w, h), interpolation=cv2.INTER_LINEAR).astype(np.float32)
+    """``img`` (H, W, 3) float32 with ``hole`` (H, W) bool filled from the surroundings.
+
+    Push-pull: the seen pixels are averaged down an image pyramid (each level the
+    mean of the seen pixels below it) until every pixel of a level has some, and the
+    holes take the colour of the coarsest level that saw around them, blended up level
+    by level: a smooth guess of a large unseen wall or floor, without the streaks of
+    inpainting along a hole's border.
+    """
+    seen = (~hole).astype(np.float32)
+    levels = [(img * seen[..., None], seen)]
+    while levels[-1][1].shape[0] > 2 and levels[-1][1].shape[1] > 2 and (levels[-1][1] <= 0).any():
+        c, w = levels[-1]
+        levels.append((cv2.pyrDown(c), cv2.pyrDown(w)))
+    c, w = levels[-1]
+    fill = c / np.maximum(w, 1e-6)[..., None]
+    if (w <= 0).any():  # nothing seen at all at the coarsest level: the mean of everything seen
+        fill[w <= 0] = (img[~hole].mean(0) if (~hole).any() else 0.0)
+    for c, w in reversed(levels[:-1]):
+        up = cv2.pyrUp(fill, dstsize=(w.shape[1], w.shape[0]))
+        a = np.clip(w, 0.0, 1.0)[..., None]
+        fill = a * (c / np.maximum(w, 1e-6)[..., None]) + (1.0 - a) * up
     out = img.copy()
-    out[hole] = big[hole]
+    out[hole] = fill[hole]
     return out
 
 
