@@ -33,12 +33,12 @@ frame's z for fixed primitives, a fraction of the segment for those stretched
 along it), fitted (``scipy.optimize.least_squares``, soft-L1 at 1 cm, at most
 ``--max-nfev`` evaluations) to the signed distance of the outer-surface
 vertices of the groups' parts (``trunk``: the torso and the thighs' top
-15 cm; ``--all-vertices`` to include the buried ones, as session 11 did).  It
+15 cm; ``--all-vertices`` to include the buried ones, as the fit of 80bd066 did).  It
 prints the values, as a change to the current layout
 (``toolkit/softbody/model.py``: ``_primitives``), and the table after the
 change.  A biased layout biases the global fit's lengths: on noiseless
-points of the true mesh the session-10 layout's global fit raised the pelvis
-30-96 mm (``docs/benchmarks.md``, "Session 11: the trunk's metaballs").  The
+points of the true mesh the global fit with the layout before 80bd066 raised the pelvis
+30-96 mm (``docs/benchmarks.md``, "The trunk's metaballs").  The
 outer-surface fit and the all-vertex fit disagree: the buried vertices pull
 the model in where the torso meets the thighs (fitted to every vertex, the
 band 0-0.1 m above the mid-hip stays 19 mm too thin even with a fourth
@@ -55,7 +55,7 @@ the global fit with the lengths free; printed: the mean joint error (mm)
 after tracking and after the global fit, the global fit's mid-hip height
 error (mm) and its mean length error (mm).  Without ``--outer`` a third of
 the points lie on buried surfaces no camera sees, and they dominate what is
-left: with the session-11 layout (seed 9900's six scenes) the global fit's
+left: with the layout of 80bd066 (seed 9900's six scenes) the global fit's
 joints are 6.1-7.8 mm off and its lengths 3.9-6.8 mm, with ``--outer``
 2.4-3.7 mm and 1.5-2.8 mm.
 """

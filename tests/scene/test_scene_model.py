@@ -132,3 +132,27 @@ def test_the_model_is_saved_and_loaded_for_the_same_cameras(tmp_path):
         assert np.abs(back.backgrounds[cam.name].image - model.backgrounds[cam.name].image).max() <= 0.5
     with pytest.raises(InputError, match="sources"):
         SceneModel.load(tmp_path / "scene", Rig(rig.cameras[:2]))
+
+
+def test_a_dataset_whose_keypoints_hold_nobody_still_gets_its_backgrounds(tmp_path):
+    """Keypoint files with no person (a detector that found no one): the scene is learnt all the same."""
+    from toolkit.io import DatasetWriter, Dataset
+    from toolkit.io.openpose import write_openpose_json
+    from toolkit.scene import build_scene_model
+
+    rig = _ring(3)
+    proxy = SceneProxy((0.0, 0.0), 12.0)
+    views = {cam.name: np.clip(_truth_view(cam, proxy), 0, 255).astype(np.uint8) for cam in rig}
+    with DatasetWriter(tmp_path / "ds", 25.0) as w:
+        w.write_calibration(rig)
+        for t in range(4):
+            for cam in rig:
+                w.write_frame(cam.name, t, views[cam.name])
+    for cam in rig:
+        for t in range(4):
+            write_openpose_json(tmp_path / "ds" / "keypoints" / cam.name / f"{cam.name}_{t:012d}_keypoints.json", [])
+    with Dataset.open(tmp_path / "ds") as ds:
+        model = build_scene_model(ds, ds.rig, 4)
+    assert model.evidence["people_from"] == {c: "keypoints" for c in rig.names}
+    err = np.abs(model.backgrounds["cam0"].image - views["cam0"]).max(-1)
+    assert np.median(err) < 10.0  # the videos' compression of a fine texture only (max channel)

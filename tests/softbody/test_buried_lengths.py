@@ -8,7 +8,7 @@ scenes: neck-to-shoulder bones +30 to +44 mm).  The reference is now the median
 body of the model's stature (``GlobalFitConfig.buried_reference``).  The
 points here are of a sampled body (``BodyProportions.sample``), fitted with the
 median-proportioned model of the same stature, as the initialisation builds it.
-Since session 12 neck to head is held too (the neck is buried between the
+Since 6b9363d neck to head is held too (the neck is buried between the
 shoulders: it slid along the spine with the clicked error), and the reference is
 the median body's share of the fitted stature chain, not the start's stature.
 """

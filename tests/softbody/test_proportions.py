@@ -46,7 +46,7 @@ def test_proportion_prior_lengthens_short_arms(short_arms):
     without = _arm_error_mm(global_fit(model, track, clouds, config=replace(cfg, proportion_weight=0.0)), lengths)
     held = _arm_error_mm(global_fit(model, track, clouds, config=cfg), lengths)
     # nothing in the points pulls the wrists out (measured -37, -38 mm; -32, -31 with the buried lengths held
-    # at 10 m/m since session 12: the shoulders no longer sink with the neck)
+    # at 10 m/m since 746a094: the shoulders no longer sink with the neck)
     assert np.all(without < -25), without
     assert np.all(held - without > 5), (held, without)  # measured -23, -24 mm: the prior against the length prior
     assert np.all(held < 5), held  # and not past the true arms (6.6 mm shorter than the median ratio's)

@@ -127,7 +127,7 @@ def test_silhouettes_hold_an_arm_without_points(walk_without_a_forearm):
         fit = global_fit(model, tr, clouds, config=cfg, silhouettes=sil)
         err[w] = 1000 * np.linalg.norm(fit.joints[:, wr] - joints[:, wr], axis=1).mean()
         length[w] = 1000 * np.abs(fit.lengths[li[0]] - lengths[li[0]])
-    assert err[0.0] > 10.0          # without: the short forearm's wrist (11.5 mm with the session-12 layout)
+    assert err[0.0] > 10.0          # without: the short forearm's wrist (11.5 mm with the outer-surface layout)
     assert err[1.0] < min(8.0, 0.5 * err[0.0])  # with: the silhouettes place it (3.4 mm)
     # the length itself moves towards the truth only a little: the split prior holds the start's ratio
     assert length[1.0] < length[0.0]

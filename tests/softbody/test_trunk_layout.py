@@ -2,15 +2,15 @@
 
 The model posed on a :class:`toolkit.body.BodyModel` mesh's own joints with the
 true lengths and girth: the mesh's vertices should lie on the model's surface.
-The layout before session 11 left the waist 20 mm and the top of the chest
+The layout before 80bd066 left the waist 20 mm and the top of the chest
 17 mm too thin (median signed distance in those height bands), which the global
 fit paid for by raising the pelvis 30-96 mm on noiseless points of the true body.
 About 40 % of the mesh's vertices are buried inside another of its volumes (no
 camera sees them); they make the neck and the upper arms look too fat (head
 mean |d| 21 mm, upper arms 16 mm over all vertices; 5 and 2 mm on the outer
-surface).  The session-11 layout, fitted to every vertex, left the band
-0-0.1 m above the mid-hip 20 mm too thin on the outer surface; the session-12
-layout is calibrated on the outer surface (``calibrate_softbody_layout --fit
+surface).  The layout of 80bd066, fitted to every vertex, left the band
+0-0.1 m above the mid-hip 20 mm too thin on the outer surface; the current
+layout (0508e32) is calibrated on the outer surface (``calibrate_softbody_layout --fit
 --groups trunk head arms``).
 Bodies of seed 3000: not those the layout was calibrated on (2000, 2200, 2400).
 """
@@ -40,7 +40,7 @@ def outer(measured):
 
 
 def test_trunk_and_thighs_lie_on_the_true_surface(bias, outer):
-    assert abs(bias["torso"][0]) < 4 and bias["torso"][1] < 12  # median, mean |d| mm (session 10: 14.6)
+    assert abs(bias["torso"][0]) < 4 and bias["torso"][1] < 12  # median, mean |d| mm (before 80bd066: 14.6)
     # the thighs' buried vertices (their hip caps inside the trunk) read as "too fat" once the trunk's outer
     # surface is filled (all vertices: 20.6 mm): the outer surface only
     for side in ("l", "r"):
@@ -62,22 +62,22 @@ def test_buried_vertices_read_as_a_fat_neck_and_arms(measured, bias, outer):
 
 
 def test_no_thin_band_just_above_the_hips(outer):
-    # session 11: +20.1 mm median, 21.2 mean |d|; session 12: -0.5, 1.4
+    # 80bd066: +20.1 mm median, 21.2 mean |d|; 0508e32: -0.5, 1.4
     band = outer["torso z +0.0..+0.1 m"]
     assert abs(band[0]) < 8 and band[1] < 8, band
 
 
 def test_trunk_lies_on_the_outer_surface(outer):
-    assert abs(outer["torso"][0]) < 3 and outer["torso"][1] < 4  # session 11: +1.8, 7.4 mm; session 12: -0.2, 2.5
+    assert abs(outer["torso"][0]) < 3 and outer["torso"][1] < 4  # 80bd066: +1.8, 7.4 mm; 0508e32: -0.2, 2.5
 
 
 def test_head_and_neck_lie_on_the_outer_surface(outer):
-    # session 11: median -2.1 mm (the neck ball too fat); session 12: -0.4
+    # 80bd066: median -2.1 mm (the neck ball too fat); 0508e32: -0.4
     assert abs(outer["head"][0]) < 1.5 and outer["head"][1] < 5.5, outer["head"]
 
 
 def test_arms_lie_on_the_outer_surface(outer):
-    # session 11: upper arms median +0.8, mean |d| 2.1 mm, forearms 2.0-2.1; session 12: 0.0, 1.2, 1.4
+    # 80bd066: upper arms median +0.8, mean |d| 2.1 mm, forearms 2.0-2.1; 0508e32: 0.0, 1.2, 1.4
     for side in ("l", "r"):
         for part in ("upper_arm", "forearm"):
             med, mad, _ = outer[f"{side}_{part}"]

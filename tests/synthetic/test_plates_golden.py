@@ -17,7 +17,7 @@ skipped with that reason, and so it is where Open3D's ray caster itself gives
 other bits for the same rays (``raycast_probe``: the depths of one camera's
 rays against the surroundings, cast directly; Embree's arithmetic follows the
 processor's vector instructions: on a machine with AVX-512 the depths differed
-from those of the machine the file was made on, in session 12, with the same
+from those of the machine the file was made on, with the same
 library versions and the code of either commit).  Regenerate the file (only when an intended change
 of the outputs has been explained) with
 ``python tests/synthetic/test_plates_golden.py tests/data/plates_golden.json``.

@@ -310,7 +310,8 @@ class HeldOutRegions:
     def people_regions(self, frame: int, image: np.ndarray, people: list) -> list | None:
         """Each person's pixels in the held-out ``image``: the ground truth's instances (synthetic),
         else a segmentation seeded by the held-out camera's own detection of that person (the one
-        nearest to the person's 3D joints projected); None with fewer than two people."""
+        nearest to the person's 3D joints projected), a pixel two regions claim given to the nearer
+        person (:func:`toolkit.pipeline.people.exclusive_masks`); None with fewer than two people."""
         if people is None or len(people) < 2:
             return None
         name = self.camera.name
@@ -329,7 +330,11 @@ class HeldOutRegions:
                 continue
             res = self._segmenter.segment(image, own[0], own[1])
             out.append(res.mask & np.isin(res.trimap, (cv2.GC_FGD, cv2.GC_PR_FGD)))
-        return out
+        # where two people's regions overlap, the pixel is the nearer person's (as for the sources' silhouettes)
+        from toolkit.pipeline.people import exclusive_masks
+
+        excl = exclusive_masks([[m] for m in out], [np.asarray(J, float) for J in people], Rig((self.camera,)))
+        return [e[0] if e[0] is not None else np.zeros(image.shape[:2], bool) for e in excl]
 
     def view(self, frame: int, joints3d: np.ndarray | None = None, scene=None, images: dict | None = None,
              people: list | None = None) -> EvaluationView:

@@ -50,7 +50,9 @@ def _people_in_3d(detections: dict, rig: Rig, frames: list) -> dict:
     from toolkit.multiview.association import associate_frame
 
     K = next((p.shape[1] for d in detections.values() for p in d.values() if p.ndim == 3 and p.shape[1]), 0)
-    out = {}
+    out: dict = {}
+    if K == 0:  # nobody detected anywhere
+        return out
     for t in frames:
         views = [detections[c.name].get(t, np.zeros((0, K, 3))).reshape(-1, K, 3) for c in rig]
         try:

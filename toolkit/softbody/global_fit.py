@@ -149,7 +149,7 @@ class GlobalFitConfig:
         head longer: the clicked neck's error stayed in both).  At 3 the stereo
         fits still sank the neck into the trunk (seen seed 11000: shoulder
         drop 15-52 mm short, torso 7-70 mm short, neck to head +20 mm); at 10
-        (session 12, chosen on seeds 11000 and 12000): stereo bones 15.1 ->
+        (746a094, chosen on seeds 11000 and 12000): stereo bones 15.1 ->
         13.0 mm, MPJPE 24.5 -> 23.8 mm, depth 13.3 -> 12.8 mm (medians of 16
         and 8 runs).  The synthetic bodies' buried lengths lie within 9 mm of
         the reference, people's within about 1 cm.

@@ -291,15 +291,15 @@ def _primitives(p: BodyProportions, girth: float = 1.0) -> list[_Primitive]:
     t = FRAMES.index
     # pelvis block below the mid-hip point, a waist ball above it, then the trunk from the hips to the neck
     # (the synthetic torso ends about 0.1 m below the hip joints; below that, between the thighs, is a gap).
-    # Calibrated with the neck, head and arm balls (session 12: benchmarks/calibrate_softbody_layout.py
+    # Calibrated with the neck, head and arm balls (0508e32: benchmarks/calibrate_softbody_layout.py
     # --seeds 2000 2200 2400 --fit --groups trunk head arms, after a --groups trunk round): radii, axial extents
     # and places fitted (least_squares, soft-L1 at 1 cm) to the signed distance of the outer-surface vertices
     # (not those buried inside another volume) of the torso, head, arms and the thighs' top 15 cm of 48
-    # BodyModel meshes posed on their own joints with their true lengths and girth.  Session 11 fitted two pelvis
+    # BodyModel meshes posed on their own joints with their true lengths and girth.  80bd066 fitted two pelvis
     # blocks and three trunk balls to every vertex, the buried ones too; its layout left the band 0-0.1 m above
     # the mid-hip 22 mm too thin on the outer surface (held-out seeds 3000 3200), a gap the waist ball (second
     # below, in place of a small pelvis block at 0.11 m) fills; torso outer-surface mean |d| 7.4 -> 2.5 mm.  The
-    # session-10 layout (trunk balls at 0.40 / 0.62 / 0.86 of the trunk) left the waist 20 mm and the top of the
+    # layout before 80bd066 (trunk balls at 0.40 / 0.62 / 0.86 of the trunk) left the waist 20 mm and the top of the
     # chest 17 mm too thin; fitted to the true body's points, the global fit raised the pelvis 30-96 mm.
     pw = p.hip_half_width + 0.07 * h
     sw = p.shoulder_half_width + 0.03 * h

@@ -157,7 +157,7 @@ class TrackConfig:
         28.5 mm (mean of 16 runs, seeds 13000 and 14000; better in 16 of
         16), and depth 13.2 -> 12.3 mm (8 runs, better in 8); on the fresh
         seeds 15000 and 16000 stereo 26.1 -> 24.1 mm (13 of 16 better) and
-        depth 14.2 -> 13.7 mm (docs/benchmarks.md, "Session 13").  Its price: on
+        depth 14.2 -> 13.7 mm (docs/benchmarks.md, "The trunk upright over the buried pelvis").  Its price: on
         noiseless points of a trunk really bent 20 degrees and twisted 15,
         tracking ends at about 16 and 9 degrees (joints 4 mm off): the surface
         shows a twist against the pelvis only weakly.

@@ -1,0 +1,128 @@
+"""The docs and the code's comments speak of the toolkit as it is (issue 38).
+
+Two checks over ``README.md``, ``docs/*.md`` and the comments and docstrings of
+``toolkit/``, ``recipes/`` and ``benchmarks/``:
+
+* no work diary: no "session 12" / "sessions 3-5" / "the session-7 change",
+  "this session", and no nicknames of the people or helpers who did the work
+  (a figure keeps its command, scenes and date; git keeps who and when).  The
+  word "session" in its other senses (a Pose2Sim session folder, the
+  correction app's session, a keypoint session, pytest's session fixtures) is
+  not matched by the patterns or is allowed below;
+* no dead relative link or image in the Markdown docs: ``[text](path)`` and
+  ``![alt](path)`` (not http(s), mailto or ``#anchor``) must name an existing
+  file or folder, resolved from the doc's own folder, ``#anchor`` stripped.
+"""
+
+from __future__ import annotations
+
+import ast
+import io
+import re
+import tokenize
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+CODE_DIRS = ("toolkit", "recipes", "benchmarks")
+
+#: Nicknames the work was once signed with (helpers and the lead); a path such as ``/tmp/sbsil/`` is not matched.
+NICKNAMES = ("mkwrist", "mktrack", "mkid", "sblayout", "sbshape", "sbclick", "sbglobal", "sbsil", "sblen", "sbarm",
+             "sbbone")
+
+DIARY = [
+    re.compile(r"\bsessions?[-\s]+\d+", re.IGNORECASE),                     # session 12, session-7, sessions 3
+    re.compile(r"\b(this|previous|last|next|another) session\b", re.IGNORECASE),
+    re.compile(r"(?<![/\w])(" + "|".join(NICKNAMES) + r")\b", re.IGNORECASE),
+    re.compile(r"\bthe lead\b|\blead's\b|\(lead\)|,\s*lead\)|\bhelpers?\s+(sb|mk)\w+", re.IGNORECASE),
+]
+
+#: Lines holding one of these use "session" in another sense.
+ALLOWED = re.compile(r"keypoint session|correction session|test session|rerun session|terminal session|"
+                     r"pose2sim|S\d\d_", re.IGNORECASE)
+
+
+def _docs() -> list[Path]:
+    return [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+
+
+def _code_files() -> list[Path]:
+    return [p for d in CODE_DIRS for p in sorted((ROOT / d).rglob("*.py"))]
+
+
+def _comments_and_docstrings(path: Path) -> list[tuple[int, str]]:
+    """(line, text) of every comment and docstring line of a Python file."""
+    src = path.read_text(encoding="utf-8")
+    lines = src.splitlines()
+    out = []
+    for tok in tokenize.generate_tokens(io.StringIO(src).readline):
+        if tok.type == tokenize.COMMENT:
+            out.append((tok.start[0], tok.string))
+    for node in ast.walk(ast.parse(src)):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and node.body:
+            first = node.body[0]
+            if (isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant)
+                    and isinstance(first.value.value, str)):
+                start, end = first.value.lineno, first.value.end_lineno
+                out += [(no, lines[no - 1]) for no in range(start, end + 1)]
+    return out
+
+
+def _diary_hits(lines) -> list[tuple[int, str]]:
+    hits = []
+    for no, line in lines:
+        if ALLOWED.search(line):
+            continue
+        for pat in DIARY:
+            m = pat.search(line)
+            if m:
+                hits.append((no, m.group(0)))
+                break
+    return hits
+
+
+def test_docs_and_comments_hold_no_work_diary():
+    found = []
+    for doc in _docs():
+        lines = enumerate(doc.read_text(encoding="utf-8").splitlines(), start=1)
+        found += [f"{doc.relative_to(ROOT)}:{no}: {hit!r}" for no, hit in _diary_hits(lines)]
+    for f in _code_files():
+        if not any(pat.search(f.read_text(encoding="utf-8")) for pat in DIARY):
+            continue  # nothing to look at more closely: skip tokenizing it (keeps the test fast)
+        found += [f"{f.relative_to(ROOT)}:{no}: {hit!r}" for no, hit in _diary_hits(_comments_and_docstrings(f))]
+    assert not found, "work diary in docs or comments (state the fact, not who or which session):\n" + "\n".join(found)
+
+
+LINK = re.compile(r"!?\[[^\]]*\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)")
+FENCE = re.compile(r"^(```|~~~).*?^\1", re.MULTILINE | re.DOTALL)
+CODE_SPAN = re.compile(r"`[^`\n]*`")
+
+
+def _dead_links(doc: Path) -> list[str]:
+    text = doc.read_text(encoding="utf-8")
+    # blank out code blocks and spans, keeping the line numbers
+    text = FENCE.sub(lambda m: "\n" * m.group(0).count("\n"), text)
+    dead = []
+    for no, line in enumerate(text.splitlines(), start=1):
+        for m in LINK.finditer(CODE_SPAN.sub("", line)):
+            target = m.group(1)
+            if re.match(r"[a-z][a-z0-9+.-]*:|#", target, re.IGNORECASE):  # http(s):, mailto:, #anchor
+                continue
+            path = target.split("#", 1)[0].split("?", 1)[0]
+            if path and not (doc.parent / path).exists():
+                dead.append(f"{doc.relative_to(ROOT)}:{no}: {target}")
+    return dead
+
+
+def test_relative_links_and_images_in_the_docs_exist():
+    dead = [d for doc in _docs() for d in _dead_links(doc)]
+    assert not dead, "links to files that do not exist:\n" + "\n".join(dead)
+
+
+def test_the_checks_see_what_they_should():
+    # the patterns catch the diary forms and leave the other senses of "session" alone
+    assert _diary_hits([(1, "Measured in session 12 (fresh seeds)"), (2, "the session-7 change"),
+                        (3, "# run by the lead"), (4, "(26 Nov 2026, mktrack)")]) == [
+        (1, "session 12"), (2, "session-7"), (3, "the lead"), (4, "mktrack")]
+    assert _diary_hits([(1, "a Pose2Sim session folder, Session/S00_Calibration"), (2, "one correction session"),
+                        (3, "python /tmp/sbsil/loop.py"), (4, "the session's Calib*.toml"),
+                        (5, "@pytest.fixture(scope=\"session\")")]) == []
