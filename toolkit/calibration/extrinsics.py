@@ -14,12 +14,15 @@ Every method takes cameras with known intrinsics (poses ignored) and returns an
   of each camera on points of known coordinates; a fit that is much better with one
   axis flipped says the coordinates are left-handed.
 * :func:`extrinsics_from_people`: the keypoints of people moving through the volume are
-  the calibration object.  The camera pair with most common keypoints gives the
-  essential matrix (RANSAC) and a first reconstruction; the other cameras are added by
-  PnP on the triangulated keypoints; a sparse bundle adjustment with a robust loss
-  refines all poses and points.  The scale comes from the person's height or measured
-  bone lengths (else the median stature, with a warning), the floor from where the
-  ankles rest and the up direction from the body's trunk.
+  the calibration object.  Which detections of different cameras show the same person is
+  found first (:mod:`toolkit.calibration.people_matching`: RANSAC over detection pairs,
+  before any pose is known); from the camera pairs sharing most of them, an essential
+  matrix (RANSAC) and PnP of the other cameras give first poses; a sparse bundle
+  adjustment with a robust loss refines all poses and points; then every frame's
+  detections are grouped into people with the poses and adjusted again.  The start whose
+  people agree in most observations is kept.  The scale comes from the person's height or
+  measured bone lengths (else the median stature, with a warning), the floor from where
+  the ankles rest and the up direction from the body's trunk.
 """
 
 from __future__ import annotations
@@ -32,6 +35,13 @@ import numpy as np
 from toolkit.anthropometry import BodyProportions
 from toolkit.calibration.boards import Board
 from toolkit.calibration.bundle import Observations, bundle_adjust
+from toolkit.calibration.people_matching import (
+    associate_detections,
+    group_observations,
+    group_pair_matches,
+    match_camera_pair,
+    triangulate_normalised,
+)
 from toolkit.calibration.checks import (
     boards_seen_from_behind,
     cameras_under_floor,
@@ -39,7 +49,6 @@ from toolkit.calibration.checks import (
     reprojection_summary,
 )
 from toolkit.cameras import Camera, Rig
-from toolkit.cameras.triangulation import triangulate_linear
 from toolkit.errors import InputError
 from toolkit.io.keypoint_files import normalise_name
 from toolkit.observe import as_observer
@@ -320,6 +329,21 @@ def extrinsics_from_scene_points(cameras: list[Camera], points: np.ndarray, pixe
 
 # --------------------------------------------------------------------------- people
 
+#: Median reprojection error (pixels) of two detections triangulated together within which they are
+#: the same person.  On ``pose2sim_multiperson`` (BlazePose, calibrated from its people): pairs of one
+#: person median 5.7 px (90 % within 19 px), pairs of two people median 129 px, 1.1 % within 10 px
+#: (chance pairs in one epipolar plane, which a third camera rejects).
+MATCH_PX = 10.0
+#: A camera in fewer groups (people-frames it shares with another camera) than this is not placed.
+MIN_CAMERA_GROUPS = 5
+#: Camera pairs tried as the start (those sharing most keypoints of matched people); the solution
+#: whose people agree in most observations is kept (a start on one person seen by two cameras can
+#: settle in a mirrored rig whose people no third camera confirms).
+START_PAIRS = 3
+#: Times the detections are grouped again with the adjusted poses (and adjusted again).
+ASSOCIATION_PASSES = 2
+
+
 @dataclass(frozen=True)
 class PeopleConfig:
     """Settings of :func:`extrinsics_from_people`.
@@ -335,6 +359,10 @@ class PeopleConfig:
     outlier_px : float
         Observations farther than this from their reprojection after a first adjustment are
         dropped before the second.
+    match_px : float
+        Two detections of two cameras are the same person when, triangulated together, their
+        keypoints reproject within this (median, pixels); in a group of three cameras or more each
+        detection must stay within twice this of the group's triangulation.
     scale_bones : tuple of str
         Segments (of :class:`BodyProportions`) whose lengths give the scale.
     """
@@ -343,6 +371,7 @@ class PeopleConfig:
     ransac_px: float = 4.0
     f_scale_px: float = 2.0
     outlier_px: float = 12.0
+    match_px: float = MATCH_PX
     scale_bones: tuple = ("upper_arm", "forearm", "thigh", "shank")
 
 
@@ -388,19 +417,121 @@ def _body_up(J: np.ndarray, jidx: dict) -> tuple[np.ndarray, str]:
     return up / np.linalg.norm(up), "up from the trunk (no upright pose found)"
 
 
-def _triangulate(cams, xy_pix, min_views=2):
-    """DLT of (C, N, 2) pixels (NaN missing) with the cameras' current poses -> (N, 3)."""
-    return triangulate_linear(list(cams), xy_pix, min_views=min_views)
+def _matched_groups(cameras, xy, seen, f, cfg: "PeopleConfig", rng) -> tuple[np.ndarray, np.ndarray]:
+    """Detections of the same person in several cameras, from the detection pairs every camera pair matches.
+
+    Returns the groups (G, C) of detection indices (-1: none) and their frames (G,).
+    """
+    C = len(cameras)
+    matches = [m for a in range(C) for b in range(a + 1, C)
+               if (m := match_camera_pair(xy, seen, a, b, (f[a], f[b]), cfg.ransac_px, cfg.match_px, rng))
+               is not None and m.inliers >= 8]
+    if not matches:
+        shared = max((int((seen[a][:, :, None] & seen[b][:, None]).sum(-1).max(axis=(1, 2)).sum())
+                      for a in range(C) for b in range(a + 1, C)), default=0)
+        raise InputError("keypoints", "at least 8 keypoints seen by two cameras at once (the same person in both)",
+                         f"none that agree, of at most {shared} seen by two cameras")
+    return group_pair_matches(matches, C)
 
 
-def _depth_ok(cams, X, seen):
-    ok = np.isfinite(X).all(1)
-    for c, cam in enumerate(cams):
-        if cam is None:
-            continue
-        z = cam.depth_of(np.where(np.isfinite(X), X, 0))
-        ok &= ~seen[c] | (z > 0)
-    return ok
+def _start_pairs(seen: np.ndarray, n: int) -> list[tuple[int, int]]:
+    """The ``n`` camera pairs sharing most of the (C, N) observations, most first."""
+    C = len(seen)
+    common = [(int(np.sum(seen[a] & seen[b])), a, b) for a in range(C) for b in range(a + 1, C)]
+    return [(a, b) for k, a, b in sorted(common, reverse=True)[:n] if k >= 8]
+
+
+def _initial_poses(cameras, xy: np.ndarray, seen: np.ndarray, f: np.ndarray, cfg: "PeopleConfig",
+                   a: int, b: int) -> list:
+    """First poses from associated (C, N, 2) observations: the essential matrix of the camera pair
+    ``a``, ``b``, then PnP camera by camera on the triangulated points (unit baseline, ``a`` at the origin).
+    """
+    C = len(cameras)
+    m = seen[a] & seen[b]
+    thr = cfg.ransac_px / np.sqrt(f[a] * f[b])
+    E, inl = cv2.findEssentialMat(xy[a, m], xy[b, m], np.eye(3), cv2.RANSAC, 0.999, thr)
+    if E is None:
+        raise InputError("keypoints", "keypoints from which an essential matrix can be estimated",
+                         f"none for cameras {cameras[a].name}, {cameras[b].name}")
+    _, R, t, _ = cv2.recoverPose(E[:3], xy[a, m], xy[b, m], np.eye(3), mask=inl.copy())
+    poses = np.tile(np.eye(4), (C, 1, 1))
+    poses[b, :3, :3], poses[b, :3, 3] = R, t.ravel()
+    registered = np.zeros(C, bool)
+    registered[[a, b]] = True
+
+    def tri():
+        obs = np.where((seen & registered[:, None])[..., None], xy, np.nan)
+        X = triangulate_normalised(poses, obs)
+        for c in np.flatnonzero(registered):
+            z = np.where(np.isfinite(X), X, 0.0) @ poses[c, 2, :3] + poses[c, 2, 3]
+            X[seen[c] & (z <= 0)] = np.nan
+        return X
+
+    X = tri()
+    while not registered.all():
+        cands = np.flatnonzero(~registered)
+        counts = [np.sum(seen[c] & np.isfinite(X).all(1)) for c in cands]
+        c = cands[int(np.argmax(counts))]
+        mm = seen[c] & np.isfinite(X).all(1)
+        if mm.sum() < 6:
+            raise InputError("keypoints", f"camera {cameras[c].name} seeing at least 6 keypoints the others see",
+                             f"{int(mm.sum())}")
+        ok, r, tt, _ = cv2.solvePnPRansac(X[mm], xy[c, mm], np.eye(3), None,
+                                          reprojectionError=cfg.ransac_px / f[c], iterationsCount=500,
+                                          flags=cv2.SOLVEPNP_SQPNP)
+        if not ok:
+            raise InputError("keypoints", f"keypoints placing camera {cameras[c].name}", "a failed PnP")
+        poses[c, :3, :3], poses[c, :3, 3] = cv2.Rodrigues(r)[0], tt.ravel()
+        registered[c] = True
+        X = tri()
+    return [_set_pose(cam, T) for cam, T in zip(cameras, poses)]
+
+
+def _solve(cur: list, a: int, groups: np.ndarray, gframes: np.ndarray, xy: np.ndarray, seen: np.ndarray,
+           f: np.ndarray, cfg: "PeopleConfig") -> tuple:
+    """Adjust the first poses on the first groups; then, with the poses, every frame's detections grouped
+    into people again and adjusted again (until the groups stay the same, :data:`ASSOCIATION_PASSES` at most).
+
+    Returns the cameras, the points (G * K, 3), the residuals (pixels), their cameras, the groups and frames.
+    """
+    C = len(cur)
+    gx, gs = group_observations(groups, gframes, xy, seen)
+    cur, X, residuals, res_cam = _adjust(cur, gx.reshape(C, -1, 2), gs.reshape(C, -1), a, cfg)
+    for _ in range(ASSOCIATION_PASSES):
+        g, gf, _ = associate_detections(np.stack([c.cam_from_world for c in cur]), xy, seen, f, cfg.match_px)
+        if not len(g) or (g.shape == groups.shape and np.array_equal(g, groups) and np.array_equal(gf, gframes)):
+            break
+        groups, gframes = g, gf
+        gx, gs = group_observations(groups, gframes, xy, seen)
+        cur, X, residuals, res_cam = _adjust(cur, gx.reshape(C, -1, 2), gs.reshape(C, -1), a, cfg)
+    return cur, X, residuals, res_cam, groups, gframes
+
+
+def _adjust(cur: list, xy: np.ndarray, seen: np.ndarray, fixed: int, cfg: "PeopleConfig"):
+    """Two rounds of bundle adjustment of (C, N, 2) observations, the second without gross outliers.
+
+    Returns the cameras, the points (N, 3) (NaN where not adjusted), the residuals (pixels) and their cameras.
+    """
+    seen = seen.copy()
+    poses = np.stack([c.cam_from_world for c in cur])
+    X = triangulate_normalised(poses, np.where(seen[..., None], xy, np.nan))
+    keep = np.isfinite(X).all(1)
+    for round_ in range(2):
+        pid = -np.ones(len(X), int)
+        pid[keep] = np.arange(keep.sum())
+        oc, op = np.nonzero(seen[:, keep])
+        op_global = np.flatnonzero(keep)[op]
+        obs = Observations(oc, pid[op_global], xy[oc, op_global])
+        ba = bundle_adjust(cur, obs, points=X[keep], fixed_cameras=(fixed,), loss="soft_l1",
+                           f_scale_px=cfg.f_scale_px, max_nfev=100)
+        cur = [_set_pose(cam, T) for cam, T in zip(cur, ba.cam_from_world)]
+        X = np.full_like(X, np.nan)
+        X[keep] = ba.points
+        if round_ == 0:
+            bad = ba.residuals_px > cfg.outlier_px
+            seen[oc[bad], op_global[bad]] = False
+            keep &= seen.sum(0) >= 2
+    return cur, X, ba.residuals_px, obs.cam
 
 
 def extrinsics_from_people(cameras: list[Camera], keypoints: np.ndarray, keypoint_names, fmt: str | None = None,
@@ -409,124 +540,106 @@ def extrinsics_from_people(cameras: list[Camera], keypoints: np.ndarray, keypoin
                            observer=None) -> ExtrinsicsResult:
     """Camera poses from 2D keypoints of people moving through the volume.
 
+    The detections need not be associated across cameras.  Every camera pair matches its
+    detections by RANSAC over detection pairs (:func:`~toolkit.calibration.people_matching.match_camera_pair`)
+    and the matches of all pairs are joined into people-frames.  From each of the
+    :data:`START_PAIRS` camera pairs sharing most of them: an essential matrix and PnP of the other
+    cameras give first poses, a bundle adjustment refines them, and (up to
+    :data:`ASSOCIATION_PASSES` times) every frame's detections are grouped into people with the
+    poses (:func:`~toolkit.calibration.people_matching.associate_detections`) and adjusted again.
+    The solution with most observations within ``outlier_px`` is kept.
+
     Parameters
     ----------
     cameras : list of Camera
         Intrinsics (poses ignored); at least 2.
-    keypoints : ndarray of shape (n_cams, T, K, 3)
-        ``(x, y, confidence)`` pixels of the same person(s) in synchronised frames; NaN / 0 missing.
-        Several people: stack them along T (each (frame, person) is its own "frame").
+    keypoints : ndarray of shape (n_cams, T, K, 3) or (n_cams, T, P, K, 3)
+        ``(x, y, confidence)`` pixels in synchronised frames; NaN / confidence 0 missing.  Either one
+        detection per camera and frame (e.g. each camera's most confident person: a frame where
+        the cameras picked different people gives one group per person seen by two or more), or
+        up to ``P`` detections per camera and frame in any order (every person the detector found:
+        :func:`toolkit.calibration.people_matching.detections_array`).  Detections no other camera
+        agrees with (bystanders seen by one camera) are left out.
     keypoint_names : sequence of str
         The K keypoint names (e.g. ``toolkit.skeleton.mappings.KEYPOINTS[fmt]``).
     fmt : str, optional
         Format of the keypoints for the 14-joint mapping (scale and floor); ``"skeleton14"`` when the
         keypoints already are the 14 joints.
     height_m : float, optional
-        The person's stature, metres (the scale).
+        The people's stature, metres (the scale).
     bone_lengths_m : dict of str to float, optional
         Measured segment lengths (``upper_arm``, ``forearm``, ``thigh``, ``shank``), metres; override
         the stature's proportions.
     config : PeopleConfig, optional
     rng : numpy.random.Generator, optional
-        Seeds OpenCV's RANSAC (``cv2.setRNGSeed``) for repeatable results.
+        Draws the RANSAC samples and seeds OpenCV's RANSAC (``cv2.setRNGSeed``): repeatable results.
     observer : Observer, optional
 
     Returns
     -------
     ExtrinsicsResult
         ``details`` holds ``scale`` (metres per unit of the first reconstruction), ``scale_from``,
-        ``bone_scales``, ``floor_from``, the number of observations and ``keypoints3d`` (T, K, 3),
-        the adjusted keypoints in the world frame (NaN where not reconstructed).
+        ``bone_scales``, ``floor_from``, the number of observations, ``groups`` (people-frames used)
+        and ``groups_by_views``, ``detections_unmatched`` (detections with keypoints in no group),
+        and ``keypoints3d`` (T, K, 3): per frame the group seen by most cameras, adjusted, in the
+        world frame (NaN where none).
 
     Raises
     ------
     InputError
-        Fewer than 2 cameras, wrong shapes, or too few common keypoints to start.
+        Fewer than 2 cameras, wrong shapes, or too few agreeing keypoints to start or to place a camera.
     """
     cfg = config or PeopleConfig()
     kp = np.asarray(keypoints, float)
     C = len(cameras)
-    if C < 2 or kp.ndim != 4 or kp.shape[0] != C or kp.shape[-1] != 3:
-        raise InputError("keypoints", f"an array (n_cams={C} >= 2, T, K, 3) of (x, y, confidence)",
-                         f"shape {kp.shape}")
+    if kp.ndim == 4:
+        kp = kp[:, :, None]
+    if C < 2 or kp.ndim != 5 or kp.shape[0] != C or kp.shape[-1] != 3:
+        raise InputError("keypoints", f"an array (n_cams={C} >= 2, T, [P,] K, 3) of (x, y, confidence)",
+                         f"shape {np.shape(keypoints)}")
     names = list(keypoint_names)
-    if len(names) != kp.shape[2]:
-        raise InputError("keypoint_names", f"{kp.shape[2]} names", f"{len(names)}")
+    if len(names) != kp.shape[3]:
+        raise InputError("keypoint_names", f"{kp.shape[3]} names", f"{len(names)}")
     rng = np.random.default_rng(rng)
     cv2.setRNGSeed(int(rng.integers(0, 2 ** 31 - 1)))
-    T_, K_ = kp.shape[1:3]
-    uv = kp[..., :2].reshape(C, -1, 2).copy()
-    seen = (kp[..., 2].reshape(C, -1) >= cfg.min_confidence) & np.isfinite(uv).all(-1)
+    T_, K_ = kp.shape[1], kp.shape[3]
+    uv = kp[..., :2].copy()
+    seen = (kp[..., 2] >= cfg.min_confidence) & np.isfinite(uv).all(-1)
     uv[~seen] = np.nan
     xy = np.stack([cam.undistort_points(uv[c]) for c, cam in enumerate(cameras)])
     f = np.array([cam.K[0, 0] for cam in cameras])
-    # ---- the starting pair
-    common = np.array([[np.sum(seen[a] & seen[b]) if a != b else 0 for b in range(C)] for a in range(C)])
-    a, b = np.unravel_index(np.argmax(common), common.shape)
-    if common[a, b] < 8:
-        raise InputError("keypoints", "at least 8 keypoints seen by two cameras at once",
-                         f"at most {common[a, b]} (cameras {cameras[a].name}, {cameras[b].name})")
-    m = seen[a] & seen[b]
-    thr = cfg.ransac_px / np.sqrt(f[a] * f[b])
-    E, inl = cv2.findEssentialMat(xy[a, m], xy[b, m], np.eye(3), cv2.RANSAC, 0.999, thr)
-    if E is None:
-        raise InputError("keypoints", "keypoints from which an essential matrix can be estimated",
-                         f"none for cameras {cameras[a].name}, {cameras[b].name}")
-    E = E[:3]
-    _, R, t, _ = cv2.recoverPose(E, xy[a, m], xy[b, m], np.eye(3), mask=inl.copy())
-    cur: list = [None] * C
-    cur[a] = cameras[a].replace(cam_from_world=np.eye(4))
-    Tb = np.eye(4)
-    Tb[:3, :3], Tb[:3, 3] = R, t.ravel()
-    cur[b] = _set_pose(cameras[b], Tb)
-    # ---- add the other cameras by PnP on triangulated keypoints
-    def tri():
-        reg = [c for c in range(C) if cur[c] is not None]
-        obs = np.where(seen[reg][..., None], uv[reg], np.nan)
-        X = _triangulate([cur[c] for c in reg], obs)
-        ok = _depth_ok([cur[c] for c in reg], X, seen[reg])
-        X[~ok] = np.nan
-        return X
-
-    X = tri()
-    while any(c is None for c in cur):
-        cands = [c for c in range(C) if cur[c] is None]
-        counts = [np.sum(seen[c] & np.isfinite(X).all(1)) for c in cands]
-        c = cands[int(np.argmax(counts))]
-        mm = seen[c] & np.isfinite(X).all(1)
-        if mm.sum() < 6:
-            raise InputError("keypoints", f"camera {cameras[c].name} seeing at least 6 keypoints the others see",
-                             f"{int(mm.sum())}")
-        ok, r, tt, inl = cv2.solvePnPRansac(X[mm], xy[c, mm], np.eye(3), None,
-                                           reprojectionError=cfg.ransac_px / f[c], iterationsCount=500,
-                                           flags=cv2.SOLVEPNP_SQPNP)
-        if not ok:
-            raise InputError("keypoints", f"keypoints placing camera {cameras[c].name}", "a failed PnP")
-        Tc = np.eye(4)
-        Tc[:3, :3], Tc[:3, 3] = cv2.Rodrigues(r)[0], tt.ravel()
-        cur[c] = _set_pose(cameras[c], Tc)
-        X = tri()
-    # ---- bundle adjustment (two rounds: the second without gross outliers)
-    keep = np.isfinite(X).all(1)
-    for round_ in range(2):
-        pid = -np.ones(len(X), int)
-        pid[keep] = np.arange(keep.sum())
-        oc, op = np.nonzero(seen[:, keep])
-        op_global = np.flatnonzero(keep)[op]
-        obs = Observations(oc, pid[op_global], xy[oc, op_global])
-        ba = bundle_adjust(cur, obs, points=X[keep], fixed_cameras=(a,), loss="soft_l1",
-                           f_scale_px=cfg.f_scale_px, max_nfev=100)
-        cur = [_set_pose(cam, T) for cam, T in zip(cur, ba.cam_from_world)]
-        X = np.full_like(X, np.nan)
-        X[keep] = ba.points
-        if round_ == 0:
-            bad = ba.residuals_px > cfg.outlier_px
-            bad_pairs = (oc[bad], op_global[bad])
-            seen[bad_pairs] = False
-            keep &= seen.sum(0) >= 2
-    residuals, res_cam = ba.residuals_px, obs.cam
+    # ---- the same person in several cameras (before any pose); first poses from each of the camera pairs
+    # sharing most of them; the solution whose people agree in the most observations
+    groups0, gframes0 = _matched_groups(cameras, xy, seen, f, cfg, rng)
+    gx, gs = group_observations(groups0, gframes0, xy, seen)
+    best, failure = None, None
+    for a, b in _start_pairs(gs.reshape(C, -1), START_PAIRS):
+        try:
+            first = _initial_poses(cameras, gx.reshape(C, -1, 2), gs.reshape(C, -1), f, cfg, a, b)
+        except InputError as e:
+            failure = e
+            continue
+        sol = _solve(first, a, groups0, gframes0, xy, seen, f, cfg)
+        if best is None or np.sum(sol[2] <= cfg.outlier_px) > np.sum(best[1][2] <= cfg.outlier_px):
+            best = (a, sol)
+    if best is None:
+        raise failure or InputError("keypoints", "two cameras sharing at least 8 keypoints of one person", "none")
+    a, (cur, X, residuals, res_cam, groups, gframes) = best
+    per_cam = (groups >= 0).sum(0)
+    if per_cam.min() < MIN_CAMERA_GROUPS:
+        c = int(np.argmin(per_cam))
+        raise InputError("keypoints", f"camera {cameras[c].name} seeing at least {MIN_CAMERA_GROUPS} "
+                         "people-frames that other cameras see too (give every detection of every frame when "
+                         "several people are in view, not one person per camera)", f"{int(per_cam[c])}")
+    G = len(groups)
+    used = np.zeros(seen.shape[:3], bool)
+    for c in range(C):
+        k = groups[:, c] >= 0
+        used[c, gframes[k], groups[k, c]] = True
+    unmatched = int((seen.any(-1) & ~used).sum())
     # ---- scale, up and floor from the body
-    P3 = X.reshape(T_, K_, 3)
+    # ---- scale, up and floor from the body
+    P3 = X.reshape(G, K_, 3)
     J = P3 if fmt in (None, "skeleton14") and K_ == 14 else to_skeleton14(P3, fmt)
     jidx = {n: i for i, n in enumerate(JOINTS_14)}
     stature = height_m if height_m is not None else DEFAULT_STATURE_M
@@ -597,11 +710,18 @@ def extrinsics_from_people(cameras: list[Camera], keypoints: np.ndarray, keypoin
         cams.append(_set_pose(cam, T @ Winv))
     rig = Rig(tuple(cams))
     Xw = Xs @ R_wr.T + W[:3, 3]
-    named = {normalise_name(n): Xw.reshape(T_, K_, 3)[:, i] for i, n in enumerate(names)}
+    Xg = Xw.reshape(G, K_, 3)
+    named = {normalise_name(n): Xg[:, i] for i, n in enumerate(names)}
     warnings += mirrored_person_warning(named) + cameras_under_floor(rig)
+    per_frame = np.full((T_, K_, 3), np.nan)
+    fr, first = np.unique(gframes, return_index=True)  # within a frame, the group seen by most cameras comes first
+    per_frame[fr] = Xg[first]
+    views = (groups >= 0).sum(1)
     details = {"scale": scale, "scale_from": scale_from, "bone_scales": bone_scales, "floor_from": floor_from,
-               "start_pair": (cameras[a].name, cameras[b].name), "observations": int(len(residuals)),
-               "points": int(np.isfinite(Xw).all(1).sum()), "keypoints3d": Xw.reshape(T_, K_, 3)}
+               "start_camera": cameras[a].name, "observations": int(len(residuals)),
+               "points": int(np.isfinite(Xw).all(1).sum()), "groups": G,
+               "groups_by_views": {int(v): int((views == v).sum()) for v in np.unique(views)},
+               "detections_unmatched": unmatched, "keypoints3d": per_frame}
     result = ExtrinsicsResult(rig, Xw[np.isfinite(Xw).all(1)], reprojection_summary(rig.names, res_cam, residuals),
                               warnings, "people", details)
     _report(observer, result, residuals, res_cam)
