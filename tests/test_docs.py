@@ -126,3 +126,104 @@ def test_the_checks_see_what_they_should():
     assert _diary_hits([(1, "a Pose2Sim session folder, Session/S00_Calibration"), (2, "one correction session"),
                         (3, "python /tmp/sbsil/loop.py"), (4, "the session's Calib*.toml"),
                         (5, "@pytest.fixture(scope=\"session\")")]) == []
+
+
+# ----------------------------------------------------------------- README, user guides, anchors, recipe flags
+
+#: The user guides, one per input kind, that README.md links to.
+GUIDES = ("guide_videos.md", "guide_depth.md", "guide_markers.md", "guide_point_clouds.md")
+HEADING = re.compile(r"^#{1,6}\s+(.+?)\s*#*\s*$", re.MULTILINE)
+RECIPE_CALL = re.compile(r"recipes/([a-z][a-z0-9_]*)\.py\b")   # NAME.py: a placeholder
+FLAG = re.compile(r"(?<![\w-])--[a-z][a-z0-9-]*")
+
+
+def _recipes() -> list[str]:
+    return sorted(p.stem for p in (ROOT / "recipes").glob("*.py") if p.stem != "__init__")
+
+
+def _slug(heading: str) -> str:
+    """GitHub's anchor of a Markdown heading: lower case, punctuation dropped, spaces to hyphens."""
+    return re.sub(r"[^\w\- ]", "", heading.replace("`", "").strip().lower()).replace(" ", "-")
+
+
+def _anchors(doc: Path) -> set[str]:
+    text = FENCE.sub("", doc.read_text(encoding="utf-8"))
+    return {_slug(h) for h in HEADING.findall(text)}
+
+
+def _commands(doc: Path) -> list[str]:
+    """Every shell command of a doc's code blocks (continuation lines joined) and code spans."""
+    text = doc.read_text(encoding="utf-8")
+    out = []
+    for block in FENCE.finditer(text):
+        out += block.group(0).replace("\\\n", " ").splitlines()[1:-1]
+    out += [span.strip("`") for span in CODE_SPAN.findall(FENCE.sub("", text))]
+    return out
+
+
+def _recipe_calls(command: str) -> list[tuple[str, list[str]]]:
+    """(recipe, flags given to it) for each ``recipes/NAME.py`` call of one command line."""
+    command = re.split(r"\s#", command)[0]                       # a trailing shell comment
+    calls = []
+    for part in re.split(r"&&|;|\|(?!\w)", command):
+        for m, nxt in zip(RECIPE_CALL.finditer(part), [*list(RECIPE_CALL.finditer(part))[1:], None]):
+            args = part[m.end():nxt.start() if nxt else None]
+            calls.append((m.group(1), FLAG.findall(args)))
+    return calls
+
+
+def test_readme_names_every_recipe_and_links_every_guide():
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    missing = [r for r in _recipes() if f"{r}.py" not in readme]
+    assert not missing, f"recipes the README does not name: {missing}"
+    for guide in GUIDES:
+        assert (ROOT / "docs" / guide).is_file(), f"docs/{guide} is missing"
+        assert f"(docs/{guide})" in readme, f"README.md does not link docs/{guide}"
+    for cmd in ("bash scripts/run_default.sh", "bash scripts/test.sh"):
+        assert f"\n    {cmd}\n" in readme, f"README.md lost its set-up command {cmd!r}"
+
+
+def test_each_guide_shows_pictures_and_its_recipes():
+    for guide, recipe in zip(GUIDES, ("free_viewpoint", "depth_tracking", "joint_centres", "fit_soft_body")):
+        text = (ROOT / "docs" / guide).read_text(encoding="utf-8")
+        assert re.search(r"!\[[^\]]*\]\(images/", text), f"docs/{guide} shows no picture"
+        assert f"recipes/{recipe}.py" in text, f"docs/{guide} never runs recipes/{recipe}.py"
+
+
+def test_anchors_of_links_between_the_docs_exist():
+    bad = []
+    for doc in _docs():
+        text = CODE_SPAN.sub("", FENCE.sub("", doc.read_text(encoding="utf-8")))
+        for m in LINK.finditer(text):
+            target = m.group(1)
+            if "#" not in target or re.match(r"[a-z][a-z0-9+.-]*:", target, re.IGNORECASE):
+                continue
+            path, anchor = target.split("#", 1)
+            linked = (doc.parent / path) if path else doc
+            if linked.suffix == ".md" and linked.is_file() and anchor not in _anchors(linked):
+                bad.append(f"{doc.relative_to(ROOT)}: {target}")
+    assert not bad, "links to headings that do not exist:\n" + "\n".join(bad)
+
+
+def test_recipe_commands_in_readme_and_guides_use_existing_recipes_and_flags():
+    recipes = set(_recipes())
+    bad = []
+    for doc in [ROOT / "README.md", *(ROOT / "docs" / g for g in GUIDES)]:
+        for command in _commands(doc):
+            for recipe, flags in _recipe_calls(command):
+                if recipe not in recipes:
+                    bad.append(f"{doc.name}: recipes/{recipe}.py does not exist")
+                    continue
+                source = (ROOT / "recipes" / f"{recipe}.py").read_text(encoding="utf-8")
+                bad += [f"{doc.name}: recipes/{recipe}.py has no option {flag}" for flag in flags
+                        if flag != "--help" and f'"{flag}"' not in source and f"'{flag}'" not in source]
+    assert not bad, "\n".join(bad)
+
+
+def test_the_recipe_and_anchor_checks_see_what_they_should():
+    assert _slug("Soft-body models from point clouds") == "soft-body-models-from-point-clouds"
+    assert _slug("Calibration from scratch (board, people)") == "calibration-from-scratch-board-people"
+    assert _recipe_calls(".venv/bin/python recipes/free_viewpoint.py T --out O --max-frames 4  # not --this") == [
+        ("free_viewpoint", ["--out", "--max-frames"])]
+    assert _recipe_calls("recipes/make_scene.py S --out D && recipes/depth_tracking.py D --out E --frames 3") == [
+        ("make_scene", ["--out"]), ("depth_tracking", ["--out", "--frames"])]

@@ -1,0 +1,48 @@
+"""Joint angles on a real Plug-in Gait walk against the angles Vicon stored in it (skipped without the file)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from toolkit.biomech.opensim_model import opensim_available
+from toolkit.biomech.validate import plugin_gait_comparison
+
+pytestmark = pytest.mark.realdata
+
+#: The issue's targets (degrees RMS over the trial): knee flexion 5, hip and ankle flexion 8.
+KNEE_DEG, HIP_ANKLE_DEG = 5.0, 8.0
+
+
+def _file(*parts) -> Path:
+    env = os.environ.get("TOOLKIT_REALDATA")
+    root = Path(env) if env else Path(__file__).resolve().parents[3] / "shared" / "realdata"
+    path = root.joinpath(*parts)
+    if not path.is_file():
+        pytest.skip(f"real data not found at {path}")
+    return path
+
+
+@pytest.mark.slow
+def test_own_angles_within_the_targets_of_plugin_gait(tmp_path):
+    move = _file("c3d_plugin_gait", "Movement_trial.c3d")
+    static = _file("c3d_plugin_gait", "Static_trial.c3d")
+    engines = ("own", "opensim") if opensim_available() else ("own",)
+    res = plugin_gait_comparison(move, static, engines=engines, out=tmp_path)
+    own = res["own/markers"]
+    for side in "lr":
+        assert own[f"{side}_knee_flexion"]["rms_deg"] < KNEE_DEG
+        assert own[f"{side}_hip_flexion"]["rms_deg"] < HIP_ANKLE_DEG
+        assert own[f"{side}_ankle_dorsiflexion"]["rms_deg"] < HIP_ANKLE_DEG
+        assert own[f"{side}_hip_flexion"]["n_frames"] == 323
+    if "opensim/markers" in res:
+        osim = res["opensim/markers"]
+        for side in "lr":
+            assert osim[f"{side}_hip_flexion"]["rms_deg"] < HIP_ANKLE_DEG
+            assert osim[f"{side}_ankle_dorsiflexion"]["rms_deg"] < HIP_ANKLE_DEG
+            # not the 5-degree target: the rigid tibia cannot follow the centres' changing knee-ankle
+            # distance; measured 5.3 / 8.0 (docs/joint_angles.md): a bound against regressions
+            assert osim[f"{side}_knee_flexion"]["rms_deg"] < 9.0
+            assert osim[f"{side}_hip_rotation"]["rms_deg"] < 10.0
