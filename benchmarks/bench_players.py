@@ -7,10 +7,12 @@ Usage::
                                        [--pictures docs/images]
 
 Draws ``--scenes`` multi-player scenes (:func:`toolkit.synthetic.players.players_zoo`: 2-6 players,
-broadcast and studio, 2-4 cameras, crossing paths), renders them, finds the people with the
-built-in detector (``recipes/detect_keypoints.py``: what a user with videos does; nothing of the
-truth reaches the pipeline), and runs ``recipes/free_viewpoint.py`` with its default options
-(every participant, the scene model of the source videos) on the first ``--frames`` frames.
+broadcast and studio, 2-4 cameras, crossing paths), renders them, and runs
+``recipes/free_viewpoint.py`` with its default options (every participant, the scene model of the
+source videos) on the first ``--frames`` frames.  Stage 1 (``--stage1``): ``silhouettes`` (default;
+the people found on the ground in the cameras' foreground, each through the silhouette database)
+or ``detector`` (the built-in detector's keypoints, ``recipes/detect_keypoints.py``).  Nothing of
+the truth reaches the pipeline.
 Per scene, on the novel cameras against the rendered truth:
 
 * ``frame``: whole-frame PSNR of the articulated rendering, and of the nearest source camera
@@ -51,8 +53,9 @@ def worst_decile(values, higher_is_better: bool = True) -> float:
     return float(np.percentile(v, 10 if higher_is_better else 90))
 
 
-def make_dataset(spec, out: Path) -> Path:
-    """The scene rendered and its people detected into ``out/keypoints`` (both kept between runs)."""
+def make_dataset(spec, out: Path, detect: bool) -> Path:
+    """The scene rendered and, with ``detect``, its people detected into ``out/keypoints`` (both kept
+    between runs)."""
     from toolkit.pipeline.detect_keypoints import DetectConfig, detect_videos
     from toolkit.synthetic import generate_scene
 
@@ -60,9 +63,11 @@ def make_dataset(spec, out: Path) -> Path:
     if not done.exists():
         shutil.rmtree(out, ignore_errors=True)
         generate_scene(spec, out, progress=False).close()
+        done.write_text(spec.text)
+    if detect and not (out / "keypoints" / ".complete").exists():
         detect_videos(out / "videos", out / "keypoints", DetectConfig(max_frames=spec.frames, progress=False),
                       log=lambda *_: None)
-        done.write_text(spec.text)
+        (out / "keypoints" / ".complete").write_text("")
     return out
 
 
@@ -92,17 +97,18 @@ def people_miou(ds, run: Path, frames: int) -> list:
     return [float(np.mean(vals[k])) if k in vals else float("nan") for k in range(ds.people_count)]
 
 
-def run_scene(spec, cache: Path, out: Path, frames: int) -> dict:
+def run_scene(spec, cache: Path, out: Path, frames: int, stage1: str = "silhouettes") -> dict:
     from recipes import free_viewpoint
     from toolkit.io import Dataset
 
     name = spec.source.rsplit("/", 1)[-1].removesuffix(".toml")
     t0 = time.perf_counter()
-    dataset = make_dataset(spec, cache / name)
+    dataset = make_dataset(spec, cache / name, stage1 == "detector")
     run = out / name
     shutil.rmtree(run, ignore_errors=True)
+    how = ["--keypoint-format", "blazepose_33"] if stage1 == "detector" else ["--no-keypoints"]
     rc = free_viewpoint.main([str(dataset), "--out", str(run), "--max-frames", str(frames), "--no-recording",
-                              "--quiet", "--keypoint-format", "blazepose_33"])
+                              "--quiet", *how])
     if rc != 0:
         raise RuntimeError(f"free_viewpoint.py on {dataset} returned {rc}")
     m = json.loads((run / "metrics.json").read_text())
@@ -151,16 +157,18 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", type=int, default=4, help="frames per scene rendered and run")
     ap.add_argument("--out", type=Path, default=REPO / "out" / "bench_players")
     ap.add_argument("--pictures", type=Path, default=None)
+    ap.add_argument("--stage1", choices=("silhouettes", "detector"), default="silhouettes",
+                    help="people from the cameras' foreground (default) or from the built-in detector")
     args = ap.parse_args(argv)
 
     from toolkit.synthetic.players import players_zoo
 
     specs = players_zoo(args.zoo_seed, args.scenes, frames=args.frames)
-    cache, runs = args.out / "scenes", args.out / "runs"
+    cache, runs = args.out / "scenes", args.out / f"runs_{args.stage1}"
     rows = []
     for spec in specs:
         try:
-            r = run_scene(spec, cache, runs, args.frames)
+            r = run_scene(spec, cache, runs, args.frames, args.stage1)
         except Exception as e:  # one scene's failure is reported, the others go on
             print(f"[{spec.source}] failed: {type(e).__name__}: {e}")
             continue

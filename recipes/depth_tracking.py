@@ -24,7 +24,7 @@ Writes ``OUT/skeleton.npz`` (``joints`` (T, 13, 3) metres in world coordinates
 when the camera pose is known, else camera coordinates; ``names`` (13,);
 ``state`` (T,) 0 lost / 1 recovering / 2 tracking; ``state_names``; ``observed``
 (T, 13); ``explained`` and ``supported`` (T,); ``reason`` (T,); ``frames`` (T,)
-file names; ``coordinates``), ``OUT/recording.rrd`` (the depth frames, point
+file names; ``coordinates``; ``status``; ``unreadable``), ``OUT/recording.rrd`` (the depth frames, point
 cloud, ORUS grid, normals, curvature centres and osculating spheres, radial
 profile, energy terms per iteration and the skeleton, for the rerun viewer),
 ``OUT/metrics.json`` when there is ground truth, and with ``--images DIR`` one
@@ -36,7 +36,10 @@ tcp://HOST:PORT``: on a Dask cluster, docs/parallel.md).  One run is one sequenc
 camera and background by content, and the options that change the results): a
 folder of another input or other options is refused (``--replace-stale`` moves
 it aside); the same run again tracks from the first frame and replaces the
-results.  Options may also come from a TOML file (--config; the keys of
+results.  Ctrl-C writes the frames tracked so far (``status`` "interrupted" in
+``skeleton.npz``; never over a complete run's), an unreadable frame file is
+tracked as a frame without depth and named (``unreadable`` (T,) in
+``skeleton.npz``), and float ``.npy`` depth must be metres.  Options may also come from a TOML file (--config; the keys of
 toolkit.pipeline.depth_tracking.DepthTrackingRunConfig, the tracker's in a
 [tracker] table, e.g. ``[tracker.orus] bin_size_m = 0.06``; flags given on the
 command line win).
@@ -116,7 +119,7 @@ def main(argv=None) -> int:
         return 2
     for result in results:
         print("\n".join(summary_lines(result)))
-    return 0
+    return 130 if any(r.stopped for r in results) else 0
 
 
 if __name__ == "__main__":

@@ -130,7 +130,8 @@ def parser() -> argparse.ArgumentParser:
                          "OUT/scene/) or the dataset's clean plates (an evaluation aid: the synthetic scene's true "
                          "surroundings, a held-out camera's own plate or inpainted frame)")
     ap.add_argument("--people", choices=PEOPLE_CHOICES, default=None,
-                    help="with keypoints: every participant (default all; OUT/people3d.npz) or the main person only")
+                    help="every person (default all: the participants of the keypoints, or the people found on the "
+                         "ground in the silhouettes; OUT/people3d.npz) or the main person only")
     ap.add_argument("--sync", action="store_true",
                     help="a Pose2Sim trial without keypoints: synchronise its cameras and line them up on import")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -9,6 +9,12 @@ Writes the dataset layout of ``docs/dataset_layout.md`` into ``--out`` and a
 rerun recording ``scene.rrd`` of the scene and its ground truth.  A spec with
 a ``[markers]`` table is a marker capture: only the calibration, the 2D marker
 blobs and the ground truth are written (``toolkit/io/marker_files.py``), no videos.
+
+The dataset is written into a hidden folder beside ``--out`` and renamed to
+``--out`` only once complete, so an error or Ctrl-C leaves ``--out`` as it was.
+An ``--out`` that holds files is refused; ``--overwrite`` replaces it (once the
+new dataset is complete).  A spec whose rendering would not fit in the memory
+available is refused before the first frame, with the estimate.
 """
 
 from __future__ import annotations
@@ -26,7 +32,9 @@ def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
     ap.add_argument("spec", type=Path, help="scene spec TOML (see datasets_synthetic/README.md)")
-    ap.add_argument("--out", type=Path, required=True, help="dataset folder to write")
+    ap.add_argument("--out", type=Path, required=True, help="dataset folder to write (new or empty)")
+    ap.add_argument("--overwrite", action="store_true",
+                    help="replace an --out that holds files (once the new dataset is complete)")
     ap.add_argument("--no-recording", action="store_true", help="do not write scene.rrd")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
     return ap
@@ -42,27 +50,33 @@ def _marker_summary(args, info: dict, dt: float) -> None:
 
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
+    from toolkit.io.runs import staged_folder
     from toolkit.synthetic import generate_scene, load_spec
+    from toolkit.synthetic.memory import check_render_memory
 
     try:
         spec = load_spec(args.spec)
-        observer = None
-        if not args.no_recording:
-            from toolkit.viz import RerunObserver
-
-            observer = RerunObserver(application_id="make_scene", path=args.out / "scene.rrd",
-                                     camera_names=spec.camera_names)
+        if spec.markers is None:
+            check_render_memory(spec)
         t0 = time.perf_counter()
-        try:
-            if spec.markers is not None:  # a marker capture: no videos
-                from toolkit.synthetic.marker_capture import generate_marker_capture
+        with staged_folder(args.out, overwrite=args.overwrite) as stage:
+            observer = None
+            if not args.no_recording:
+                from toolkit.viz import RerunObserver
 
-                info = generate_marker_capture(spec, args.out, observer=observer)
-            else:
-                ds = generate_scene(spec, args.out, observer=observer, progress=not args.quiet)
-        finally:
-            if observer is not None:
-                observer.close()
+                observer = RerunObserver(application_id="make_scene", path=stage / "scene.rrd",
+                                         camera_names=spec.camera_names)
+            try:
+                if spec.markers is not None:  # a marker capture: no videos
+                    from toolkit.synthetic.marker_capture import generate_marker_capture
+
+                    info = generate_marker_capture(spec, stage, observer=observer)
+                else:
+                    ds = generate_scene(spec, stage, observer=observer, progress=not args.quiet)
+                    ds.close()
+            finally:
+                if observer is not None:
+                    observer.close()
     except InputError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
@@ -77,7 +91,6 @@ def main(argv=None) -> int:
     print(f"  ground truth:           {args.out / 'groundtruth'}")
     if not args.no_recording:
         print(f"  recording:              {args.out / 'scene.rrd'}   (open with: rerun {args.out / 'scene.rrd'})")
-    ds.close()
     return 0
 
 

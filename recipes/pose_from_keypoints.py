@@ -62,8 +62,10 @@ capture volume, is not a person; docs/multi_person.md) gets ``OUT/person_<k>/`` 
 files above, ``OUT/people.json`` lists them, and ``OUT/recording.rrd`` holds them all, each
 under ``person_<k>/`` in its own colour.
 
-Results are written at the end, also after an error or Ctrl-C (frames not
-processed are NaN).  Options may also come from a TOML file (--config; the keys of
+``OUT/run.json`` records the inputs (by content) and options of the run: a folder of
+another run is refused (``--replace-stale`` moves it aside); the same run again
+replaces its results.  Results are written at the end, also after an error or
+Ctrl-C (frames not processed are NaN), but never over the results of a complete run.  Options may also come from a TOML file (--config; the keys of
 toolkit.pipeline.pose_from_keypoints.PoseFromKeypointsConfig, e.g. ``export = ["csv"]``,
 ``flips = []``; flags given on the command line win).  ``poses3d.json`` records them
 under ``run``.
@@ -133,6 +135,8 @@ def parser() -> argparse.ArgumentParser:
                          "OUT/person_<k>/ with the files below; OUT/people.json lists them and OUT/recording.rrd "
                          "shows each in its own colour (default: the person most cameras agree on)")
     ap.add_argument("--no-recording", action="store_true", help="do not write recording.rrd")
+    ap.add_argument("--replace-stale", action="store_true",
+                    help="move an --out folder of another run (other inputs or options) aside instead of refusing it")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
     return ap
 
@@ -155,7 +159,8 @@ def config_from_args(args: argparse.Namespace) -> PoseFromKeypointsConfig:
     return replace(config, robust=config.robust and not args.no_robust,
                    check_ground=config.check_ground and not args.no_ground_check,
                    multi_person=config.multi_person or args.multi_person,
-                   recording=config.recording and not args.no_recording, progress=config.progress and not args.quiet)
+                   recording=config.recording and not args.no_recording, replace_stale=config.replace_stale
+                   or args.replace_stale, progress=config.progress and not args.quiet)
 
 
 def main(argv=None) -> int:

@@ -30,6 +30,10 @@ class InputError(ToolkitError, ValueError):
         self.found = found
         super().__init__(f"{where}: expected {expected}, found {found}")
 
+    def __reduce__(self):
+        # rebuilt from its three parts when it crosses a process boundary (workers, child processes)
+        return (type(self), (self.where, self.expected, self.found))
+
 
 def check_shape(name: str, array, shape: tuple) -> None:
     """Raise :class:`InputError` unless ``array`` has ``shape``.

@@ -98,8 +98,11 @@ def test_recipe_run_identity_and_config_file(tmp_path, capsys):
     out = tmp_path / "out"
     common = [str(frames), "--out", str(out), "--size", "64", "48", "--quiet", "--no-recording"]
     assert depth_tracking.main(common) == 0
-    assert depth_tracking.main(common + ["--frames", "1"]) == 0            # how many frames: not the identity
-    assert len(np.load(out / "skeleton.npz")["state"]) == 1
+    capsys.readouterr()
+    assert depth_tracking.main(common + ["--frames", "1"]) == 2            # fewer frames than the folder holds
+    assert "2 frames" in capsys.readouterr().err
+    assert len(np.load(out / "skeleton.npz")["state"]) == 2                # kept, not rewritten for 1 frame
+    assert depth_tracking.main(common + ["--frames", "5"]) == 0            # how many frames: not the identity
     capsys.readouterr()
     assert depth_tracking.main(common + ["--seed", "5"]) == 2
     assert "seed" in capsys.readouterr().err

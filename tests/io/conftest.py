@@ -30,7 +30,12 @@ def pose2sim_demo() -> Path:
 def random_rig(
     rng: np.random.Generator, n_cams: int = 3, size=(64, 48), dist_lengths=(4, 5, 8), names=None
 ) -> Rig:
-    """Cameras on a circle of radius 3-5 m around the origin looking at a point near (0, 0, 1)."""
+    """Cameras on a circle of radius 3-5 m around the origin looking at a point near (0, 0, 1).
+
+    The focal length (40-80 px at 64 px wide) scales with the width, so that every size gives the same
+    fields of view (a 1280-px image with a 60-px focal length would be a 170-degree pinhole camera, which
+    the calibration readers refuse).
+    """
     cams = []
     for i in range(n_cams):
         a = 2 * np.pi * i / n_cams + rng.uniform(-0.3, 0.3)
@@ -44,7 +49,7 @@ def random_rig(
             eye,
             target,
             size=size,
-            focal_px=rng.uniform(40, 80),
+            focal_px=rng.uniform(40, 80) * size[0] / 64,
             dist=dist,
         )
         K = cam.K.copy()

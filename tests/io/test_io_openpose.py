@@ -42,7 +42,7 @@ def test_read_json_people(tmp_path):
 
 
 @pytest.mark.parametrize("content,match", [
-    ("{not json", "JSONDecodeError"),
+    ("{not json", "JSON syntax error"),
     (json.dumps({"people": [{"pose_keypoints_2d": [1, 2, 3, 4]}]}), "triples"),
     (json.dumps({"people": [{"pose_keypoints_2d": [1, 2, 0.5] * 17}]}), "25 keypoints"),
     (json.dumps({"people": "nobody"}), "people"),

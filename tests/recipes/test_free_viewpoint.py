@@ -220,12 +220,13 @@ def test_each_frame_is_decoded_once(dataset, tmp_path, monkeypatch):
         return original(self)
 
     monkeypatch.setattr(video.VideoReader, "_decode_next", counting)
-    # the scene model (background "scene") reads its sample of frames once more, before the run: left out here
+    # the scene model (background "scene") reads its sample of frames once more, before the run, and so does
+    # the search for several people (people "all": up to 8 frames per camera): both left out here
     conf = tmp_path / "plates.toml"
     conf.write_text('background = "plates"\n')
     rc = _load_recipe().main([str(root), "--out", str(tmp_path / "o"), "--db", str(db_path), "--foreground",
                               "chroma", "--quiet", "--no-recording", "--no-optimize", "--no-baselines",
-                              "--config", str(conf)])
+                              "--config", str(conf), "--people", "main"])
     assert rc == 0
     assert len(decoded) == 2 * N_FRAMES  # every (camera, frame) was read
     assert set(decoded.values()) == {1}, f"frames decoded more than once: {decoded}"

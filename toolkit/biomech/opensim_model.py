@@ -63,12 +63,10 @@ MIN_MARKERS = 4
 
 
 def opensim_available() -> bool:
-    """Whether the ``opensim`` package imports."""
-    try:
-        import opensim  # noqa: F401
-    except ImportError:
-        return False
-    return True
+    """Whether the ``opensim`` package is installed (found, not imported: see :func:`opensim_angles`)."""
+    import importlib.util
+
+    return importlib.util.find_spec("opensim") is not None
 
 
 def _require_opensim():
@@ -346,40 +344,29 @@ def _initial_pelvis(points: dict, t: int) -> dict:
             "pelvis_tx": o[0], "pelvis_ty": o[1], "pelvis_tz": o[2]}
 
 
-def opensim_angles(points: dict, fps: float, out: str | os.PathLike, *, static: dict | None = None,
-                   log=None) -> OpenSimResult:
-    """Scale the generic model to the person and run inverse kinematics on every frame.
+def _scaled_model(osim, points: dict, foot_offsets: dict | None, pelvis_markers: bool, out: Path):
+    """Build the generic model, scale it to the person and place its markers; write both models.
 
     Parameters
     ----------
+    osim : module
+        The ``opensim`` module.
     points : dict of str to ndarray of shape (T, 3)
-        Landmarks (metres, world z up, NaN = missing); at least the hips, knees, ankles and neck.
-    fps : float
-    out : path
-        Folder for ``model_generic.osim``, ``model_scaled.osim``, ``ik.mot``, ``marker_residuals.json``.
-    static : dict of str to ndarray of shape (S, 3), optional
-        A static trial's landmarks: the feet's pitch offsets when placing the toe and heel markers.
-    log : callable, optional
+        Landmarks (metres, world z up, NaN = missing), unused ones left out.
+    foot_offsets : dict or None
+        The feet's pitch offsets from a static trial (:func:`foot_pitch_offsets`).
+    pelvis_markers : bool
+        Whether both ASIS and PSIS markers are there (the lumbar joint is then free).
+    out : Path
+        Folder for ``model_generic.osim`` and ``model_scaled.osim``.
 
     Returns
     -------
-    OpenSimResult
-
-    Raises
-    ------
-    InputError
-        OpenSim not installed; joints missing.
+    model : opensim.Model
+        The scaled model with its markers, connections finalised.
+    factors : dict of str to tuple of 3 float
+        Per body, its scale factors (:func:`scale_factors`).
     """
-    osim = _require_opensim()
-    from toolkit.biomech.files import write_json
-
-    need = [n for n in ("l_hip", "r_hip", "l_knee", "r_knee", "l_ankle", "r_ankle", "neck") if n not in points]
-    if need:
-        raise InputError("points", "hips, knees, ankles and the neck", f"no {need}")
-    out = Path(out)
-    points = {k: v for k, v in points.items() if k not in UNUSED_LANDMARKS}
-    foot_offsets = foot_pitch_offsets(static) if static is not None else None
-    pelvis_markers = all(f"{s}_{k}" in points for s in "lr" for k in ("asis", "psis"))
     model, joint_markers = build_generic_model(set(points), lumbar_free=pelvis_markers)
     model.printToXML(str(out / "model_generic.osim"))
     state = model.initSystem()
@@ -406,6 +393,41 @@ def opensim_angles(points: dict, fps: float, out: str | os.PathLike, *, static: 
     model.finalizeConnections()
     model.setName("toolkit_scaled")
     model.printToXML(str(out / "model_scaled.osim"))
+    return model, factors
+
+
+def _inverse_kinematics(osim, model, points: dict, fps: float):
+    """Track every frame from the first with both hips and the neck seen.
+
+    Parameters
+    ----------
+    osim : module
+        The ``opensim`` module.
+    model : opensim.Model
+        The scaled model with its markers.
+    points : dict of str to ndarray of shape (T, 3)
+        Landmarks (metres, world z up, NaN = missing).
+    fps : float
+        Frames per second.
+
+    Returns
+    -------
+    names : list of str
+        The model's markers.
+    coords : list of str
+        The model's coordinates.
+    values : ndarray of shape (T, len(coords))
+        Per frame, the coordinates (degrees for rotations, metres for translations); NaN where not solved.
+    residuals : ndarray of shape (T, len(names))
+        Per frame, each marker's distance to its landmark (metres); NaN where not solved or not seen.
+    notes : list of str
+        The frames left out, and why.
+
+    Raises
+    ------
+    InputError
+        No frame with both hips and the neck seen.
+    """
     state = model.initSystem()
     mset = model.getMarkerSet()
     names = [mset.get(i).getName() for i in range(mset.getSize())]
@@ -451,21 +473,113 @@ def opensim_angles(points: dict, fps: float, out: str | os.PathLike, *, static: 
             residuals[t, names.index(solver.getMarkerNameForIndex(i))] = errs.getElt(i)
     for k, n in enumerate(names):       # OpenSim reports 0 for a marker missing from a frame
         residuals[~np.isfinite(points[n]).all(-1), k] = np.nan
-    joint_cols = [k for k, c in enumerate(coords) if not c.startswith(("pelvis_", "lumbar_"))]
-    angles = JointAngles(time=np.arange(T) / float(fps), names=tuple(coords[k] for k in joint_cols),
-                         degrees=values[:, joint_cols], engine="opensim")
+    return names, coords, values, residuals, notes
+
+
+def _write_mot(osim, coords: list[str], values: np.ndarray, fps: float, path: Path) -> None:
+    """Write the coordinates as an OpenSim motion file (``.mot``, degrees).
+
+    Parameters
+    ----------
+    osim : module
+        The ``opensim`` module.
+    coords : list of str
+        The coordinates' names.
+    values : ndarray of shape (T, len(coords))
+        Per frame, the coordinates (degrees for rotations, metres for translations).
+    fps : float
+        Frames per second.
+    path : Path
+        The file to write.
+    """
     mot = osim.TimeSeriesTable()
     labels = osim.StdVectorString()
     for c in coords:
         labels.append(c)
     mot.setColumnLabels(labels)
-    for t in range(T):
+    for t in range(len(values)):
         row = osim.RowVector(len(coords))
         for k in range(len(coords)):
             row[k] = float(values[t, k])
         mot.appendRow(t / fps, row)
     mot.addTableMetaDataString("inDegrees", "yes")
-    osim.STOFileAdapter.write(mot, str(out / "ik.mot"))
+    osim.STOFileAdapter.write(mot, str(path))
+
+
+def opensim_angles(points: dict, fps: float, out: str | os.PathLike, *, static: dict | None = None,
+                   log=None) -> OpenSimResult:
+    """Scale the generic model to the person and run inverse kinematics on every frame, in a process of
+    its own.
+
+    OpenSim's Python bindings and ezc3d's are both made by SWIG, and in one process the second one
+    imported can no longer convert its arguments (ezc3d's C3D writer fails after ``import opensim``,
+    and the reverse): OpenSim therefore never runs in the caller's process.  Parameters, returns and
+    errors are those of :func:`opensim_angles_in_process`; ``log`` receives the messages once the child
+    is done.
+    """
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    if not opensim_available():
+        _require_opensim()
+    with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        result, messages = pool.submit(_opensim_child, points, fps, str(out), static).result()
+    if log is not None:
+        for m in messages:
+            log(m)
+    return result
+
+
+def _opensim_child(points: dict, fps: float, out: str, static: dict | None) -> tuple:
+    """:func:`opensim_angles_in_process` in the child process: the result and the log messages."""
+    import opensim
+
+    opensim.Logger.removeFileSink()  # no opensim.log in the caller's working folder
+    messages: list = []
+    return opensim_angles_in_process(points, fps, out, static=static, log=messages.append), messages
+
+
+def opensim_angles_in_process(points: dict, fps: float, out: str | os.PathLike, *, static: dict | None = None,
+                              log=None) -> OpenSimResult:
+    """Scale the generic model to the person and run inverse kinematics on every frame.
+
+    Parameters
+    ----------
+    points : dict of str to ndarray of shape (T, 3)
+        Landmarks (metres, world z up, NaN = missing); at least the hips, knees, ankles and neck.
+    fps : float
+    out : path
+        Folder for ``model_generic.osim``, ``model_scaled.osim``, ``ik.mot``, ``marker_residuals.json``.
+    static : dict of str to ndarray of shape (S, 3), optional
+        A static trial's landmarks: the feet's pitch offsets when placing the toe and heel markers.
+    log : callable, optional
+
+    Returns
+    -------
+    OpenSimResult
+
+    Raises
+    ------
+    InputError
+        OpenSim not installed; joints missing.
+    """
+    osim = _require_opensim()
+    from toolkit.biomech.files import write_json
+
+    need = [n for n in ("l_hip", "r_hip", "l_knee", "r_knee", "l_ankle", "r_ankle", "neck") if n not in points]
+    if need:
+        raise InputError("points", "hips, knees, ankles and the neck", f"no {need}")
+    out = Path(out)
+    points = {k: v for k, v in points.items() if k not in UNUSED_LANDMARKS}
+    foot_offsets = foot_pitch_offsets(static) if static is not None else None
+    pelvis_markers = all(f"{s}_{k}" in points for s in "lr" for k in ("asis", "psis"))
+    model, factors = _scaled_model(osim, points, foot_offsets, pelvis_markers, out)
+    names, coords, values, residuals, notes = _inverse_kinematics(osim, model, points, fps)
+    T = len(points["neck"])
+    joint_cols = [k for k, c in enumerate(coords) if not c.startswith(("pelvis_", "lumbar_"))]
+    angles = JointAngles(time=np.arange(T) / float(fps), names=tuple(coords[k] for k in joint_cols),
+                         degrees=values[:, joint_cols], engine="opensim")
+    _write_mot(osim, coords, values, fps, out / "ik.mot")
     res = {n: residuals[:, k] for k, n in enumerate(names)}
     summary = {"markers": {n: {"rms_mm": float(np.sqrt(np.nanmean(r ** 2)) * 1e3) if np.isfinite(r).any() else None,
                                "max_mm": float(np.nanmax(r) * 1e3) if np.isfinite(r).any() else None}

@@ -134,6 +134,96 @@ def _project(cam_p: np.ndarray, X: np.ndarray, obs: Observations) -> np.ndarray:
     return Xc[:, :2] / z[:, None]
 
 
+def _world_points(pp: np.ndarray, obs: Observations, Bp: np.ndarray | None) -> np.ndarray:
+    """The world point of every observation.
+
+    Parameters
+    ----------
+    pp : ndarray of shape (N, 3) or (B, 6)
+        Free points (metres), or board poses as Rodrigues vector and translation.
+    obs : Observations
+    Bp : ndarray of shape (P, 3) or None
+        Board corners in board coordinates, metres (None for free points).
+
+    Returns
+    -------
+    ndarray of shape (M, 3)
+        Metres, world frame.
+    """
+    if Bp is None:
+        return pp[obs.point]
+    R = rodrigues(pp[:, :3])
+    return np.einsum("mij,mj->mi", R[obs.point], Bp[obs.corner]) + pp[obs.point, 3:6]
+
+
+def _sparse_jacobian(cp: np.ndarray, pp: np.ndarray, obs: Observations, f: np.ndarray, Bp: np.ndarray | None,
+                     cam_col: np.ndarray, n_c: int, n_cols: int):
+    """Analytic Jacobian (sparse, 2M x n): projection chain rule with exact Rodrigues derivatives.
+
+    Parameters
+    ----------
+    cp : ndarray of shape (C, 6)
+        Camera poses (Rodrigues vector, translation).
+    pp : ndarray of shape (N, 3) or (B, 6)
+        Free points or board poses.
+    obs : Observations
+        M observations.
+    f : ndarray of shape (M,)
+        Focal length of each observation's camera, pixels.
+    Bp : ndarray of shape (P, 3) or None
+        Board corners (None for free points).
+    cam_col : ndarray of int, shape (M,)
+        First column of each observation's camera parameters (-1 for a fixed camera).
+    n_c : int
+        Number of camera parameter columns.
+    n_cols : int
+        Number of columns.
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix of shape (2 M, n_cols)
+        Pixels per parameter unit.
+    """
+    rigid = Bp is not None
+    M = len(obs.cam)
+    rows2 = np.arange(2 * M).reshape(M, 2)
+    Rc = rodrigues(cp[:, :3])
+    Xw = _world_points(pp, obs, Bp)
+    Xc = np.einsum("mij,mj->mi", Rc[obs.cam], Xw) + cp[obs.cam, 3:6]
+    z = np.where(np.abs(Xc[:, 2]) < 1e-9, 1e-9, Xc[:, 2])
+    P = np.zeros((M, 2, 3))
+    P[:, 0, 0] = P[:, 1, 1] = f / z
+    P[:, 0, 2] = -f * Xc[:, 0] / z ** 2
+    P[:, 1, 2] = -f * Xc[:, 1] / z ** 2
+    PR = P @ Rc[obs.cam]  # d residual / d world point, (M, 2, 3)
+    blocks_r, blocks_c, blocks_v = [], [], []
+
+    def add(block, col0, m_idx):
+        k = block.shape[-1]
+        blocks_r.append(np.repeat(rows2[m_idx], k, axis=1).ravel())
+        blocks_c.append((col0[:, None, None] + np.arange(k)[None, None, :]).repeat(2, 1).ravel())
+        blocks_v.append(block.ravel())
+
+    mc = cam_col >= 0
+    if mc.any():
+        A = rotation_jacobian_factor(cp[:, :3])
+        # d Xc / d v = -R [Xw]x A
+        dR = -np.einsum("mij,mjk,mkl->mil", Rc[obs.cam[mc]], _skew(Xw[mc]), A[obs.cam[mc]])
+        add(np.concatenate([P[mc] @ dR, P[mc]], axis=2), cam_col[mc], np.flatnonzero(mc))
+    all_m = np.arange(M)
+    if rigid:
+        Rb = rodrigues(pp[:, :3])
+        Ab = rotation_jacobian_factor(pp[:, :3])
+        dRb = -np.einsum("mij,mjk,mkl->mil", Rb[obs.point], _skew(Bp[obs.corner]), Ab[obs.point])
+        add(np.concatenate([PR @ dRb, PR], axis=2), n_c + 6 * obs.point, all_m)
+    else:
+        add(PR, n_c + 3 * obs.point, all_m)
+    from scipy.sparse import csr_matrix
+
+    return csr_matrix((np.concatenate(blocks_v), (np.concatenate(blocks_r), np.concatenate(blocks_c))),
+                      shape=(2 * M, n_cols))
+
+
 def bundle_adjust(cameras: list[Camera], obs: Observations, points: np.ndarray | None = None,
                   board_poses: np.ndarray | None = None, board_points: np.ndarray | None = None,
                   fixed_cameras=(0,), loss: str = "soft_l1", f_scale_px: float = 2.0, max_nfev: int = 200,
@@ -179,6 +269,7 @@ def bundle_adjust(cameras: list[Camera], obs: Observations, points: np.ndarray |
     else:
         P0 = np.asarray(points, float).reshape(-1, 3)
         n_pp = 3
+        Bp = None
     n_c = 6 * len(free)
     slot = {c: i for i, c in enumerate(free)}
 
@@ -188,58 +279,15 @@ def bundle_adjust(cameras: list[Camera], obs: Observations, points: np.ndarray |
             cp[free] = x[:n_c].reshape(-1, 6)
         return cp, x[n_c:].reshape(-1, n_pp)
 
-    def world_points(pp):
-        if not rigid:
-            return pp[obs.point]
-        R = rodrigues(pp[:, :3])
-        return np.einsum("mij,mj->mi", R[obs.point], Bp[obs.corner]) + pp[obs.point, 3:6]
-
     def fun(x):
         cp, pp = unpack(x)
-        return ((_project(cp, world_points(pp), obs) - obs.xy) * f[:, None]).ravel()
+        return ((_project(cp, _world_points(pp, obs, Bp), obs) - obs.xy) * f[:, None]).ravel()
 
-    M = len(obs.cam)
-    rows2 = np.arange(2 * M).reshape(M, 2)
     cam_col = np.array([6 * slot[c] if c in slot else -1 for c in range(C)])[obs.cam]
 
     def jac(x):
-        """Analytic Jacobian (sparse, 2M x n): projection chain rule with exact Rodrigues derivatives."""
         cp, pp = unpack(x)
-        Rc = rodrigues(cp[:, :3])
-        Xw = world_points(pp)
-        Xc = np.einsum("mij,mj->mi", Rc[obs.cam], Xw) + cp[obs.cam, 3:6]
-        z = np.where(np.abs(Xc[:, 2]) < 1e-9, 1e-9, Xc[:, 2])
-        P = np.zeros((M, 2, 3))
-        P[:, 0, 0] = P[:, 1, 1] = f / z
-        P[:, 0, 2] = -f * Xc[:, 0] / z ** 2
-        P[:, 1, 2] = -f * Xc[:, 1] / z ** 2
-        PR = P @ Rc[obs.cam]  # d residual / d world point, (M, 2, 3)
-        blocks_r, blocks_c, blocks_v = [], [], []
-
-        def add(block, col0, m_idx):
-            k = block.shape[-1]
-            blocks_r.append(np.repeat(rows2[m_idx], k, axis=1).ravel())
-            blocks_c.append((col0[:, None, None] + np.arange(k)[None, None, :]).repeat(2, 1).ravel())
-            blocks_v.append(block.ravel())
-
-        mc = cam_col >= 0
-        if mc.any():
-            A = rotation_jacobian_factor(cp[:, :3])
-            # d Xc / d v = -R [Xw]x A
-            dR = -np.einsum("mij,mjk,mkl->mil", Rc[obs.cam[mc]], _skew(Xw[mc]), A[obs.cam[mc]])
-            add(np.concatenate([P[mc] @ dR, P[mc]], axis=2), cam_col[mc], np.flatnonzero(mc))
-        all_m = np.arange(M)
-        if rigid:
-            Rb = rodrigues(pp[:, :3])
-            Ab = rotation_jacobian_factor(pp[:, :3])
-            dRb = -np.einsum("mij,mjk,mkl->mil", Rb[obs.point], _skew(Bp[obs.corner]), Ab[obs.point])
-            add(np.concatenate([PR @ dRb, PR], axis=2), n_c + 6 * obs.point, all_m)
-        else:
-            add(PR, n_c + 3 * obs.point, all_m)
-        from scipy.sparse import csr_matrix
-
-        return csr_matrix((np.concatenate(blocks_v), (np.concatenate(blocks_r), np.concatenate(blocks_c))),
-                          shape=(2 * M, n_c + n_pp * len(P0)))
+        return _sparse_jacobian(cp, pp, obs, f, Bp, cam_col, n_c, n_c + n_pp * len(P0))
 
     x0 = np.concatenate([cam_p0[free].ravel(), P0.ravel()])
     res = least_squares(fun, x0, jac=jac, loss=loss, f_scale=f_scale_px, method="trf", x_scale=x_scale,

@@ -126,6 +126,93 @@ def _report(obs, result: ExtrinsicsResult, residuals=None, cam_index=None):
 
 # --------------------------------------------------------------------------- boards
 
+def _board_view_poses(cameras: list[Camera], detections: list[dict], O: np.ndarray) -> dict:
+    """The board pose of every view each camera sees well (``solvePnP``, IPPE).
+
+    Parameters
+    ----------
+    cameras : list of Camera
+    detections : list of dict of str to BoardDetection
+    O : ndarray of shape (N, 3)
+        The board's corner coordinates, metres.
+
+    Returns
+    -------
+    dict of (int, str) to ndarray of shape (4, 4)
+        ``(camera index, view) -> cam_from_board`` for views of at least 4 corners reprojecting within
+        :data:`MAX_BOARD_VIEW_RMS_PX`.
+
+    Raises
+    ------
+    InputError
+        A camera with no such view.
+    """
+    pnp = {}  # (c, view) -> cam_from_board
+    for c, (cam, dets) in enumerate(zip(cameras, detections)):
+        for view, d in dets.items():
+            if len(d.ids) < 4:
+                continue
+            xy = cam.undistort_points(d.corners)
+            ok, r, t = cv2.solvePnP(O[d.ids], xy, np.eye(3), None, flags=cv2.SOLVEPNP_IPPE)
+            if not ok:
+                continue
+            T = np.eye(4)
+            T[:3, :3] = cv2.Rodrigues(r)[0]
+            T[:3, 3] = t.ravel()
+            uv = cam.replace(cam_from_world=T).project(O[d.ids])
+            if np.sqrt(np.mean(np.sum((uv - d.corners) ** 2, 1))) <= MAX_BOARD_VIEW_RMS_PX:
+                pnp[(c, view)] = T
+    for c, cam in enumerate(cameras):
+        if not any(k[0] == c for k in pnp):
+            raise InputError(f"camera {cam.name}: board views", "at least one view with the board",
+                             f"none of {len(detections[c])} usable")
+    return pnp
+
+
+def _chain_cameras(cameras: list[Camera], pnp: dict) -> dict:
+    """Camera poses relative to camera 0, chained over shared views breadth first (rotations averaged).
+
+    Parameters
+    ----------
+    cameras : list of Camera
+    pnp : dict of (int, str) to ndarray of shape (4, 4)
+        ``(camera index, view) -> cam_from_board``.
+
+    Returns
+    -------
+    dict of int to ndarray of shape (4, 4)
+        ``camera index -> cam_from_cam0``.
+
+    Raises
+    ------
+    InputError
+        Cameras not connected to camera 0 through shared views.
+    """
+    C = len(cameras)
+    # chain cameras over shared views (breadth first from camera 0)
+    pose = {0: np.eye(4)}
+    frontier = [0]
+    while frontier:
+        a = frontier.pop(0)
+        for b in range(C):
+            if b in pose:
+                continue
+            shared = [v for (c, v) in pnp if c == a and (b, v) in pnp]
+            if not shared:
+                continue
+            rel = [pnp[(b, v)] @ np.linalg.inv(pnp[(a, v)]) for v in shared]  # cam_b_from_cam_a
+            T = np.eye(4)
+            T[:3, :3] = _mean_rotation([m[:3, :3] for m in rel])
+            T[:3, 3] = np.median([m[:3, 3] for m in rel], axis=0)
+            pose[b] = T @ pose[a]
+            frontier.append(b)
+    missing = [cameras[c].name for c in range(C) if c not in pose]
+    if missing:
+        raise InputError("board views", "every camera sharing a view with another (synchronised names)",
+                         f"cameras {missing} share no view with {cameras[0].name}")
+    return pose
+
+
 def extrinsics_from_boards(cameras: list[Camera], detections: list[dict], board: Board,
                            observer=None) -> ExtrinsicsResult:
     """Camera poses from a board seen by several cameras at once.
@@ -153,46 +240,8 @@ def extrinsics_from_boards(cameras: list[Camera], detections: list[dict], board:
     if len(detections) != C:
         raise InputError("detections", f"one dict of board views per camera ({C})", f"{len(detections)}")
     O = board.object_points()
-    pnp = {}  # (c, view) -> cam_from_board
-    for c, (cam, dets) in enumerate(zip(cameras, detections)):
-        for view, d in dets.items():
-            if len(d.ids) < 4:
-                continue
-            xy = cam.undistort_points(d.corners)
-            ok, r, t = cv2.solvePnP(O[d.ids], xy, np.eye(3), None, flags=cv2.SOLVEPNP_IPPE)
-            if not ok:
-                continue
-            T = np.eye(4)
-            T[:3, :3] = cv2.Rodrigues(r)[0]
-            T[:3, 3] = t.ravel()
-            uv = cam.replace(cam_from_world=T).project(O[d.ids])
-            if np.sqrt(np.mean(np.sum((uv - d.corners) ** 2, 1))) <= MAX_BOARD_VIEW_RMS_PX:
-                pnp[(c, view)] = T
-    for c, cam in enumerate(cameras):
-        if not any(k[0] == c for k in pnp):
-            raise InputError(f"camera {cam.name}: board views", "at least one view with the board",
-                             f"none of {len(detections[c])} usable")
-    # chain cameras over shared views (breadth first from camera 0)
-    pose = {0: np.eye(4)}
-    frontier = [0]
-    while frontier:
-        a = frontier.pop(0)
-        for b in range(C):
-            if b in pose:
-                continue
-            shared = [v for (c, v) in pnp if c == a and (b, v) in pnp]
-            if not shared:
-                continue
-            rel = [pnp[(b, v)] @ np.linalg.inv(pnp[(a, v)]) for v in shared]  # cam_b_from_cam_a
-            T = np.eye(4)
-            T[:3, :3] = _mean_rotation([m[:3, :3] for m in rel])
-            T[:3, 3] = np.median([m[:3, 3] for m in rel], axis=0)
-            pose[b] = T @ pose[a]
-            frontier.append(b)
-    missing = [cameras[c].name for c in range(C) if c not in pose]
-    if missing:
-        raise InputError("board views", "every camera sharing a view with another (synchronised names)",
-                         f"cameras {missing} share no view with {cameras[0].name}")
+    pnp = _board_view_poses(cameras, detections, O)
+    pose = _chain_cameras(cameras, pnp)
     # world: the first view of camera 0, z out of the printed side
     ref_view = sorted(v for (c, v) in pnp if c == 0)[0]
     flip = np.diag([1.0, -1.0, -1.0, 1.0])
@@ -590,6 +639,66 @@ def extrinsics_from_people(cameras: list[Camera], keypoints: np.ndarray, keypoin
         Fewer than 2 cameras, wrong shapes, or too few agreeing keypoints to start or to place a camera.
     """
     cfg = config or PeopleConfig()
+    names, kp = _people_keypoints(cameras, keypoints, keypoint_names)
+    rng = np.random.default_rng(rng)
+    cv2.setRNGSeed(int(rng.integers(0, 2 ** 31 - 1)))
+    T_, K_ = kp.shape[1], kp.shape[3]
+    xy, seen, f = _normalised_detections(cameras, kp, cfg)
+    a, cur, X, residuals, res_cam, groups, gframes = _best_start(cameras, xy, seen, f, cfg, rng)
+    G = len(groups)
+    unmatched = _unmatched_detections(groups, gframes, seen)
+    # ---- scale, up and floor from the body
+    P3 = X.reshape(G, K_, 3)
+    J = P3 if fmt in (None, "skeleton14") and K_ == 14 else to_skeleton14(P3, fmt)
+    jidx = {n: i for i, n in enumerate(JOINTS_14)}
+    stature = height_m if height_m is not None else DEFAULT_STATURE_M
+    prior = BodyProportions.from_height(stature)
+    scale, scale_from, bone_scales, warnings = _body_scale(J, jidx, prior, height_m, bone_lengths_m, cfg)
+    Xs = X * scale
+    Js = J * scale
+    up, floor, floor_from, ankles = _up_and_floor(Js, jidx, prior)
+    R_wr, W = _world_from_recon(cur[0], scale, ankles, up, floor)
+    rig = _rig_in_world(cur, scale, W)
+    Xw = Xs @ R_wr.T + W[:3, 3]
+    Xg = Xw.reshape(G, K_, 3)
+    named = {normalise_name(n): Xg[:, i] for i, n in enumerate(names)}
+    warnings += mirrored_person_warning(named) + cameras_under_floor(rig)
+    per_frame = np.full((T_, K_, 3), np.nan)
+    fr, first = np.unique(gframes, return_index=True)  # within a frame, the group seen by most cameras comes first
+    per_frame[fr] = Xg[first]
+    views = (groups >= 0).sum(1)
+    details = {"scale": scale, "scale_from": scale_from, "bone_scales": bone_scales, "floor_from": floor_from,
+               "start_camera": cameras[a].name, "observations": int(len(residuals)),
+               "points": int(np.isfinite(Xw).all(1).sum()), "groups": G,
+               "groups_by_views": {int(v): int((views == v).sum()) for v in np.unique(views)},
+               "detections_unmatched": unmatched, "keypoints3d": per_frame}
+    result = ExtrinsicsResult(rig, Xw[np.isfinite(Xw).all(1)], reprojection_summary(rig.names, res_cam, residuals),
+                              warnings, "people", details)
+    _report(observer, result, residuals, res_cam)
+    return result
+
+
+def _people_keypoints(cameras: list[Camera], keypoints, keypoint_names) -> tuple[list, np.ndarray]:
+    """Check the keypoints and their names.
+
+    Parameters
+    ----------
+    cameras : list of Camera
+    keypoints : array_like of shape (n_cams, T, K, 3) or (n_cams, T, P, K, 3)
+    keypoint_names : sequence of str
+
+    Returns
+    -------
+    names : list of str
+        The K names.
+    kp : ndarray of shape (n_cams, T, P, K, 3)
+        The keypoints as floats, with a person axis of length 1 added to 4-D input.
+
+    Raises
+    ------
+    InputError
+        Fewer than 2 cameras, a shape other than the above, or a number of names other than K.
+    """
     kp = np.asarray(keypoints, float)
     C = len(cameras)
     if kp.ndim == 4:
@@ -600,16 +709,76 @@ def extrinsics_from_people(cameras: list[Camera], keypoints: np.ndarray, keypoin
     names = list(keypoint_names)
     if len(names) != kp.shape[3]:
         raise InputError("keypoint_names", f"{kp.shape[3]} names", f"{len(names)}")
-    rng = np.random.default_rng(rng)
-    cv2.setRNGSeed(int(rng.integers(0, 2 ** 31 - 1)))
-    T_, K_ = kp.shape[1], kp.shape[3]
+    return names, kp
+
+
+def _normalised_detections(cameras: list[Camera], kp: np.ndarray,
+                           cfg: "PeopleConfig") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Undistorted normalised image coordinates of the confident keypoints.
+
+    Parameters
+    ----------
+    cameras : list of Camera
+    kp : ndarray of shape (n_cams, T, P, K, 3)
+        ``(x, y, confidence)``, pixels.
+    cfg : PeopleConfig
+
+    Returns
+    -------
+    xy : ndarray of shape (n_cams, T, P, K, 2)
+        Normalised coordinates (NaN where not seen).
+    seen : ndarray of bool, shape (n_cams, T, P, K)
+        Confidence at least ``min_confidence`` and finite pixels.
+    f : ndarray of shape (n_cams,)
+        Focal lengths, pixels.
+    """
     uv = kp[..., :2].copy()
     seen = (kp[..., 2] >= cfg.min_confidence) & np.isfinite(uv).all(-1)
     uv[~seen] = np.nan
     xy = np.stack([cam.undistort_points(uv[c]) for c, cam in enumerate(cameras)])
     f = np.array([cam.K[0, 0] for cam in cameras])
-    # ---- the same person in several cameras (before any pose); first poses from each of the camera pairs
-    # sharing most of them; the solution whose people agree in the most observations
+    return xy, seen, f
+
+
+def _best_start(cameras: list[Camera], xy: np.ndarray, seen: np.ndarray, f: np.ndarray, cfg: "PeopleConfig",
+                rng: np.random.Generator):
+    """The same person in several cameras (before any pose), first poses from each of the camera pairs sharing
+    most of them, and the solution whose people agree in the most observations.
+
+    Parameters
+    ----------
+    cameras : list of Camera
+    xy : ndarray of shape (n_cams, T, P, K, 2)
+        Normalised coordinates.
+    seen : ndarray of bool, shape (n_cams, T, P, K)
+    f : ndarray of shape (n_cams,)
+        Focal lengths, pixels.
+    cfg : PeopleConfig
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    a : int
+        The start camera (fixed in the adjustment).
+    cur : list of Camera
+        Cameras with the adjusted poses (unscaled reconstruction frame).
+    X : ndarray of shape (G * K, 3)
+        The adjusted points (NaN where not adjusted).
+    residuals : ndarray of shape (M,)
+        Reprojection errors, pixels.
+    res_cam : ndarray of int, shape (M,)
+        The camera of each residual.
+    groups : ndarray of int, shape (G, n_cams)
+        The detection of each camera in each people-frame (-1 none).
+    gframes : ndarray of int, shape (G,)
+        The frame of each group.
+
+    Raises
+    ------
+    InputError
+        No camera pair to start from, or a camera seeing fewer than :data:`MIN_CAMERA_GROUPS` people-frames.
+    """
+    C = len(cameras)
     groups0, gframes0 = _matched_groups(cameras, xy, seen, f, cfg, rng)
     gx, gs = group_observations(groups0, gframes0, xy, seen)
     best, failure = None, None
@@ -631,19 +800,60 @@ def extrinsics_from_people(cameras: list[Camera], keypoints: np.ndarray, keypoin
         raise InputError("keypoints", f"camera {cameras[c].name} seeing at least {MIN_CAMERA_GROUPS} "
                          "people-frames that other cameras see too (give every detection of every frame when "
                          "several people are in view, not one person per camera)", f"{int(per_cam[c])}")
-    G = len(groups)
+    return a, cur, X, residuals, res_cam, groups, gframes
+
+
+def _unmatched_detections(groups: np.ndarray, gframes: np.ndarray, seen: np.ndarray) -> int:
+    """Detections with keypoints in no group.
+
+    Parameters
+    ----------
+    groups : ndarray of int, shape (G, n_cams)
+    gframes : ndarray of int, shape (G,)
+    seen : ndarray of bool, shape (n_cams, T, P, K)
+
+    Returns
+    -------
+    int
+    """
+    C = seen.shape[0]
     used = np.zeros(seen.shape[:3], bool)
     for c in range(C):
         k = groups[:, c] >= 0
         used[c, gframes[k], groups[k, c]] = True
-    unmatched = int((seen.any(-1) & ~used).sum())
-    # ---- scale, up and floor from the body
-    # ---- scale, up and floor from the body
-    P3 = X.reshape(G, K_, 3)
-    J = P3 if fmt in (None, "skeleton14") and K_ == 14 else to_skeleton14(P3, fmt)
-    jidx = {n: i for i, n in enumerate(JOINTS_14)}
-    stature = height_m if height_m is not None else DEFAULT_STATURE_M
-    prior = BodyProportions.from_height(stature)
+    return int((seen.any(-1) & ~used).sum())
+
+
+def _body_scale(J: np.ndarray, jidx: dict, prior: BodyProportions, height_m: float | None,
+                bone_lengths_m: dict | None, cfg: "PeopleConfig") -> tuple[float, str, dict, list[str]]:
+    """Metres per unit of the reconstruction, from the median ratio of known to reconstructed bone lengths.
+
+    Parameters
+    ----------
+    J : ndarray of shape (G, 14, 3)
+        The 14 joints of each people-frame, reconstruction units.
+    jidx : dict of str to int
+        Index of each of :data:`~toolkit.skeleton.JOINTS_14`.
+    prior : BodyProportions
+        Proportions of the stature.
+    height_m : float or None
+    bone_lengths_m : dict of str to float or None
+    cfg : PeopleConfig
+
+    Returns
+    -------
+    scale : float
+    scale_from : str
+    bone_scales : dict of str to float
+        The scale each bone gives.
+    warnings : list of str
+        An assumed stature, or bones that disagree by more than 25 %.
+
+    Raises
+    ------
+    InputError
+        No limb seen often enough for the scale.
+    """
     bone_scales = {}
     for bone in cfg.scale_bones:
         target = (bone_lengths_m or {}).get(bone, getattr(prior, bone))
@@ -667,8 +877,36 @@ def extrinsics_from_people(cameras: list[Camera], keypoints: np.ndarray, keypoin
         warnings.append(f"scale ambiguous: the bones disagree by {spread:.0%} "
                         f"({', '.join(f'{k} {v:.3g}' for k, v in bone_scales.items())}); the keypoints may not be "
                         "one person, or the detector's joints are biased")
-    Xs = X * scale
-    Js = J * scale
+    return scale, scale_from, bone_scales, warnings
+
+
+def _up_and_floor(Js: np.ndarray, jidx: dict, prior: BodyProportions) -> tuple[np.ndarray, float, str, np.ndarray]:
+    """The up direction (trunk, or the plane of the standing ankles) and the floor height under the ankles.
+
+    Parameters
+    ----------
+    Js : ndarray of shape (G, 14, 3)
+        The 14 joints of each people-frame, metres (scaled reconstruction frame).
+    jidx : dict of str to int
+    prior : BodyProportions
+        Gives the ankle height above the floor.
+
+    Returns
+    -------
+    up : ndarray of shape (3,)
+        Unit up direction.
+    floor : float
+        Height of the floor along ``up``, metres.
+    floor_from : str
+        How ``up`` and the floor were found.
+    ankles : ndarray of shape (N, 3)
+        The finite ankle positions, metres.
+
+    Raises
+    ------
+    InputError
+        Fewer than 10 ankles seen.
+    """
     up, up_from = _body_up(Js, jidx)
     la, ra = Js[:, jidx["l_ankle"]], Js[:, jidx["r_ankle"]]
     ankles = np.concatenate([la, ra])
@@ -688,8 +926,33 @@ def extrinsics_from_people(cameras: list[Camera], keypoints: np.ndarray, keypoin
                 up, floor_from = n, f"plane of the standing ankles of {len(low)} frames"
     h = ankles @ up
     floor = float(np.percentile(h, 10)) - prior.ankle_height
-    # world frame: z = up, origin under the mean resting feet, x towards the first camera's side
-    c0 = -cur[0].R.T @ cur[0].t * scale
+    return up, floor, floor_from, ankles
+
+
+def _world_from_recon(cam0: Camera, scale: float, ankles: np.ndarray, up: np.ndarray,
+                      floor: float) -> tuple[np.ndarray, np.ndarray]:
+    """The world frame: z = up, origin under the mean resting feet, x towards the first camera's side.
+
+    Parameters
+    ----------
+    cam0 : Camera
+        The first camera, unscaled reconstruction frame.
+    scale : float
+        Metres per reconstruction unit.
+    ankles : ndarray of shape (N, 3)
+        Metres, scaled reconstruction frame.
+    up : ndarray of shape (3,)
+    floor : float
+        Metres along ``up``.
+
+    Returns
+    -------
+    R_wr : ndarray of shape (3, 3)
+        world_from_recon rotation.
+    W : ndarray of shape (4, 4)
+        world_from_recon transform (scaled reconstruction to world, metres).
+    """
+    c0 = -cam0.R.T @ cam0.t * scale
     origin = ankles.mean(0)
     origin = origin - (origin @ up - floor) * up
     x = np.cross(up, c0 - origin)
@@ -702,30 +965,32 @@ def extrinsics_from_people(cameras: list[Camera], keypoints: np.ndarray, keypoin
     W = np.eye(4)
     W[:3, :3] = R_wr
     W[:3, 3] = -R_wr @ origin
+    return R_wr, W
+
+
+def _rig_in_world(cur: list[Camera], scale: float, W: np.ndarray) -> Rig:
+    """The cameras scaled to metres and moved into the world frame.
+
+    Parameters
+    ----------
+    cur : list of Camera
+        Poses in the unscaled reconstruction frame.
+    scale : float
+        Metres per reconstruction unit.
+    W : ndarray of shape (4, 4)
+        world_from_recon (scaled).
+
+    Returns
+    -------
+    Rig
+    """
     Winv = np.linalg.inv(W)
     cams = []
     for cam in cur:
         T = cam.cam_from_world.copy()
         T[:3, 3] *= scale  # scaled reconstruction
         cams.append(_set_pose(cam, T @ Winv))
-    rig = Rig(tuple(cams))
-    Xw = Xs @ R_wr.T + W[:3, 3]
-    Xg = Xw.reshape(G, K_, 3)
-    named = {normalise_name(n): Xg[:, i] for i, n in enumerate(names)}
-    warnings += mirrored_person_warning(named) + cameras_under_floor(rig)
-    per_frame = np.full((T_, K_, 3), np.nan)
-    fr, first = np.unique(gframes, return_index=True)  # within a frame, the group seen by most cameras comes first
-    per_frame[fr] = Xg[first]
-    views = (groups >= 0).sum(1)
-    details = {"scale": scale, "scale_from": scale_from, "bone_scales": bone_scales, "floor_from": floor_from,
-               "start_camera": cameras[a].name, "observations": int(len(residuals)),
-               "points": int(np.isfinite(Xw).all(1).sum()), "groups": G,
-               "groups_by_views": {int(v): int((views == v).sum()) for v in np.unique(views)},
-               "detections_unmatched": unmatched, "keypoints3d": per_frame}
-    result = ExtrinsicsResult(rig, Xw[np.isfinite(Xw).all(1)], reprojection_summary(rig.names, res_cam, residuals),
-                              warnings, "people", details)
-    _report(observer, result, residuals, res_cam)
-    return result
+    return Rig(tuple(cams))
 
 
 # --------------------------------------------------------------------------- comparison

@@ -204,6 +204,105 @@ def _inlier_stats(camera, pts, tree, lines, config) -> tuple[float, int]:
     return (float(np.sqrt(np.mean(r ** 2))) if r.size else float("nan")), int(r.size)
 
 
+def _corrected(camera: Camera, th: np.ndarray) -> Camera:
+    """The camera corrected by parameters ``th``.
+
+    Parameters
+    ----------
+    camera : Camera
+    th : ndarray of shape (3,) or (4,)
+        Axis-angle rotation (radians), then the natural log of the focal-length factor if given.
+
+    Returns
+    -------
+    Camera
+    """
+    return apply_correction(camera, th[:3], th[3] if len(th) == 4 else 0.0)
+
+
+def _fit_rounds(camera: Camera, pts: np.ndarray, tree: cKDTree, lines: LinePoints, prior_sd: np.ndarray,
+                config: RefineConfig):
+    """Pair model points with detected line points and fit the correction, once per gate of ``config.gates_px``.
+
+    Parameters
+    ----------
+    camera : Camera
+        The measured camera.
+    pts : ndarray of shape (N, 3)
+        Model line samples, world frame, metres.
+    tree : scipy.spatial.cKDTree
+        Over ``lines.points``.
+    lines : LinePoints
+        Detected centre-line points, pixels.
+    prior_sd : ndarray of shape (n_par,)
+        Prior standard deviations of the parameters (radians, log focal); ``n_par`` is 3 or 4.
+    config : RefineConfig
+
+    Returns
+    -------
+    theta : ndarray of shape (n_par,)
+        The correction.
+    history : list of float
+        RMS of the gated residuals per round, pixels.
+    paired : int
+        Model points paired in the last round.
+    sv : ndarray of shape (n_par,)
+        Singular values of the last round's prior-scaled Jacobian (pixels per prior SD).
+    failure : str
+        Why the fit stopped early (too few pairs), or "".
+    """
+    n_par = len(prior_sd)
+    theta = np.zeros(n_par)
+    history, paired, sv = [], 0, np.zeros(n_par)
+    for gate in config.gates_px:  # RefineConfig checks there is at least one
+        cam = _corrected(camera, theta)
+        uv, vis = _visible(cam, pts, config.margin_px)
+        ok, j = _pair(uv[vis], tree, gate)
+        P, J = pts[vis][ok], j[ok]
+        paired = int(P.shape[0])
+        if paired < config.min_points:
+            return theta, history, paired, sv, (f"only {paired} model points within {gate:g} px of a detected line "
+                                                f"(need {config.min_points})")
+
+        def residuals(th, P=P, J=J):
+            r = _point_to_line(_corrected(camera, th).project(P), lines, J)
+            r = np.where(np.isfinite(r), r, gate)
+            return np.concatenate([r, th / prior_sd])
+
+        sol = least_squares(residuals, theta, method="trf", loss="soft_l1", f_scale=1.0, x_scale=prior_sd,
+                            diff_step=1e-3)
+        theta = sol.x
+        r = sol.fun[:-n_par]
+        history.append(float(np.sqrt(np.mean(np.minimum(np.abs(r), gate) ** 2))))
+        Jd = sol.jac[:-n_par] * prior_sd[None, :]
+        sv = np.linalg.svd(Jd, compute_uv=False)
+    return theta, history, paired, sv, ""
+
+
+def _report_model_lines(obs, camera: Camera, refined: Camera, field_model: FieldModel, step_m: float,
+                        where: dict) -> None:
+    """Report the model lines projected with the measured and the refined camera (``lines2d``).
+
+    Parameters
+    ----------
+    obs : Observer
+    camera, refined : Camera
+        The measured and the refined camera.
+    field_model : FieldModel
+    step_m : float
+        Sample spacing along the lines, metres.
+    where : dict
+        Camera name and timeline position of the reports.
+    """
+    for name, cam, col in (("calibration/model_before", camera, (255, 200, 0)),
+                           ("calibration/model_after", refined, (0, 220, 255))):
+        strips = [s for p in field_model.polylines if (s := _strip(cam, p, step_m)) is not None]
+        strips = [s for piece in strips for s in piece]
+        if strips:
+            obs.report("lines2d", name=name, strips=strips,
+                       colors=np.tile(np.array([col], np.uint8), (len(strips), 1)), **where)
+
+
 def refine_camera(camera: Camera, image: np.ndarray, field_model: FieldModel,
                   config: RefineConfig = RefineConfig(), *, region: np.ndarray | None = None,
                   observer=None, frame: int | None = None) -> Refinement:
@@ -259,48 +358,16 @@ def refine_camera(camera: Camera, image: np.ndarray, field_model: FieldModel,
         return reject(f"only {int(vis0.sum())} model line points project into the image (need {config.min_points})",
                       rms_b, inl_b)
 
-    theta = np.zeros(n_par)
-
-    def cam_of(th):
-        return apply_correction(camera, th[:3], th[3] if n_par == 4 else 0.0)
-
-    history, paired = [], 0
-    for gate in config.gates_px:  # RefineConfig checks there is at least one
-        cam = cam_of(theta)
-        uv, vis = _visible(cam, pts, config.margin_px)
-        ok, j = _pair(uv[vis], tree, gate)
-        P, J = pts[vis][ok], j[ok]
-        paired = int(P.shape[0])
-        if paired < config.min_points:
-            return reject(f"only {paired} model points within {gate:g} px of a detected line "
-                          f"(need {config.min_points})", rms_b, inl_b, paired)
-
-        def residuals(th, P=P, J=J):
-            r = _point_to_line(cam_of(th).project(P), lines, J)
-            r = np.where(np.isfinite(r), r, gate)
-            return np.concatenate([r, th / prior_sd])
-
-        sol = least_squares(residuals, theta, method="trf", loss="soft_l1", f_scale=1.0, x_scale=prior_sd,
-                            diff_step=1e-3)
-        theta = sol.x
-        r = sol.fun[:-n_par]
-        history.append(float(np.sqrt(np.mean(np.minimum(np.abs(r), gate) ** 2))))
-        Jd = sol.jac[:-n_par] * prior_sd[None, :]
-        sv = np.linalg.svd(Jd, compute_uv=False)
-    refined = cam_of(theta)
+    theta, history, paired, sv, failure = _fit_rounds(camera, pts, tree, lines, prior_sd, config)
+    if failure:
+        return reject(failure, rms_b, inl_b, paired)
+    refined = _corrected(camera, theta)
     rms_a, inl_a = _inlier_stats(refined, pts, tree, lines, config)
     obs.report("series", name=f"calibration/{camera.name}/rms_px", values=np.array(history), **when)
     obs.report("points2d", name="calibration/lines", points=lines.points,
                colors=np.tile(np.array([[255, 60, 60]], np.uint8), (len(lines), 1)), **where)
-    for name, cam, col in (("calibration/model_before", camera, (255, 200, 0)),
-                           ("calibration/model_after", refined, (0, 220, 255))):
-        if observer is None:  # the projected model lines are only drawn
-            break
-        strips = [s for p in field_model.polylines if (s := _strip(cam, p, config.step_m)) is not None]
-        strips = [s for piece in strips for s in piece]
-        if strips:
-            obs.report("lines2d", name=name, strips=strips,
-                       colors=np.tile(np.array([col], np.uint8), (len(strips), 1)), **where)
+    if observer is not None:  # the projected model lines are only drawn
+        _report_model_lines(obs, camera, refined, field_model, config.step_m, where)
     summary = (f"{camera.name}: rotation {np.degrees(np.linalg.norm(theta[:3])):.4f} deg, focal x"
                f"{np.exp(theta[3]) if n_par == 4 else 1.0:.4f}; inliers {inl_b} -> {inl_a}, RMS "
                f"{rms_b:.2f} -> {rms_a:.2f} px; {len(lines)} line points, {paired} paired")

@@ -220,32 +220,27 @@ class DepthTracker:
             return self._process(depth, mask)
 
     def _process(self, depth, mask) -> FrameResult:
+        """Track one frame (:meth:`process`): user cloud, ORUS grid, fit, hard constraints, state.
+
+        Parameters
+        ----------
+        depth : ndarray of shape (H, W)
+            Float metres, NaN or 0 = no reading, or uint16 millimetres.
+        mask : ndarray of shape (H, W), bool, or None
+            The user's pixels, if known.
+
+        Returns
+        -------
+        FrameResult
+        """
         cfg = self.config
-        w, h = self.camera.size
-        d = np.asarray(depth)
-        if d.shape != (h, w):
-            raise InputError("depth", f"a depth map of shape ({h}, {w})", f"shape {d.shape}")
-        if d.dtype == np.uint16:
-            d = np.where(d > 0, d.astype(np.float32) / 1000.0, np.nan).astype(np.float32)
-        elif not np.issubdtype(d.dtype, np.floating):
-            raise InputError("depth", "float metres or uint16 millimetres", f"dtype {d.dtype}")
+        d = self._depth_metres(depth)
         timings = {}
         t0 = time.thread_time()
-        obs = self._obs
-        if self.observer is not None:
-            obs.report("depth", camera=self.camera.name, depth=np.nan_to_num(d, nan=0.0), name="depth",
-                       frame=self.index)
-        um = user_mask(d, self.camera, background=self.background, given=mask, previous=self.prev_mask,
-                       config=cfg.mask)
-        if not um.found:
-            with np.errstate(invalid="ignore"):
-                return self._lost("no user" if np.any(d > 0) else "no depth")
-        self.prev_mask = um.mask
-        nmap = normal_map(d, self.camera, um.mask) if cfg.orus.normal_source == "pixels" else None
-        cloud = user_cloud(d, um.mask, self.frame, nmap, with_pca=self.X is None)
-        timings["mask_cloud"] = time.thread_time() - t0
+        cloud, lost_reason = self._user_cloud(d, mask)
         if cloud is None:
-            return self._lost("no user")
+            return self._lost(lost_reason)
+        timings["mask_cloud"] = time.thread_time() - t0
         t1 = time.thread_time()
         predicted = None
         if self.X is not None:
@@ -254,6 +249,120 @@ class DepthTracker:
         else:
             centre = cloud.centroid
         grid = build_orus(cloud.points, centre, cfg.orus, cloud.normals)
+        grid, curv, data, first, reason = self._user_grid(grid, cloud, predicted)
+        if grid is None:
+            return self._lost("no user", cloud.n_points, timings)
+        centroid = grid.mean[grid.filled].mean(0)
+        # the radial profile serves the initial pose, the global moves and the recording only
+        need_profile = self.X is None or self.observer is not None or self._moves_due()
+        profile = radial_profile(grid, centroid, cfg.radial) if need_profile else None
+        timings["orus_curvature"] = time.thread_time() - t1
+        t2 = time.thread_time()
+        if self.observer is not None:
+            self._report_data(cloud, grid, curv, profile)
+        fitted = self._fit_pose(grid, data, first, predicted, profile, centroid, cloud, reason)
+        timings["fit"] = time.thread_time() - t2
+        if fitted is None:
+            return self._lost("no initial pose", cloud.n_points, timings)
+        fit, X_fit, X_before, state, reason = fitted
+        t3 = time.thread_time()
+        Xc, observed, supported, state, reason = self._constrain_and_update(X_fit, X_before, data, fit, predicted,
+                                                                            state, reason)
+        timings["post"] = time.thread_time() - t3
+        timings["total"] = time.thread_time() - t0
+        out = self.frame.to_world(Xc) if cfg.output == "world" else self.frame.to_camera(Xc)
+        r = FrameResult(self.index, state, out, Xc, observed, fit.energy.explained, supported, fit.energy.total,
+                        reason, cloud.n_points, timings)
+        self._report_result(r, fit)
+        self.index += 1
+        return r
+
+    def _depth_metres(self, depth) -> np.ndarray:
+        """The depth map checked against the camera's image shape, in float metres.
+
+        Parameters
+        ----------
+        depth : array-like of shape (H, W)
+            Float metres (NaN or 0 = no reading) or uint16 millimetres (0 = no reading).
+
+        Returns
+        -------
+        ndarray of shape (H, W)
+            Float metres, NaN where a uint16 map had 0.
+
+        Raises
+        ------
+        InputError
+            If ``depth`` does not have the camera's image shape, or is neither float nor uint16.
+        """
+        w, h = self.camera.size
+        d = np.asarray(depth)
+        if d.shape != (h, w):
+            raise InputError("depth", f"a depth map of shape ({h}, {w})", f"shape {d.shape}")
+        if d.dtype == np.uint16:
+            d = np.where(d > 0, d.astype(np.float32) / 1000.0, np.nan).astype(np.float32)
+        elif not np.issubdtype(d.dtype, np.floating):
+            raise InputError("depth", "float metres or uint16 millimetres", f"dtype {d.dtype}")
+        return d
+
+    def _user_cloud(self, d: np.ndarray, mask):
+        """Report the depth map, find the user's pixels and back-project them.
+
+        Parameters
+        ----------
+        d : ndarray of shape (H, W)
+            Float metres, NaN or 0 = no reading.
+        mask : ndarray of shape (H, W), bool, or None
+            The user's pixels, if known.
+
+        Returns
+        -------
+        cloud : UserCloud or None
+            The user's points in the view frame; None when no user was found.
+        lost_reason : str
+            Why there is no cloud ("no user" or "no depth"); meaningless with a cloud.
+        """
+        cfg = self.config
+        obs = self._obs
+        if self.observer is not None:
+            obs.report("depth", camera=self.camera.name, depth=np.nan_to_num(d, nan=0.0), name="depth",
+                       frame=self.index)
+        um = user_mask(d, self.camera, background=self.background, given=mask, previous=self.prev_mask,
+                       config=cfg.mask)
+        if not um.found:
+            with np.errstate(invalid="ignore"):
+                return None, ("no user" if np.any(d > 0) else "no depth")
+        self.prev_mask = um.mask
+        nmap = normal_map(d, self.camera, um.mask) if cfg.orus.normal_source == "pixels" else None
+        cloud = user_cloud(d, um.mask, self.frame, nmap, with_pca=self.X is None)
+        return cloud, "no user"
+
+    def _user_grid(self, grid, cloud, predicted):
+        """Keep the user's bins of the ORUS grid (a second person touching the user cut off), with curvature.
+
+        Parameters
+        ----------
+        grid : OrusGrid
+            The ORUS grid of the user's cloud.
+        cloud : UserCloud
+            The user's points.
+        predicted : ndarray of shape (N_POINTS, 3) or None
+            The control points predicted for this frame, in metres (view frame); None when searching.
+
+        Returns
+        -------
+        grid : OrusGrid or None
+            The user's bins; None when fewer than ``min_bins`` are left (the user is lost).
+        curv : CurvatureResult or None
+            Curvature centres of ``grid``.
+        data : FitData or None
+            The fit's data from ``grid`` and ``curv``.
+        first : Assignment or None
+            The data assignment at ``predicted``, when still valid for ``data``.
+        reason : str
+            "touching" when a second person was cut off, else "ok".
+        """
+        cfg = self.config
         reason = "ok"
         if predicted is None:
             keep = self._one_person(grid, cloud)
@@ -263,80 +372,157 @@ class DepthTracker:
                 self.other = grid.mean[grid.filled & ~keep]
                 grid = replace(grid, filled=grid.filled & keep, occupied=grid.occupied & keep)
         if grid.filled.sum() < cfg.min_bins:
-            return self._lost("no user", cloud.n_points, timings)
+            return None, None, None, None, reason
         curv = curvature_centres(grid, cfg.curvature)
         data = fit_data(grid, curv, self.frame)
         first = None
         if predicted is not None:
-            # the first data assignment of the fit, at the prediction, also tells which bins are
-            # near the body: many far ones with a head of their own are a second person touching the user
-            first = assign(data, predicted, self.dims, cfg.energy)
-            near = first.surface_near < cfg.person_gate_m
-            if self.touching > 0 and self.other is not None and len(self.other):
-                # bins near both people go to the nearer one (the other person as last seen)
-                dx = data.surface[:, None, :2] - self.other[None, :, :2]
-                d_other = np.sqrt(np.min(np.einsum("bkc,bkc->bk", dx, dx), axis=1))
-                near &= first.surface_near < d_other
-            n_far = int((~near).sum())
-            many = n_far > max(cfg.min_bins // 2, cfg.touching_fraction * len(near))
-            if many:
-                far = np.zeros(grid.shape, bool)
-                far[data.index[~near, 0], data.index[~near, 1]] = True
-            if many and (self.touching > 0 or top_contour_peaks(replace(grid, filled=far),
-                                                                min_body_m=cfg.min_body_m)):
+            first, far = self._person_gate(grid, data, predicted)
+            if far is not None:
                 # fit only the user's part (once seen, for touching_memory frames even when the
                 # other person's head is not clear)
                 reason = "touching"
-                self.touching = cfg.touching_memory
-                self.other = data.surface[~near]
                 keep = grid.filled & ~far
                 grid = replace(grid, filled=keep, occupied=grid.occupied & keep)
                 if grid.filled.sum() < cfg.min_bins:
-                    return self._lost("no user", cloud.n_points, timings)
+                    return None, None, None, None, reason
                 curv = curvature_centres(grid, cfg.curvature)
                 data = fit_data(grid, curv, self.frame)
                 first = None
-            else:
-                self.touching = max(self.touching - 1, 0)
-                if self.touching == 0:
-                    self.other = None
-        centroid = grid.mean[grid.filled].mean(0)
-        # the radial profile serves the initial pose, the global moves and the recording only
-        need_profile = self.X is None or self.observer is not None or self._moves_due()
-        profile = radial_profile(grid, centroid, cfg.radial) if need_profile else None
-        timings["orus_curvature"] = time.thread_time() - t1
-        t2 = time.thread_time()
-        if self.observer is not None:
-            self._report_data(cloud, grid, curv, profile)
+        return grid, curv, data, first, reason
+
+    def _person_gate(self, grid, data: FitData, predicted: np.ndarray):
+        """Tell, from the first data assignment at the prediction, whether a second person touches the user.
+
+        Many bins far from the body with a head of their own are a second person; once seen, they are
+        cut off for ``touching_memory`` frames even when the other person's head is not clear.
+        Updates ``self.touching`` and ``self.other``.
+
+        Parameters
+        ----------
+        grid : OrusGrid
+            The ORUS grid of the user's cloud.
+        data : FitData
+            The fit's data from ``grid``.
+        predicted : ndarray of shape (N_POINTS, 3)
+            The control points predicted for this frame, in metres (view frame).
+
+        Returns
+        -------
+        first : Assignment
+            The data assignment at ``predicted``.
+        far : ndarray of shape grid.shape, bool, or None
+            The second person's bins; None when there is no second person.
+        """
+        cfg = self.config
+        first = assign(data, predicted, self.dims, cfg.energy)
+        near = first.surface_near < cfg.person_gate_m
+        if self.touching > 0 and self.other is not None and len(self.other):
+            # bins near both people go to the nearer one (the other person as last seen)
+            dx = data.surface[:, None, :2] - self.other[None, :, :2]
+            d_other = np.sqrt(np.min(np.einsum("bkc,bkc->bk", dx, dx), axis=1))
+            near &= first.surface_near < d_other
+        n_far = int((~near).sum())
+        many = n_far > max(cfg.min_bins // 2, cfg.touching_fraction * len(near))
+        if many:
+            far = np.zeros(grid.shape, bool)
+            far[data.index[~near, 0], data.index[~near, 1]] = True
+        if many and (self.touching > 0 or top_contour_peaks(replace(grid, filled=far),
+                                                            min_body_m=cfg.min_body_m)):
+            self.touching = cfg.touching_memory
+            self.other = data.surface[~near]
+            return first, far
+        self.touching = max(self.touching - 1, 0)
+        if self.touching == 0:
+            self.other = None
+        return first, None
+
+    def _fit_pose(self, grid, data: FitData, first, predicted, profile, centroid: np.ndarray, cloud, reason: str):
+        """Fit the control points: the initial pose when searching, else the local fit and global moves.
+
+        Parameters
+        ----------
+        grid : OrusGrid
+            The user's bins.
+        data : FitData
+            The fit's data.
+        first : Assignment or None
+            The data assignment at ``predicted``, if still valid.
+        predicted : ndarray of shape (N_POINTS, 3) or None
+            The control points predicted for this frame, in metres (view frame); None when searching.
+        profile : RadialProfile or None
+            The radial profile around ``centroid``; computed here when the moves need it.
+        centroid : ndarray of shape (3,)
+            The mean of the user's bins, in metres (view frame).
+        cloud : UserCloud
+            The user's points.
+        reason : str
+            The frame's reason so far.
+
+        Returns
+        -------
+        (fit, X_fit, X_before, state, reason) or None
+            The fit (``LocalFit``), its control points ``(N_POINTS, 3)``, the previous frame's (None
+            at initialisation), the state before the hard constraints and the reason; None when no
+            initial pose was found.
+        """
+        cfg = self.config
         if self.X is None:
             fit = self._initialise(grid, profile, cloud, data)
             if fit is None:
-                timings["fit"] = time.thread_time() - t2
-                return self._lost("no initial pose", cloud.n_points, timings)
-            X_fit = fit.X
-            state = RECOVERING
-            reason = "init"
-            X_before = None
-        else:
-            w_prev = np.full(N_POINTS, cfg.prev_weight_tracking if self.state == TRACKING
-                             else cfg.prev_weight_recovering)
-            w_prev[~self.observed_prev] = cfg.prev_weight_unseen
-            fit = fit_local(predicted, data, self.dims, predicted, w_prev, cfg.fit, cfg.energy, cfg.constraints,
-                            self.ground_y, self.observer, self.index, first=first)
-            if fit.energy.explained < cfg.fit.move_trigger_explained or self._moves_due():
-                if profile is None:
-                    profile = radial_profile(grid, centroid, cfg.radial)
-                ctx = MoveContext(profile=profile, grid=grid, data=data, dims=self.dims, frame=self.frame,
-                                  predicted=predicted, tracker=self, assignment=fit.energy.assignment,
-                                  data_index=data.index)
-                fit, _ = self.search.run(fit, ctx, lambda X0: fit_local(
-                    X0, data, self.dims, predicted, w_prev, cfg.fit, cfg.energy, cfg.constraints, self.ground_y),
-                    observer=self.observer, frame=self.index)
-            X_fit = fit.X
-            X_before = self.X
-            state = self.state
-        timings["fit"] = time.thread_time() - t2
-        t3 = time.thread_time()
+                return None
+            return fit, fit.X, None, RECOVERING, "init"
+        w_prev = np.full(N_POINTS, cfg.prev_weight_tracking if self.state == TRACKING
+                         else cfg.prev_weight_recovering)
+        w_prev[~self.observed_prev] = cfg.prev_weight_unseen
+        fit = fit_local(predicted, data, self.dims, predicted, w_prev, cfg.fit, cfg.energy, cfg.constraints,
+                        self.ground_y, self.observer, self.index, first=first)
+        if fit.energy.explained < cfg.fit.move_trigger_explained or self._moves_due():
+            if profile is None:
+                profile = radial_profile(grid, centroid, cfg.radial)
+            ctx = MoveContext(profile=profile, grid=grid, data=data, dims=self.dims, frame=self.frame,
+                              predicted=predicted, tracker=self, assignment=fit.energy.assignment,
+                              data_index=data.index)
+            fit, _ = self.search.run(fit, ctx, lambda X0: fit_local(
+                X0, data, self.dims, predicted, w_prev, cfg.fit, cfg.energy, cfg.constraints, self.ground_y),
+                observer=self.observer, frame=self.index)
+        return fit, fit.X, self.X, self.state, reason
+
+    def _constrain_and_update(self, X_fit: np.ndarray, X_before, data: FitData, fit, predicted, state: int,
+                              reason: str):
+        """Apply the hard constraints, stabilise and complete the pose, update the filter, lengths and state.
+
+        Parameters
+        ----------
+        X_fit : ndarray of shape (N_POINTS, 3)
+            The fitted control points, in metres (view frame).
+        X_before : ndarray of shape (N_POINTS, 3) or None
+            The previous frame's control points (None at initialisation).
+        data : FitData
+            The fit's data.
+        fit : LocalFit
+            The fit.
+        predicted : ndarray of shape (N_POINTS, 3) or None
+            The control points predicted for this frame.
+        state : int
+            The state before this frame's quality is known.
+        reason : str
+            The frame's reason so far.
+
+        Returns
+        -------
+        Xc : ndarray of shape (N_POINTS, 3)
+            The completed control points, in metres (view frame).
+        observed : ndarray of shape (N_POINTS,), bool
+            Which control points the data saw.
+        supported : float
+            The fraction of the data supported by the pose.
+        state : int
+            The frame's state.
+        reason : str
+            The frame's reason.
+        """
+        cfg = self.config
         # hard constraints
         X, _ = enforce_velocity(X_fit, X_before, self.dt, cfg.constraints)
         X, _ = enforce_collisions(X, X_before, self.dims, cfg.constraints)
@@ -371,14 +557,7 @@ class DepthTracker:
         if self.poor >= cfg.reinit_after:
             self.X = None           # search again next frame
             self.poor = 0
-        timings["post"] = time.thread_time() - t3
-        timings["total"] = time.thread_time() - t0
-        out = self.frame.to_world(Xc) if cfg.output == "world" else self.frame.to_camera(Xc)
-        r = FrameResult(self.index, state, out, Xc, observed, fit.energy.explained, supported, fit.energy.total,
-                        reason, cloud.n_points, timings)
-        self._report_result(r, fit)
-        self.index += 1
-        return r
+        return Xc, observed, supported, state, reason
 
     # ------------------------------------------------------------- helpers
     def _moves_due(self) -> bool:

@@ -431,6 +431,78 @@ def _cut_region(work_img: np.ndarray, work_tri: np.ndarray, region: np.ndarray, 
     return fg, (bgd, fgd)
 
 
+def _previous_and_allowed(previous, allowed, shape: tuple[int, int]):
+    """Check the previous frame's result and the allowed region of :meth:`SeededSegmenter.segment`.
+
+    Parameters
+    ----------
+    previous : SeededMask or array_like of shape (H, W) or None
+    allowed : array_like of shape (H, W) or None
+    shape : tuple of int
+        ``(H, W)`` of the image.
+
+    Returns
+    -------
+    prev_mask : ndarray of shape (H, W), bool, or None
+    models : tuple or None
+        The previous colour models (None: none).
+    allowed : ndarray of shape (H, W), bool, or None
+
+    Raises
+    ------
+    InputError
+        A mask of another shape.
+    """
+    h, w = shape
+    prev_mask, models = None, None
+    if isinstance(previous, SeededMask):
+        prev_mask, models = previous.mask, previous.models or None
+    elif previous is not None:
+        prev_mask = np.asarray(previous, bool)
+    if prev_mask is not None and prev_mask.shape != (h, w):
+        raise InputError("previous", f"a mask of shape {(h, w)}", f"shape {prev_mask.shape}")
+    if allowed is not None:
+        allowed = np.asarray(allowed, bool)
+        if allowed.shape != (h, w):
+            raise InputError("allowed", f"a mask of shape {(h, w)}", f"shape {allowed.shape}")
+    return prev_mask, models, allowed
+
+
+def _cut_regions(work_img: np.ndarray, work_tri: np.ndarray, regions: list, prev_models, pad: int,
+                 config) -> tuple[np.ndarray, tuple]:
+    """GrabCut each region of the work crop with its own colour models.
+
+    Parameters
+    ----------
+    work_img : ndarray of shape (h, w, 3), uint8
+        The crop at work resolution.
+    work_tri : ndarray of shape (h, w), uint8
+        Its trimap (OpenCV GrabCut labels).
+    regions : list of ndarray of shape (h, w), bool
+        Disjoint regions covering the crop.
+    prev_models : list or None
+        Per region, the colour models to start from.
+    pad : int
+        Margin around each region's box, work pixels.
+    config : SeededConfig
+
+    Returns
+    -------
+    fg : ndarray of shape (h, w), float32
+        Foreground probability.
+    models : tuple
+        Per region, its colour models.
+    """
+    fg = np.zeros(work_tri.shape, np.float32)
+    out = []
+    for r, region in enumerate(regions):
+        fg_r, m_r = _cut_region(work_img, work_tri, region, None if prev_models is None
+                                else prev_models[r], pad, config)
+        fg[region] = fg_r[region]
+        out.append(m_r)
+    return fg, tuple(out)
+
+
 class SeededSegmenter:
     """Subject masks from an image and the subject's 2D pose (module docstring).
 
@@ -489,17 +561,7 @@ class SeededSegmenter:
         h, w = img.shape[:2]
         j, wts = _check_joints(joints2d, weights)
         s = body_scale(j, wts)
-        prev_mask, models = None, None
-        if isinstance(previous, SeededMask):
-            prev_mask, models = previous.mask, previous.models or None
-        elif previous is not None:
-            prev_mask = np.asarray(previous, bool)
-        if prev_mask is not None and prev_mask.shape != (h, w):
-            raise InputError("previous", f"a mask of shape {(h, w)}", f"shape {prev_mask.shape}")
-        if allowed is not None:
-            allowed = np.asarray(allowed, bool)
-            if allowed.shape != (h, w):
-                raise InputError("allowed", f"a mask of shape {(h, w)}", f"shape {allowed.shape}")
+        prev_mask, models, allowed = _previous_and_allowed(previous, allowed, (h, w))
         mask = np.zeros((h, w), bool)
         tri = np.full((h, w), cv2.GC_BGD, np.uint8)
         out_models: tuple = ()
@@ -534,14 +596,8 @@ class SeededSegmenter:
                 regions = _regions(size, to_work(j), wts > 0) if cfg.local_models else [np.ones(size[::-1], bool)]
                 prev_models = (list(models) if cfg.carry_models and models is not None and len(models) == len(regions)
                                else None)
-                fg = np.zeros(size[::-1], np.float32)
-                out = []
-                for r, region in enumerate(regions):
-                    fg_r, m_r = _cut_region(work_img, work_tri, region, None if prev_models is None
-                                            else prev_models[r], max(int(round(CROP_PAD * s * f)), 4), cfg)
-                    fg[region] = fg_r[region]
-                    out.append(m_r)
-                out_models = tuple(out)
+                fg, out_models = _cut_regions(work_img, work_tri, regions, prev_models,
+                                              max(int(round(CROP_PAD * s * f)), 4), cfg)
                 if f < 1:
                     fg = cv2.resize(fg, (x1 - x0, y1 - y0), interpolation=cv2.INTER_LINEAR)
                 crop = fg > 0.5

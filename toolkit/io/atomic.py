@@ -5,6 +5,8 @@ then renamed over the destination with :func:`os.replace`, which is atomic on
 POSIX and Windows when both names are on the same file system.  A reader
 therefore sees either the old file or the complete new one, never a partial
 write, and an interrupted run leaves at most a hidden ``.<name>.tmp-*`` file.
+A full or read-only disk is an :class:`~toolkit.errors.InputError` naming the
+file, and leaves the earlier file as it was.
 
 The temporary name keeps the destination's suffix, because some writers
 (OpenCV's video writer, ``numpy.savez``) choose a format from it.
@@ -13,6 +15,7 @@ The temporary name keeps the destination's suffix, because some writers
 from __future__ import annotations
 
 import contextlib
+import errno
 import io
 import os
 import tempfile
@@ -40,6 +43,10 @@ def _current_umask() -> int:
     os.umask(mask)
     return mask
 
+
+#: ``errno`` values that mean the destination cannot take the file (full, read-only, quota, permission):
+#: reported as an :class:`~toolkit.errors.InputError` naming the file, not a traceback.
+_UNWRITABLE = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM})
 
 #: Permissions of files this module creates (``mkstemp`` alone would give 0600).
 FILE_MODE = 0o666 & ~_current_umask()
@@ -78,12 +85,16 @@ def atomic_path(path: str | os.PathLike, *, make_parents: bool = True) -> Iterat
     Notes
     -----
     If the body raises, the temporary file is removed and the destination is
-    left untouched.
+    left untouched; a full or read-only disk (``ENOSPC``, ``EROFS``,
+    ``EACCES`` ...) is raised as an InputError naming ``path``.
     """
     path = Path(path)
-    if make_parents:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = temp_path(path)
+    try:
+        if make_parents:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = temp_path(path)
+    except OSError as e:
+        _raise_unwritable(path, e)
     try:
         yield tmp
         if not tmp.exists():
@@ -91,10 +102,20 @@ def atomic_path(path: str | os.PathLike, *, make_parents: bool = True) -> Iterat
                 str(path), "the writer to create its temporary file", f"no file at {tmp}"
             )
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as e:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
+        if isinstance(e, OSError):
+            _raise_unwritable(path, e)
         raise
+
+
+def _raise_unwritable(path: Path, e: OSError) -> None:
+    """Re-raise ``e`` as an InputError naming ``path`` when the disk cannot take the file, else as it is."""
+    if e.errno not in _UNWRITABLE:
+        raise e
+    raise InputError(str(path), "room and permission to write the file (an earlier one is kept as it was)",
+                     f"{e.strerror or e} (a full or read-only disk, or no permission)") from None
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:

@@ -73,6 +73,55 @@ def _param(params, group: str, name: str, where: str, default=None):
         raise InputError(f"{where}: {group}:{name}", "the parameter to be present", "no such parameter") from None
 
 
+def _crashes_the_reader(path: Path) -> int | None:
+    """The signal that ends ezc3d reading ``path`` in a forked child (a damaged file), or None when it does not.
+
+    ezc3d is C++ and some damaged files make it crash (a segmentation fault ends
+    the whole process, with no exception to catch); reading them first in a
+    child process (``os.fork``: a few milliseconds) keeps the caller alive.
+    Without ``fork`` (Windows) the file is not probed.
+    """
+    if not hasattr(os, "fork"):
+        return None
+    pid = os.fork()
+    if pid == 0:  # the child: read, and leave without running anything of the parent's
+        code = 0
+        try:
+            import faulthandler
+
+            faulthandler.disable()  # the crash is expected here: no report of it on the shared stderr
+            os.dup2(os.open(os.devnull, os.O_WRONLY), 2)
+            import ezc3d
+
+            ezc3d.c3d(str(path))
+        except BaseException:
+            code = 1
+        os._exit(code)
+    _, status = os.waitpid(pid, 0)
+    return os.WTERMSIG(status) if os.WIFSIGNALED(status) else None
+
+
+def open_c3d(path: str | os.PathLike):
+    """Read a C3D file with ezc3d; a missing, unreadable or damaged file is an InputError naming it.
+
+    Returns
+    -------
+    ezc3d.c3d
+    """
+    import ezc3d
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(str(path), "a C3D file", "no such file")
+    sig = _crashes_the_reader(path)
+    if sig is not None:
+        raise InputError(str(path), "a readable C3D file", f"a damaged file (the C3D reader dies on it: signal {sig})")
+    try:
+        return ezc3d.c3d(str(path))
+    except Exception as e:  # ezc3d raises plain RuntimeError/IOError on a bad file
+        raise InputError(str(path), "a readable C3D file", f"{type(e).__name__}: {e}") from None
+
+
 def read_c3d(path: str | os.PathLike, *, require_labels: bool = False) -> C3DPoints:
     """Read the 3D points of a C3D file, in metres.
 
@@ -93,16 +142,9 @@ def read_c3d(path: str | os.PathLike, *, require_labels: bool = False) -> C3DPoi
         The file is missing or not a C3D; ``POINT:UNITS`` is not ``mm`` or
         ``m``; labels are missing (with ``require_labels``) or duplicated.
     """
-    import ezc3d
-
     path = Path(path)
     where = str(path)
-    if not path.is_file():
-        raise InputError(where, "a C3D file", "no such file")
-    try:
-        c3d = ezc3d.c3d(str(path))
-    except Exception as e:  # ezc3d raises plain RuntimeError/IOError on a bad file
-        raise InputError(where, "a readable C3D file", f"{type(e).__name__}: {e}") from None
+    c3d = open_c3d(path)
     params = c3d["parameters"]
     points = np.asarray(c3d["data"]["points"], dtype=float)  # (4, M, T)
     n_points = points.shape[1]

@@ -32,6 +32,10 @@ OpenCV YAML layout, written and read with ``cv2.FileStorage``::
          R: !!opencv-matrix {rows: 3, cols: 3, dt: d, data: [...]}   # or rvec (3 values)
          t: !!opencv-matrix {rows: 3, cols: 1, dt: d, data: [...]}   # metres
 
+Every rig read is checked against the physical range of its numbers
+(:func:`toolkit.cameras.validate.check_rig`: principal points inside the
+image, monotonic distortion, cameras looking forward at the scene).
+
 Both describe the OpenCV pinhole model (camera axes x right, y down, z
 forward; the centre of the top-left pixel at (0, 0)) and a world-to-camera
 pose, so no axis conversion happens here.
@@ -42,15 +46,16 @@ from __future__ import annotations
 import math
 import os
 import re
-import tomllib
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from toolkit.cameras import Camera, Rig
+from toolkit.cameras.validate import check_rig
 from toolkit.errors import InputError
 from toolkit.io.atomic import atomic_write_text
+from toolkit.io.text import load_toml, read_text
 
 __all__ = [
     "read_calibration",
@@ -238,22 +243,17 @@ def _rig(path: Path, cameras: list[Camera]) -> Rig:
     if not cameras:
         raise InputError(str(path), "at least one camera", "no cameras")
     try:
-        return Rig(tuple(cameras))
+        rig = Rig(tuple(cameras))
     except InputError as e:
         raise InputError(f"{path}: {e.where}", e.expected, e.found) from e
+    return check_rig(rig, str(path))
 
 
 # ------------------------------------------------------------------ TOML
 def _load_toml(path: Path) -> dict:
     """The parsed TOML document at ``path``, or an InputError naming the file."""
     _require_file(path)
-    try:
-        with open(path, "rb") as f:
-            return tomllib.load(f)
-    except tomllib.TOMLDecodeError as e:
-        raise InputError(str(path), "a valid TOML file", f"a syntax error: {e}") from None
-    except UnicodeDecodeError as e:
-        raise InputError(str(path), "a UTF-8 TOML file", f"undecodable bytes: {e}") from None
+    return load_toml(path, "a valid TOML calibration file")
 
 
 def read_calibration_metadata(path: str | os.PathLike) -> dict:
@@ -453,6 +453,156 @@ def write_calibration_toml(
 _YAML_CAMERAS = "cameras"
 
 
+def _open_yaml(path: Path):
+    """Open an OpenCV FileStorage YAML file from its text.
+
+    Parameters
+    ----------
+    path : Path
+        The YAML file.
+
+    Returns
+    -------
+    cv2.FileStorage
+        Open for reading; the caller releases it.
+
+    Raises
+    ------
+    InputError
+        Missing, non-UTF-8 or unparsable file.
+    """
+    _require_file(path)
+    text = read_text(path, "a UTF-8 YAML calibration file")
+    try:
+        return cv2.FileStorage(
+            text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY | cv2.FILE_STORAGE_FORMAT_YAML
+        )
+    except (cv2.error, SystemError) as e:  # the binding may wrap cv2.error in SystemError
+        cause = e.__cause__ or e.__context__ if isinstance(e, SystemError) else e
+        text = str(cause or e).strip()
+        msg = "a parse error: " + (text.splitlines()[-1] if text else "(no detail)")
+        raise InputError(str(path), "a YAML file OpenCV's FileStorage can parse", msg) from None
+
+
+def _yaml_field(node, where: str, key: str, kind: str = "mat", required: bool = True):
+    """One field of a YAML camera map.
+
+    Parameters
+    ----------
+    node : cv2.FileNode
+        The camera's map.
+    where : str
+        The file and the camera's place in it, for errors.
+    key : str
+        The field's name.
+    kind : {"mat", "str", "num"}
+        A matrix (``!!opencv-matrix`` or a sequence of numbers), a string or a number.
+    required : bool
+        Whether a missing field is an error.
+
+    Returns
+    -------
+    ndarray, list of float, str, float or None
+        The field's value; None when missing and not required.
+
+    Raises
+    ------
+    InputError
+        A required field missing, or a field of another kind.
+    """
+    n = node.getNode(key)
+    if n.empty() or n.isNone():
+        if required:
+            raise InputError(
+                f"{where}.{key}",
+                f"a '{key}' field",
+                f"no '{key}' (fields: {node.keys()})",
+            )
+        return None
+    if kind == "str":
+        if not n.isString():
+            raise InputError(f"{where}.{key}", "a string", "a non-string node")
+        return n.string()
+    if kind == "num":
+        if not (n.isInt() or n.isReal()):
+            raise InputError(f"{where}.{key}", "a number", "a non-numeric node")
+        return n.real()
+    if n.isSeq():
+        items = [n.at(j) for j in range(n.size())]
+        if not all(it.isInt() or it.isReal() for it in items):
+            raise InputError(
+                f"{where}.{key}", "a sequence of numbers", "a sequence of other nodes"
+            )
+        return [it.real() for it in items]
+    try:
+        m = n.mat() if n.isMap() else None
+    except (cv2.error, SystemError):
+        m = None
+    if m is None:
+        raise InputError(
+            f"{where}.{key}",
+            "an !!opencv-matrix or a sequence of numbers",
+            "another kind of node",
+        )
+    return m
+
+
+def _yaml_camera(node, where: str) -> Camera:
+    """One camera of a YAML calibration, from its map.
+
+    Parameters
+    ----------
+    node : cv2.FileNode
+        The camera's map (name, image_width, image_height, K, dist, R or rvec, t).
+    where : str
+        The file and the camera's place in it, for errors.
+
+    Returns
+    -------
+    Camera
+
+    Raises
+    ------
+    InputError
+        A non-map node, a missing field, wrong shapes or non-finite numbers.
+    """
+    if not node.isMap():
+        raise InputError(
+            where,
+            "a map with name, image_width, image_height, K, dist, R or rvec, t",
+            "a non-map node",
+        )
+    name = _yaml_field(node, where, "name", "str")
+    if not name:
+        raise InputError(f"{where}.name", "a non-empty string", repr(name))
+    size = _image_size(
+        f"{where}.image_width/image_height",
+        [_yaml_field(node, where, "image_width", "num"), _yaml_field(node, where, "image_height", "num")],
+    )
+    K = _intrinsics(f"{where}.K", _yaml_field(node, where, "K"))
+    dist = _distortion(f"{where}.dist", _yaml_field(node, where, "dist"))
+    R = _yaml_field(node, where, "R", required=False)
+    if R is not None:
+        R = _rotation(
+            f"{where}.R",
+            np.asarray(R, dtype=np.float64).reshape(3, 3) if np.size(R) == 9 else R,
+        )
+    else:
+        rvec = _yaml_field(node, where, "rvec", required=False)
+        if rvec is None:
+            raise InputError(
+                f"{where}.R",
+                "an 'R' (3x3) or 'rvec' (3) field",
+                f"neither (fields: {node.keys()})",
+            )
+        R = _rotation(
+            f"{where}.rvec",
+            np.asarray(rvec, dtype=np.float64).reshape(-1) if np.size(rvec) == 3 else rvec,
+        )
+    t = _translation(f"{where}.t", _yaml_field(node, where, "t"))
+    return _camera(where, name, K, dist, size, R, t)
+
+
 def read_calibration_yaml(path: str | os.PathLike) -> Rig:
     """Read an OpenCV FileStorage YAML calibration (see the module docstring).
 
@@ -471,19 +621,7 @@ def read_calibration_yaml(path: str | os.PathLike) -> Rig:
         field, wrong shapes or non-finite numbers.
     """
     path = Path(path)
-    _require_file(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-        fs = cv2.FileStorage(
-            text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY | cv2.FILE_STORAGE_FORMAT_YAML
-        )
-    except UnicodeDecodeError as e:
-        raise InputError(str(path), "a UTF-8 YAML file", f"undecodable bytes: {e}") from None
-    except (cv2.error, SystemError) as e:  # the binding may wrap cv2.error in SystemError
-        cause = e.__cause__ or e.__context__ if isinstance(e, SystemError) else e
-        text = str(cause or e).strip()
-        msg = "a parse error: " + (text.splitlines()[-1] if text else "(no detail)")
-        raise InputError(str(path), "a YAML file OpenCV's FileStorage can parse", msg) from None
+    fs = _open_yaml(path)
     try:
         seq = fs.getNode(_YAML_CAMERAS)
         if seq.empty() or seq.isNone():
@@ -497,80 +635,7 @@ def read_calibration_yaml(path: str | os.PathLike) -> Rig:
         cameras = []
         for i in range(seq.size()):
             node = seq.at(i)
-            where = f"{path}: {_YAML_CAMERAS}[{i}]"
-            if not node.isMap():
-                raise InputError(
-                    where,
-                    "a map with name, image_width, image_height, K, dist, R or rvec, t",
-                    "a non-map node",
-                )
-
-            def field(key, kind="mat", required=True):
-                n = node.getNode(key)
-                if n.empty() or n.isNone():
-                    if required:
-                        raise InputError(
-                            f"{where}.{key}",
-                            f"a '{key}' field",
-                            f"no '{key}' (fields: {node.keys()})",
-                        )
-                    return None
-                if kind == "str":
-                    if not n.isString():
-                        raise InputError(f"{where}.{key}", "a string", "a non-string node")
-                    return n.string()
-                if kind == "num":
-                    if not (n.isInt() or n.isReal()):
-                        raise InputError(f"{where}.{key}", "a number", "a non-numeric node")
-                    return n.real()
-                if n.isSeq():
-                    items = [n.at(j) for j in range(n.size())]
-                    if not all(it.isInt() or it.isReal() for it in items):
-                        raise InputError(
-                            f"{where}.{key}", "a sequence of numbers", "a sequence of other nodes"
-                        )
-                    return [it.real() for it in items]
-                try:
-                    m = n.mat() if n.isMap() else None
-                except (cv2.error, SystemError):
-                    m = None
-                if m is None:
-                    raise InputError(
-                        f"{where}.{key}",
-                        "an !!opencv-matrix or a sequence of numbers",
-                        "another kind of node",
-                    )
-                return m
-
-            name = field("name", "str")
-            if not name:
-                raise InputError(f"{where}.name", "a non-empty string", repr(name))
-            size = _image_size(
-                f"{where}.image_width/image_height",
-                [field("image_width", "num"), field("image_height", "num")],
-            )
-            K = _intrinsics(f"{where}.K", field("K"))
-            dist = _distortion(f"{where}.dist", field("dist"))
-            R = field("R", required=False)
-            if R is not None:
-                R = _rotation(
-                    f"{where}.R",
-                    np.asarray(R, dtype=np.float64).reshape(3, 3) if np.size(R) == 9 else R,
-                )
-            else:
-                rvec = field("rvec", required=False)
-                if rvec is None:
-                    raise InputError(
-                        f"{where}.R",
-                        "an 'R' (3x3) or 'rvec' (3) field",
-                        f"neither (fields: {node.keys()})",
-                    )
-                R = _rotation(
-                    f"{where}.rvec",
-                    np.asarray(rvec, dtype=np.float64).reshape(-1) if np.size(rvec) == 3 else rvec,
-                )
-            t = _translation(f"{where}.t", field("t"))
-            cameras.append(_camera(where, name, K, dist, size, R, t))
+            cameras.append(_yaml_camera(node, f"{path}: {_YAML_CAMERAS}[{i}]"))
     finally:
         fs.release()
     return _rig(path, cameras)

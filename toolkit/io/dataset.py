@@ -35,6 +35,7 @@ reads and validates it.
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 from typing import Iterator
 
@@ -54,10 +55,19 @@ from toolkit.io.layout import (
     check_joints2d,
     check_joints3d,
     check_people,
+    is_stray,
     load_npz,
 )
 from toolkit.io.video import VideoReader, probe_video
 __all__ = ["DatasetLayout", "Dataset", "FPS_RELATIVE_TOLERANCE"]
+
+
+def _stray(path: Path) -> bool:
+    """Whether ``path`` is a file the operating system left (``Thumbs.db``): skipped, with a warning."""
+    if not (path.is_file() and is_stray(path)):
+        return False
+    warnings.warn(f"{path}: ignored (a file the operating system left, not data)", stacklevel=3)
+    return True
 
 
 class Dataset:
@@ -194,7 +204,7 @@ class Dataset:
             if not L.keypoints_dir.is_dir():
                 raise InputError(str(L.keypoints_dir), "a folder of one keypoint folder per camera", "a file")
             for p in sorted(L.keypoints_dir.iterdir()):
-                if p.name.startswith(".") or (p.is_file() and p.name in KEYPOINT_RECORDS):
+                if p.name.startswith(".") or (p.is_file() and p.name in KEYPOINT_RECORDS) or _stray(p):
                     continue
                 if not p.is_dir() or p.name not in self.rig.names:
                     raise InputError(str(p), f"a folder named after a camera {self.rig.names}", f"{p.name!r}")
@@ -297,7 +307,7 @@ class Dataset:
         if not folder.exists():
             return
         for p in sorted(folder.iterdir()):
-            if p.name.startswith("."):
+            if p.name.startswith(".") or _stray(p):
                 continue
             if not p.is_dir() or p.name not in names:
                 raise InputError(str(p), f"a folder named after a camera {names}", f"{p.name!r}")
@@ -307,8 +317,8 @@ class Dataset:
         if not folder.is_dir():
             return
         for p in folder.iterdir():
-            if p.name.startswith("."):
-                continue  # temporary files of an interrupted atomic write
+            if p.name.startswith(".") or _stray(p):
+                continue  # temporary files of an interrupted atomic write, files the OS left
             stem = p.name[:-4] if p.name.endswith(".png") else ""
             if len(stem) != FRAME_DIGITS or not stem.isdigit() or int(stem) >= self.n_frames:
                 raise InputError(

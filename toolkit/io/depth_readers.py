@@ -28,14 +28,17 @@ from __future__ import annotations
 
 import os
 import re
-import tomllib
+import tokenize
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from toolkit.cameras import Camera
+from toolkit.cameras.validate import check_camera
 from toolkit.errors import InputError
+from toolkit.io.layout import is_stray
+from toolkit.io.text import load_toml
 from toolkit.io.frames import mm_to_depth, read_png
 from toolkit.io.frames import DEPTH_UNITS_PER_METRE
 
@@ -63,6 +66,12 @@ KINECT_V1_SIZE = (640, 480)
 #: (about 57 degrees horizontal field of view).  The real frames of
 #: ``../shared/realdata/kinect_depth`` come without intrinsics; this is their default.
 KINECT_V1_FOCAL_PX = 585.0
+#: Largest median depth of a float depth map taken as metres: depth cameras reach 10-20 m, so a float map
+#: whose readings are mostly beyond is in other units (float millimetres read as metres would put a person
+#: at 2 km).
+MAX_FLOAT_MEDIAN_DEPTH_M = 50.0
+#: Largest depth frame read, pixels (a 16K frame; larger is a wrong size or a damaged header).
+MAX_DEPTH_PIXELS = 15360 * 8640
 #: File suffixes :func:`read_depth` dispatches on (anything else is read as raw uint16).
 DEPTH_SUFFIXES = (".png", ".npy", ".tif", ".tiff", ".jpg", ".jpeg")
 
@@ -130,6 +139,9 @@ def _as_metres(arr: np.ndarray, where: str, units_per_metre: float) -> np.ndarra
     if np.issubdtype(a.dtype, np.floating):
         out = a.astype(np.float32)
         out[~np.isfinite(out) | (out <= 0)] = np.nan
+        if np.isfinite(out).any() and (med := float(np.nanmedian(out))) > MAX_FLOAT_MEDIAN_DEPTH_M:
+            raise InputError(where, f"float depth in metres (median at most {MAX_FLOAT_MEDIAN_DEPTH_M:g} m)",
+                             f"a median of {med:.6g} (millimetres? store uint16 millimetres or float metres)")
         return out
     raise InputError(where, "uint16 depth units or float metres", f"dtype {a.dtype}")
 
@@ -190,8 +202,12 @@ def read_depth_npy(path: str | os.PathLike, units_per_metre: float = DEPTH_UNITS
     if not path.is_file():
         raise InputError(str(path), "an existing .npy file", "no such file")
     try:
-        a = np.load(path, allow_pickle=False)
-    except ValueError as e:
+        a = np.load(path, allow_pickle=False, mmap_mode="r")
+        if a.size > MAX_DEPTH_PIXELS:
+            raise InputError(str(path), f"a depth frame of at most {MAX_DEPTH_PIXELS} pixels", f"shape {a.shape}")
+        a = np.array(a)
+    except (ValueError, OSError, EOFError, SyntaxError, tokenize.TokenError) as e:
+        # a damaged header reaches numpy's header parser (Python's tokenizer) as well as its own checks
         raise InputError(str(path), "a numpy array file", f"unreadable ({e})") from None
     return _as_metres(a, str(path), units_per_metre)
 
@@ -244,7 +260,7 @@ def list_depth_frames(folder: str | os.PathLike) -> list[Path]:
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(str(folder), "a folder of depth frames", "no such folder")
-    files = [p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")
+    files = [p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".") and not is_stray(p)
              and p.suffix.lower() not in (".toml", ".md", ".txt", ".json", ".yml", ".yaml")
              and p.name not in ("COPYING", "LICENSE", "README")]
     if not files:
@@ -298,12 +314,7 @@ def read_depth_intrinsics(path: str | os.PathLike) -> DepthCameraInfo:
         or ``cam_from_world``.
     """
     path = Path(path)
-    if not path.is_file():
-        raise InputError(str(path), "an existing intrinsics.toml", "no such file")
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        raise InputError(str(path), "valid TOML", f"a syntax error ({e})") from None
+    data = load_toml(path, "an existing intrinsics.toml (valid TOML)")
 
     def field(key, shape, required=True):
         if key not in data:
@@ -333,7 +344,7 @@ def read_depth_intrinsics(path: str | os.PathLike) -> DepthCameraInfo:
         cam = Camera(name, K, dist, (int(size[0]), int(size[1])), np.eye(4) if T is None else T)
     except InputError as e:
         raise InputError(f"{path}: {e.where}", e.expected, e.found) from None
-    return DepthCameraInfo(cam, T is not None, float(units))
+    return DepthCameraInfo(check_camera(cam, str(path)), T is not None, float(units))
 
 
 # ------------------------------------------------------------------ inputs

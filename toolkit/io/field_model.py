@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from toolkit.errors import InputError
+from toolkit.io.text import load_json
 from toolkit.io.atomic import atomic_write_text
 
 __all__ = ["FieldModel", "read_field_model", "write_field_model"]
@@ -108,12 +109,7 @@ def read_field_model(path: str | os.PathLike) -> FieldModel:
         Naming the file and field when it is not valid.
     """
     path = Path(path)
-    try:
-        doc = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise InputError(str(path), "a field-model JSON file", "no such file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise InputError(str(path), "a field-model JSON file", f"unreadable: {e}") from None
+    doc = load_json(path, "a field-model JSON file")
     if not isinstance(doc, dict) or "polylines" not in doc:
         raise InputError(f"{path}", "an object with a 'polylines' list", type(doc).__name__ if not isinstance(doc, dict)
                          else f"keys {sorted(doc)}")

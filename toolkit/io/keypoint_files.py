@@ -23,15 +23,15 @@ as one JSON file for the whole sequence.  The layouts read (docs/keypoint_format
 
 Keypoints come back as ``(x, y, confidence)`` pixels; NaN coordinates and confidence 0
 where not detected (OpenPose's ``(0, 0, 0)``, a NaN confidence or coordinate).  A
-negative confidence is an error naming the file: no detector writes one, so the file is
-not what it seems.  A frame with nobody is an all-missing frame, not an error.
+negative or infinite confidence is an error naming the file: no detector writes one, so
+the file is not what it seems (an infinite weight would also make the triangulation
+infinite).  A frame with nobody is an all-missing frame, not an error.
 
 The keypoint format of the detections is found by :mod:`toolkit.io.keypoint_formats`.
 """
 
 from __future__ import annotations
 
-import json
 import os
 import re
 from dataclasses import dataclass
@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from toolkit.errors import InputError
+from toolkit.io.text import load_json
 from toolkit.io.openpose import _frame_number, frame_files
 
 __all__ = ["LAYOUTS", "PER_FRAME_LAYOUTS", "CameraDetections", "read_camera_detections", "camera_sources",
@@ -85,12 +86,7 @@ class CameraDetections:
 # --------------------------------------------------------------------------- parsing
 
 def _load_json(path: Path):
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(str(path), "a keypoint JSON file", "no such file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise InputError(str(path), "a readable keypoint JSON file", f"{type(e).__name__}: {e}") from None
+    return load_json(path, "a readable keypoint JSON file")
 
 
 def _clean(arr: np.ndarray, where: str) -> np.ndarray:
@@ -101,6 +97,10 @@ def _clean(arr: np.ndarray, where: str) -> np.ndarray:
     if neg.size:
         raise InputError(where, "confidences >= 0 (0 = not detected)",
                          f"{conf[neg[0]]:g} at keypoint {int(neg[0])} ({neg.size} negative)")
+    inf = np.flatnonzero(np.isinf(conf))
+    if inf.size:  # would outweigh every other view and make the triangulation infinite
+        raise InputError(where, "finite confidences (0 = not detected)",
+                         f"{conf[inf[0]]:g} at keypoint {int(inf[0])} ({inf.size} infinite)")
     missing = ~(conf > 0) | ~np.isfinite(out[:, :2]).all(axis=1)
     out[missing, :2] = np.nan
     out[missing, 2] = 0.0

@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 from collections import Counter
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -280,6 +281,12 @@ def select_person(people: np.ndarray, n_keypoints: int, policy: str = "most_conf
     return np.asarray(max(people, key=lambda a: float(np.nansum(np.asarray(a, float)[:, 2]))), float)
 
 
+def _span(frames) -> str:
+    """``frames first-last`` of a camera's frame numbers (``no frames`` when it has none)."""
+    f = np.asarray(frames)
+    return f"frames {int(f.min())}-{int(f.max())}" if f.size else "no frames"
+
+
 def read_keypoints(sources: list[str | os.PathLike], fmt: str | None = None, declared_by: str = "--format",
                    person: str = "most_confident", max_frames: int | None = None,
                    frame_offsets: list[int] | None = None) -> KeypointInput:
@@ -332,6 +339,12 @@ def read_keypoints(sources: list[str | os.PathLike], fmt: str | None = None, dec
                 missing[c, pos[n]] = False
                 empty[c, pos[n]] = len(cam.people[t]) == 0
                 kp[c, pos[n]] = select_person(cam.people[t], n_kp, person)
+    if len(cams) >= 2 and len(frames) and not ((~missing).sum(axis=0) >= 2).any():
+        ranges = ", ".join(f"{Path(s).name} {_span(c.frames)}" for s, c in zip(sources, cams))
+        raise InputError(f"{Path(sources[0]).parent}: keypoint files",
+                         "files of two cameras or more for the same frame numbers (frames are matched by the "
+                         "number in their names, shifted by sync.json where there is one)",
+                         f"no frame number in two cameras ({ranges}); renumber the files or give the offsets")
     return KeypointInput(cameras=tuple(cams), frames=frames, keypoints=kp, format=choice, missing=missing,
                          empty=empty)
 

@@ -24,6 +24,8 @@ __all__ = [
     "KEYPOINT_RECORDS",
     "MAX_PEOPLE",
     "NOVEL_RESERVED",
+    "STRAY_FILES",
+    "is_stray",
     "camera_of",
     "check_image",
     "check_index",
@@ -43,6 +45,15 @@ NOVEL_RESERVED = ("masks", "parts", "instances")
 KEYPOINT_RECORDS = ("detection.json", "sync.json")
 #: Most people an instance map can tell apart (ids 1..255 in a uint8 PNG).
 MAX_PEOPLE = 255
+#: Files operating systems and file browsers leave in folders (lower case): readers skip them with a warning
+#: instead of refusing the folder, and run fingerprints leave them out.
+STRAY_FILES = frozenset({"thumbs.db", "ehthumbs.db", "desktop.ini", ".ds_store", "icon\r", ".directory"})
+
+
+def is_stray(path: str | Path) -> bool:
+    """Whether ``path`` is a file an operating system left (:data:`STRAY_FILES`), not data."""
+    name = Path(path).name.lower()
+    return name in STRAY_FILES or name.startswith("._")  # macOS resource forks on foreign disks
 
 
 @dataclass(frozen=True)

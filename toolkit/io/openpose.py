@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from toolkit.errors import InputError
+from toolkit.io.text import load_json
 
 #: How to pick one person when a file holds several: the largest summed confidence.
 PERSON_POLICIES = ("most_confident", "first")
@@ -84,12 +85,7 @@ def read_openpose_json(path: str | os.PathLike, n_keypoints: int | None = None,
     p = Path(path)
     if person not in PERSON_POLICIES:
         raise InputError("person", f"one of {list(PERSON_POLICIES)}", repr(person))
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(str(p), "an OpenPose JSON file", "no such file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise InputError(str(p), "a readable OpenPose JSON file", f"{type(e).__name__}: {e}") from None
+    data = load_json(p, "a readable OpenPose JSON file")
     if not isinstance(data, dict) or not isinstance(data.get("people", []), list):
         raise InputError(f"{p}: people", "a list of people", type(data.get("people") if isinstance(data, dict)
                                                                else data).__name__)
@@ -109,10 +105,10 @@ def read_openpose_json(path: str | os.PathLike, n_keypoints: int | None = None,
         if n_keypoints is not None and len(arr) != n_keypoints:
             raise InputError(f"{p}: people[{i}].pose_keypoints_2d", f"{n_keypoints} keypoints for the chosen format",
                              f"{len(arr)}")
-        neg = np.flatnonzero(arr[:, 2] < 0)
-        if neg.size:  # no detector writes one: the file is not what it seems
-            raise InputError(f"{p}: people[{i}].pose_keypoints_2d", "confidences >= 0 (0 = not detected)",
-                             f"{arr[neg[0], 2]:g} at keypoint {int(neg[0])}")
+        bad = np.flatnonzero((arr[:, 2] < 0) | np.isinf(arr[:, 2]))
+        if bad.size:  # no detector writes one: the file is not what it seems
+            raise InputError(f"{p}: people[{i}].pose_keypoints_2d", "finite confidences >= 0 (0 = not detected)",
+                             f"{arr[bad[0], 2]:g} at keypoint {int(bad[0])}")
         people.append(arr)
     if not people:
         empty = np.full((n_keypoints or 0, 3), np.nan)

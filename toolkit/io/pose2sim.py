@@ -23,11 +23,11 @@ participant, then session settings).
 from __future__ import annotations
 
 import os
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 from toolkit.errors import InputError
+from toolkit.io.text import load_toml
 from toolkit.io.video import VIDEO_SUFFIXES
 
 __all__ = ["POSE_MODELS", "Pose2SimTrial", "is_pose2sim_trial", "participant_height", "read_pose2sim_trial"]
@@ -170,10 +170,7 @@ def read_pose2sim_trial(path: str | os.PathLike) -> Pose2SimTrial:
     for folder in reversed(levels):  # session first, trial last (the trial's settings win)
         f = folder / "Config.toml"
         if f.is_file():
-            try:
-                config = _merge(config, tomllib.loads(f.read_text(encoding="utf-8")))
-            except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
-                raise InputError(str(f), "a readable Pose2Sim Config.toml", f"{type(e).__name__}: {e}") from None
+            config = _merge(config, load_toml(f, "a readable Pose2Sim Config.toml"))
             files.append(f)
     where = str(files[-1]) if files else str(trial)
     model = config.get("pose", {}).get("pose_model") if isinstance(config.get("pose"), dict) else None
@@ -226,8 +223,8 @@ def participant_height(config_files) -> tuple[float | None, str | None]:
     found = (None, None)
     for f in config_files:
         try:
-            doc = tomllib.loads(Path(f).read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+            doc = load_toml(f, "a Pose2Sim Config.toml")
+        except InputError:
             continue
         h = doc.get("markerAugmentation", {}).get("participant_height")
         if isinstance(h, (int, float)) and lo <= h <= hi:

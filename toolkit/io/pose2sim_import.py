@@ -233,6 +233,307 @@ def _offsets_per_camera(frame_offsets: dict | None, names: list[str], videos: li
     return out
 
 
+def _trial_sources(trial: Path, calibration: str | os.PathLike | None, pose: str | None,
+                   keypoints: str | os.PathLike | None):
+    """Find a trial's Pose2Sim settings, keypoints folder and calibration file.
+
+    Parameters
+    ----------
+    trial : Path
+        The trial folder.
+    calibration : path-like or None
+        A calibration file given instead of the session's ``Calib*.toml``.
+    pose : str or None
+        The trial's keypoint folder asked for (one of :data:`POSE_FOLDERS`).
+    keypoints : path-like or None
+        A keypoints folder given instead of the trial's.
+
+    Returns
+    -------
+    info : Pose2SimTrial
+        What :func:`read_pose2sim_trial` found in the trial (or its ``pose`` folder).
+    kp_root : Path
+        The keypoints folder to import.
+    calib_path : Path
+        The calibration file to read.
+
+    Raises
+    ------
+    InputError
+        No trial folder, ``pose`` and ``keypoints`` both given, an unknown or missing ``pose``, no
+        keypoints, no calibration.
+    """
+    if not trial.is_dir():
+        raise InputError(str(trial), "a Pose2Sim trial folder", "no such folder")
+    if pose is not None:
+        if keypoints is not None:
+            raise InputError("pose, keypoints", "the trial's keypoint folder (pose) or a folder given (keypoints)",
+                             "both")
+        if pose not in POSE_FOLDERS:
+            raise InputError("pose", f"one of {list(POSE_FOLDERS)}", repr(pose))
+        if not (trial / pose).is_dir():
+            raise InputError(str(trial / pose), "the trial's keypoint folder asked for", "no such folder")
+        info = read_pose2sim_trial(trial / pose)
+    else:
+        info = read_pose2sim_trial(trial)
+    kp_root = Path(keypoints) if keypoints is not None else info.keypoints
+    if kp_root is None:
+        raise InputError(str(trial), f"keypoints: one of {list(POSE_FOLDERS)} in the trial, or a keypoints folder "
+                                     "given (recipes/import_pose2sim.py detects them)",
+                         f"videos only ({info.videos})")
+    calib_path = Path(calibration) if calibration is not None else info.calibration
+    if calib_path is None:
+        raise InputError(str(trial), "a calibration: S00_Calibration/Calib*.toml in the session above the trial, "
+                                     "or one given (--calibration)", "none found")
+    return info, kp_root, calib_path
+
+
+def _match_videos_and_keypoints(names: list[str], trial: Path, kp_root: Path):
+    """Match the trial's videos and the keypoint folders to the calibrated cameras.
+
+    Parameters
+    ----------
+    names : list of str
+        The calibrated cameras' names, in rig order.
+    trial : Path
+        The trial folder (its ``videos/``).
+    kp_root : Path
+        The keypoints folder (one sub-folder per camera).
+
+    Returns
+    -------
+    videos : list of Path
+        One video per camera, in rig order.
+    folders : list of Path
+        One keypoint folder per camera, in rig order.
+    how_v, how_k : str
+        How the videos and the keypoint folders were matched (by name, by order, ...).
+    messages : list of str
+        What the user should know (matches made by sorted order).
+
+    Raises
+    ------
+    InputError
+        Files instead of keypoint folders, counts that are not the cameras', keypoint folders that
+        name neither a camera nor a video.
+    """
+    messages = []
+    videos, how_v = _match(names, _videos(trial), str(trial / "videos"), "video")
+    folders = camera_sources(kp_root)
+    if any(not f.is_dir() for f in folders):
+        raise InputError(str(kp_root), "one folder of per-frame JSON files per camera",
+                         f"{[f.name for f in folders]}")
+    folders, how_k = _match(names, folders, str(kp_root), "keypoint folder")
+    if how_k == "by order":
+        # folder names that mention no camera: they may name the videos instead (front_json, front.mp4)
+        order, how_kv = match_cameras([v.stem for v in videos], folders, str(kp_root))
+        if how_kv == "by order" and how_v != "by order":
+            raise InputError(str(kp_root), f"keypoint folders named after the cameras {names} or their "
+                                           f"videos {[v.name for v in videos]}",
+                             f"folders that match none: {[f.name for f in folders]}")
+        folders, how_k = [folders[i] for i in order], f"{how_kv}, through the videos' names"
+    for how, what in ((how_v, "videos"), (how_k, "keypoint folders")):
+        if how.startswith("by order"):
+            messages.append(f"{what} matched to the cameras by sorted order (their names name no camera)")
+    return videos, folders, how_v, how_k, messages
+
+
+def _fit_rig_to_videos(rig_in: Rig, videos: list[Path], trial: Path, settings_frame_rate: float | None):
+    """Probe the videos, check they share one frame rate and fit each camera to its video's size.
+
+    Parameters
+    ----------
+    rig_in : Rig
+        The calibrated cameras, in the order of ``videos``.
+    videos : list of Path
+        One video per camera.
+    trial : Path
+        The trial folder, named in errors.
+    settings_frame_rate : float or None
+        The Pose2Sim settings' ``frame_rate`` (frames per second), if any.
+
+    Returns
+    -------
+    probes : list of VideoInfo
+        What :func:`probe_video` found in each video.
+    fps : float
+        The videos' frame rate (frames per second), the first video's.
+    rig : Rig
+        The cameras fitted to their videos' sizes (:func:`fit_camera_to_video`).
+    messages : list of str
+        What the user should know (a settings frame rate that is not the videos', fitted cameras).
+
+    Raises
+    ------
+    InputError
+        Videos of different frame rates, video sizes that are not the calibrated ones.
+    """
+    messages = []
+    probes = [probe_video(v) for v in videos]
+    fps = probes[0].fps
+    for v, p in zip(videos, probes):
+        if abs(p.fps - fps) > FPS_RELATIVE_TOLERANCE * fps:
+            raise InputError(str(trial / "videos"), "videos of one frame rate",
+                             f"{videos[0].name} at {fps:g} fps, {v.name} at {p.fps:g} fps")
+    if settings_frame_rate is not None and abs(settings_frame_rate - fps) > FPS_RELATIVE_TOLERANCE * fps:
+        messages.append(f"the Pose2Sim settings say frame_rate = {settings_frame_rate:g}, the videos run at {fps:g} "
+                        f"fps: kept the videos'")
+    cams = []
+    for cam, v, p in zip(rig_in, videos, probes):
+        fitted, msg = fit_camera_to_video(cam, p.size, str(v))
+        cams.append(fitted)
+        if msg:
+            messages.append(msg)
+    return probes, fps, Rig(tuple(cams)), messages
+
+
+def _line_up_frames(names: list[str], late: list[int], videos: list[Path], probes: list, folders: list[Path]):
+    """Drop each camera's frames before the latest start and find the frames all cameras share.
+
+    Parameters
+    ----------
+    names : list of str
+        The cameras' names, in rig order.
+    late : list of int
+        Per camera, the frames it started late.
+    videos, folders : list of Path
+        Per camera, its video and its keypoint folder.
+    probes : list of VideoInfo
+        Per camera, its video's probe (``n_frames``).
+
+    Returns
+    -------
+    shifts : list of int
+        Per camera, the frames dropped at its start.
+    kp_files : list of (list of Path, ndarray of int)
+        Per camera, its keypoint files and their frame numbers (:func:`frame_files`).
+    kp_lengths : list of int
+        Per camera, its keypoint frames after the shift.
+    n_frames : int
+        The frames all cameras share after the shift.
+    messages : list of str
+        What the user should know (cameras lined up, frame counts trimmed).
+
+    Raises
+    ------
+    InputError
+        Offsets that leave no common frame.
+    """
+    messages = []
+    shifts = [max(late) - k for k in late]     # frames dropped at each camera's start
+    kp_files = [frame_files(f, "per-frame OpenPose JSON files") for f in folders]
+    kp_lengths = [int(nums.max()) + 1 - s for (_, nums), s in zip(kp_files, shifts)]
+    n_frames = min([p.n_frames - s for p, s in zip(probes, shifts)] + kp_lengths)
+    if any(shifts):
+        messages.append("cameras lined up by their late starts (frame offsets): " + ", ".join(
+            f"{n} started {k} frames late, its first {s} frames dropped" for n, k, s in zip(names, late, shifts)))
+    if n_frames < 1:
+        raise InputError("frame_offsets", "offsets that leave the cameras frames in common",
+                         f"{dict(zip(names, late))}: no common frame")
+    lengths = {f"video {v.name}": p.n_frames - s for v, p, s in zip(videos, probes, shifts)}
+    lengths.update({f"keypoints {f.name}": n for f, n in zip(folders, kp_lengths)})
+    if len(set(lengths.values())) > 1:
+        after = " after the shift" if any(shifts) else ""
+        messages.append(f"frame counts differ{after} ({', '.join(f'{k}: {n}' for k, n in lengths.items())}): "
+                        f"trimmed to the common length {n_frames}")
+    return shifts, kp_files, kp_lengths, n_frames, messages
+
+
+def _dataset_layout(out: Path, overwrite: bool, kp_root: Path) -> DatasetLayout:
+    """Check the dataset folder to write and lay it out.
+
+    Parameters
+    ----------
+    out : Path
+        The dataset folder to write.
+    overwrite : bool
+        Whether a non-empty ``out`` may be written into.
+    kp_root : Path
+        The keypoints folder imported, which must lie outside the dataset's own.
+
+    Returns
+    -------
+    DatasetLayout
+
+    Raises
+    ------
+    InputError
+        ``out`` a file, or not empty without ``overwrite``; ``kp_root`` inside the dataset's keypoints.
+    """
+    if out.exists() and not out.is_dir():
+        raise InputError(str(out), "a dataset folder to write", "a file")
+    if out.is_dir() and any(out.iterdir()) and not overwrite:
+        raise InputError(str(out), "a new or empty folder (else overwrite)", "a folder with files")
+    layout = DatasetLayout(out)
+    if layout.keypoints_dir.resolve() in (kp_root.resolve(), *kp_root.resolve().parents):
+        raise InputError(str(kp_root), f"a keypoints folder outside the dataset's {layout.keypoints_dir}",
+                         "the dataset's own keypoints (the import would replace its sources)")
+    return layout
+
+
+def _write_camera(layout: DatasetLayout, cam: Camera, src: Camera, video: Path, probe, folder: Path,
+                  kp_files: tuple, late: int, shift: int, n_frames: int, fps: float, copy: bool) -> dict:
+    """Write one camera's video and keypoint files into the dataset, lined up and trimmed.
+
+    Parameters
+    ----------
+    layout : DatasetLayout
+        The dataset written.
+    cam : Camera
+        The camera fitted to its video.
+    src : Camera
+        The camera as calibrated.
+    video : Path
+        Its video.
+    probe : VideoInfo
+        Its video's probe (``size``, ``n_frames``).
+    folder : Path
+        Its keypoint folder.
+    kp_files : (list of Path, ndarray of int)
+        Its keypoint files and their frame numbers.
+    late : int
+        The frames it started late.
+    shift : int
+        The frames dropped at its start.
+    n_frames : int
+        The frames kept.
+    fps : float
+        The videos' frame rate (frames per second).
+    copy : bool
+        Copy the files instead of linking to them.
+
+    Returns
+    -------
+    dict
+        The camera's entry in ``import.json``.
+    """
+    files, nums = kp_files
+    dst = layout.video(cam.name)
+    if shift or probe.n_frames > n_frames:
+        _trim_video(video, dst, shift, n_frames, fps)
+        video_action = (f"re-encoded (mp4v) to its frames {shift}..{shift + n_frames - 1}" if shift
+                        else f"re-encoded (mp4v) to its first {n_frames} frames")
+    else:
+        _link_or_copy(video, dst, copy, layout.root)
+        video_action = "copied" if copy else "linked"
+    kept = [(f, int(n) - shift) for f, n in zip(files, nums) if 0 <= n - shift < n_frames]
+    kdir = layout.keypoint_dir(cam.name)
+    if kdir.is_dir():   # overwriting: no file of an earlier import stays among these
+        for old in kdir.glob("*.json"):
+            old.unlink()
+    for f, t in kept:
+        name = f.name if not shift else f"{cam.name}_{t:012d}_keypoints.json"
+        _link_or_copy(f, kdir / name, copy, layout.root)
+    return {
+        "name": cam.name, "video": str(video.resolve()), "video_action": video_action,
+        "keypoints": str(folder.resolve()), "keypoint_files": len(kept),
+        "keypoint_files_left_out": len(files) - len(kept),
+        "calibrated_size": list(src.size), "video_size": list(probe.size), "size": list(cam.size),
+        "video_frames": probe.n_frames, "keypoint_frames": int(nums.max()) + 1,
+        "started_late": late, "frames_dropped_at_start": shift,
+    }
+
+
 def import_pose2sim_trial(trial: str | os.PathLike, out: str | os.PathLike, *,
                           calibration: str | os.PathLike | None = None, pose: str | None = None,
                           keypoints: str | os.PathLike | None = None, keypoint_format: str | None = None,
@@ -283,124 +584,24 @@ def import_pose2sim_trial(trial: str | os.PathLike, out: str | os.PathLike, *,
         ``pose`` and ``keypoints`` both given.
     """
     trial = Path(trial)
-    if not trial.is_dir():
-        raise InputError(str(trial), "a Pose2Sim trial folder", "no such folder")
-    if pose is not None:
-        if keypoints is not None:
-            raise InputError("pose, keypoints", "the trial's keypoint folder (pose) or a folder given (keypoints)",
-                             "both")
-        if pose not in POSE_FOLDERS:
-            raise InputError("pose", f"one of {list(POSE_FOLDERS)}", repr(pose))
-        if not (trial / pose).is_dir():
-            raise InputError(str(trial / pose), "the trial's keypoint folder asked for", "no such folder")
-        info = read_pose2sim_trial(trial / pose)
-    else:
-        info = read_pose2sim_trial(trial)
-    kp_root = Path(keypoints) if keypoints is not None else info.keypoints
-    if kp_root is None:
-        raise InputError(str(trial), f"keypoints: one of {list(POSE_FOLDERS)} in the trial, or a keypoints folder "
-                                     "given (recipes/import_pose2sim.py detects them)",
-                         f"videos only ({info.videos})")
-    calib_path = Path(calibration) if calibration is not None else info.calibration
-    if calib_path is None:
-        raise InputError(str(trial), "a calibration: S00_Calibration/Calib*.toml in the session above the trial, "
-                                     "or one given (--calibration)", "none found")
+    info, kp_root, calib_path = _trial_sources(trial, calibration, pose, keypoints)
     rig_in = read_calibration(calib_path)
     names = rig_in.names
-    messages: list[str] = []
-
-    videos, how_v = _match(names, _videos(trial), str(trial / "videos"), "video")
-    folders = camera_sources(kp_root)
-    if any(not f.is_dir() for f in folders):
-        raise InputError(str(kp_root), "one folder of per-frame JSON files per camera",
-                         f"{[f.name for f in folders]}")
-    folders, how_k = _match(names, folders, str(kp_root), "keypoint folder")
-    if how_k == "by order":
-        # folder names that mention no camera: they may name the videos instead (front_json, front.mp4)
-        order, how_kv = match_cameras([v.stem for v in videos], folders, str(kp_root))
-        if how_kv == "by order" and how_v != "by order":
-            raise InputError(str(kp_root), f"keypoint folders named after the cameras {names} or their "
-                                           f"videos {[v.name for v in videos]}",
-                             f"folders that match none: {[f.name for f in folders]}")
-        folders, how_k = [folders[i] for i in order], f"{how_kv}, through the videos' names"
-    for how, what in ((how_v, "videos"), (how_k, "keypoint folders")):
-        if how.startswith("by order"):
-            messages.append(f"{what} matched to the cameras by sorted order (their names name no camera)")
-
-    probes = [probe_video(v) for v in videos]
-    fps = probes[0].fps
-    for v, p in zip(videos, probes):
-        if abs(p.fps - fps) > FPS_RELATIVE_TOLERANCE * fps:
-            raise InputError(str(trial / "videos"), "videos of one frame rate",
-                             f"{videos[0].name} at {fps:g} fps, {v.name} at {p.fps:g} fps")
-    if info.frame_rate is not None and abs(info.frame_rate - fps) > FPS_RELATIVE_TOLERANCE * fps:
-        messages.append(f"the Pose2Sim settings say frame_rate = {info.frame_rate:g}, the videos run at {fps:g} fps: "
-                        f"kept the videos'")
-    cams = []
-    for cam, v, p in zip(rig_in, videos, probes):
-        fitted, msg = fit_camera_to_video(cam, p.size, str(v))
-        cams.append(fitted)
-        if msg:
-            messages.append(msg)
-    rig = Rig(tuple(cams))
+    videos, folders, how_v, how_k, messages = _match_videos_and_keypoints(names, trial, kp_root)
+    probes, fps, rig, fit_messages = _fit_rig_to_videos(rig_in, videos, trial, info.frame_rate)
+    messages += fit_messages
 
     late = _offsets_per_camera(frame_offsets, list(names), videos, folders)
-    shifts = [max(late) - k for k in late]     # frames dropped at each camera's start
-    kp_files = [frame_files(f, "per-frame OpenPose JSON files") for f in folders]
-    kp_lengths = [int(nums.max()) + 1 - s for (_, nums), s in zip(kp_files, shifts)]
-    n_frames = min([p.n_frames - s for p, s in zip(probes, shifts)] + kp_lengths)
-    if any(shifts):
-        messages.append("cameras lined up by their late starts (frame offsets): " + ", ".join(
-            f"{n} started {k} frames late, its first {s} frames dropped" for n, k, s in zip(names, late, shifts)))
-    if n_frames < 1:
-        raise InputError("frame_offsets", "offsets that leave the cameras frames in common",
-                         f"{dict(zip(names, late))}: no common frame")
-    lengths = {f"video {v.name}": p.n_frames - s for v, p, s in zip(videos, probes, shifts)}
-    lengths.update({f"keypoints {f.name}": n for f, n in zip(folders, kp_lengths)})
-    if len(set(lengths.values())) > 1:
-        after = " after the shift" if any(shifts) else ""
-        messages.append(f"frame counts differ{after} ({', '.join(f'{k}: {n}' for k, n in lengths.items())}): "
-                        f"trimmed to the common length {n_frames}")
+    shifts, kp_files, kp_lengths, n_frames, line_up_messages = _line_up_frames(list(names), late, videos, probes,
+                                                                               folders)
+    messages += line_up_messages
 
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InputError(str(out), "a dataset folder to write", "a file")
-    if out.is_dir() and any(out.iterdir()) and not overwrite:
-        raise InputError(str(out), "a new or empty folder (else overwrite)", "a folder with files")
-    layout = DatasetLayout(out)
-    if layout.keypoints_dir.resolve() in (kp_root.resolve(), *kp_root.resolve().parents):
-        raise InputError(str(kp_root), f"a keypoints folder outside the dataset's {layout.keypoints_dir}",
-                         "the dataset's own keypoints (the import would replace its sources)")
+    layout = _dataset_layout(Path(out), overwrite, kp_root)
     layout.root.mkdir(parents=True, exist_ok=True)
     (layout.root / IMPORT_JSON).unlink(missing_ok=True)  # a dataset without import.json is unfinished
     write_calibration_toml(layout.calibration, rig, metadata={"source": str(calib_path.resolve())})
-    cameras = []
-    for cam, v, p, folder, (files, nums), k, shift in zip(rig, videos, probes, folders, kp_files, late, shifts):
-        dst = layout.video(cam.name)
-        if shift or p.n_frames > n_frames:
-            _trim_video(v, dst, shift, n_frames, fps)
-            video_action = (f"re-encoded (mp4v) to its frames {shift}..{shift + n_frames - 1}" if shift
-                            else f"re-encoded (mp4v) to its first {n_frames} frames")
-        else:
-            _link_or_copy(v, dst, copy, layout.root)
-            video_action = "copied" if copy else "linked"
-        kept = [(f, int(n) - shift) for f, n in zip(files, nums) if 0 <= n - shift < n_frames]
-        kdir = layout.keypoint_dir(cam.name)
-        if kdir.is_dir():   # overwriting: no file of an earlier import stays among these
-            for old in kdir.glob("*.json"):
-                old.unlink()
-        for f, t in kept:
-            name = f.name if not shift else f"{cam.name}_{t:012d}_keypoints.json"
-            _link_or_copy(f, kdir / name, copy, layout.root)
-        src = rig_in[cam.name]
-        cameras.append({
-            "name": cam.name, "video": str(v.resolve()), "video_action": video_action,
-            "keypoints": str(folder.resolve()), "keypoint_files": len(kept),
-            "keypoint_files_left_out": len(files) - len(kept),
-            "calibrated_size": list(src.size), "video_size": list(p.size), "size": list(cam.size),
-            "video_frames": p.n_frames, "keypoint_frames": int(nums.max()) + 1,
-            "started_late": k, "frames_dropped_at_start": shift,
-        })
+    cameras = [_write_camera(layout, cam, rig_in[cam.name], v, p, folder, kp, k, shift, n_frames, fps, copy)
+               for cam, v, p, folder, kp, k, shift in zip(rig, videos, probes, folders, kp_files, late, shifts)]
     report = {
         "trial": str(trial.resolve()), "calibration": str(calib_path.resolve()),
         "keypoints": str(kp_root.resolve()),

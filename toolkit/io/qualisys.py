@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from toolkit.cameras import Camera, Rig
+from toolkit.cameras.validate import check_rig
 from toolkit.errors import InputError
 
 __all__ = ["QCA_SUFFIXES", "is_qca", "read_calibration_qca"]
@@ -176,6 +177,7 @@ def read_calibration_qca(path: str | os.PathLike) -> Rig:
                          f"{len(cameras_el.findall('camera'))} cameras, none active")
     cameras = [_qca_camera(path, i, c) for i, c in enumerate(cams)]
     try:
-        return Rig(tuple(cameras))
+        rig = Rig(tuple(cameras))
     except InputError as e:
         raise InputError(f"{path}: {e.where}", e.expected, e.found) from e
+    return check_rig(rig, str(path))

@@ -11,14 +11,20 @@ deleting finished work) and starts afresh.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
+import shutil
+import tempfile
 import uuid
 from pathlib import Path
+from typing import Iterator
 
 from toolkit.errors import InputError
-from toolkit.io.atomic import atomic_write_text
+from toolkit.io.atomic import atomic_write_text, temp_path
+from toolkit.io.layout import is_stray
+from toolkit.io.text import load_json
 
 #: The identity file of a run folder.
 RUN_FILE = "run.json"
@@ -46,21 +52,47 @@ def file_fingerprint(path: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
-def dataset_fingerprint(root: str | os.PathLike) -> str:
-    """Fingerprint of a dataset folder: its calibration and videos (names, sizes, content), hex.
+#: Files of an input folder a run does not read: its recordings (``scene.rrd``).
+_UNREAD_SUFFIXES = (".rrd",)
+
+
+def _input_files(root: Path, exclude: tuple) -> list:
+    """Every file under ``root`` a run may read, sorted: hidden, stray and excluded ones left out."""
+    if root.is_file():
+        return [root]
+    skip = [Path(e).resolve() for e in exclude]
+    out = []
+    for dirpath, dirnames, filenames in os.walk(root):
+        d = Path(dirpath)
+        dirnames[:] = sorted(n for n in dirnames if not n.startswith(".") and (d / n).resolve() not in skip)
+        out += [d / n for n in sorted(filenames) if not n.startswith(".") and not is_stray(n)
+                and not n.endswith(_UNREAD_SUFFIXES)]
+    return out
+
+
+def dataset_fingerprint(root: str | os.PathLike, *, exclude: tuple = ()) -> str:
+    """Fingerprint of an input folder (or file): every file a run may read (names, sizes, content), hex.
+
+    Every file under ``root`` counts (calibration, videos, ``background/``,
+    ``field_model.json``, ``scene.toml``, ``groundtruth/``, ``keypoints/``,
+    masks, depth frames ...), so a dataset changed in any file a run reads is
+    another dataset; left out are hidden files (an interrupted write's
+    temporaries), files the operating system leaves (``Thumbs.db``), rerun
+    recordings and the folders of ``exclude`` (a run's own output inside its
+    dataset).
 
     Parameters
     ----------
     root : path
-        Dataset folder (``docs/dataset_layout.md``).
+        Dataset folder (``docs/dataset_layout.md``), or one input file.
+    exclude : tuple of path
+        Folders under ``root`` left out.
     """
     root = Path(root)
-    files = [root / "calibration.toml", *sorted((root / "videos").glob("*"))]
     h = hashlib.sha256()
-    for f in files:
-        if f.is_file():
-            h.update(f.relative_to(root).as_posix().encode())
-            h.update(file_fingerprint(f).encode())
+    for f in _input_files(root, tuple(exclude)):
+        h.update((f.relative_to(root).as_posix() if f != root else f.name).encode())
+        h.update(file_fingerprint(f).encode())
     return h.hexdigest()
 
 
@@ -73,6 +105,93 @@ def _flatten(d: dict, prefix: str = "") -> dict:
         else:
             out[f"{prefix}{k}"] = v
     return out
+
+
+def check_out_folder(out: str | os.PathLike, what: str = "--out") -> Path:
+    """``out`` as a folder this process can write, created if missing, or an InputError.
+
+    Parameters
+    ----------
+    out : path
+        An output folder.
+    what : str
+        The argument that named it, for messages.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    InputError
+        ``out`` (or a folder above it) is a file, or it cannot be created or written.
+    """
+    out = Path(out)
+    for p in (out, *out.parents):
+        if p.exists() and not p.is_dir():
+            raise InputError(f"{what} {out}", "an output folder", f"{p} is a file" if p != out else "a file")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = temp_path(out / "write-probe")
+        probe.unlink()
+    except OSError as e:
+        raise InputError(f"{what} {out}", "a folder this user can write",
+                         f"{e.strerror or e} (read-only disk or folder, or no permission)") from None
+    return out
+
+
+@contextlib.contextmanager
+def staged_folder(out: str | os.PathLike, *, overwrite: bool = False, what: str = "--out",
+                  log=print) -> Iterator[Path]:
+    """Yield a fresh folder to write a whole output into; on success it replaces ``out`` in one step.
+
+    The folder is a hidden sibling of ``out`` (``.<name>.partial-*``, on the
+    same file system), renamed to ``out`` only when the body finished, so a
+    failed or interrupted write leaves ``out`` as it was and never a mix of
+    an old and a new output.
+
+    Parameters
+    ----------
+    out : path
+        The output folder.
+    overwrite : bool
+        Replace an ``out`` that holds files (else refused).
+    what : str
+        The argument that named ``out``, for messages.
+    log : callable or None
+
+    Yields
+    ------
+    Path
+        The staging folder (empty).
+
+    Raises
+    ------
+    InputError
+        ``out`` holds files and not ``overwrite``, or is a file, or cannot be written.
+    """
+    out = Path(out)
+    if out.is_dir() and any(out.iterdir()) and not overwrite:
+        raise InputError(f"{what} {out}", "a new or empty folder", "a folder with files (pass --overwrite to "
+                         "replace it once the new one is complete)")
+    check_out_folder(out.parent, f"the folder of {what}")
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{what} {out}", "an output folder", "a file")
+    stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    try:
+        yield stage
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        raise
+    old = None
+    if out.exists():
+        old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
+        os.replace(out, old / out.name)
+    os.replace(stage, out)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+        if log is not None:
+            log(f"{out}: replaced (--overwrite)")
 
 
 def start_run(out: str | os.PathLike, identity: dict, *, replace_stale: bool = False, log=print) -> bool:
@@ -102,6 +221,9 @@ def start_run(out: str | os.PathLike, identity: dict, *, replace_stale: bool = F
         ``replace_stale``), or its ``run.json`` is unreadable.
     """
     out = Path(out)
+    for p in (out, *out.parents):
+        if p.exists() and not p.is_dir():
+            raise InputError(f"--out {out}", "an output folder", f"{p} is a file" if p != out else "a file")
     log = log or (lambda *_: None)
     ident = json.loads(json.dumps(identity, sort_keys=True))
     if RECORDING_ID_KEY in ident:
@@ -110,10 +232,7 @@ def start_run(out: str | os.PathLike, identity: dict, *, replace_stale: bool = F
     path = out / RUN_FILE
     stale = ""
     if path.is_file():
-        try:
-            old = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-            raise InputError(str(path), "the JSON identity of an earlier run", f"unreadable: {e}") from None
+        old = load_json(path, "the JSON identity of an earlier run")
         if not isinstance(old, dict):
             raise InputError(str(path), "the JSON identity of an earlier run", type(old).__name__)
         rec_id = old.pop(RECORDING_ID_KEY, None)
@@ -137,7 +256,7 @@ def start_run(out: str | os.PathLike, identity: dict, *, replace_stale: bool = F
         aside = out.with_name(f"{out.name}.stale-{k}")
         out.rename(aside)
         log(f"{out}: {stale}; moved to {aside}")
-    out.mkdir(parents=True, exist_ok=True)
+    check_out_folder(out)
     atomic_write_text(path, json.dumps({**ident, RECORDING_ID_KEY: uuid.uuid4().hex}, indent=2, sort_keys=True)
                       + "\n")
     return False

@@ -37,6 +37,7 @@ import numpy as np
 
 from toolkit.errors import InputError
 from toolkit.io.atomic import atomic_path, atomic_write_text
+from toolkit.io.text import read_text
 
 __all__ = ["Trajectories", "world_to_trc", "trc_to_world", "write_trc", "read_trc", "write_c3d", "read_c3d",
            "write_csv", "read_csv", "C3D_GROUP", "EXPORTS", "skeleton14_trajectories", "write_trajectories"]
@@ -47,6 +48,14 @@ C3D_GROUP = "TOOLKIT"
 EXPORTS = ("trc", "c3d", "csv")
 #: TRC units understood by the reader, in metres.
 TRC_UNITS = {"m": 1.0, "mm": 0.001, "cm": 0.01}
+
+
+def _in_file(path: Path, make):
+    """``make()``, its InputError re-raised naming ``path`` (a read file's content checked by the dataclass)."""
+    try:
+        return make()
+    except InputError as e:
+        raise InputError(f"{path}: {e.where}", e.expected, e.found) from None
 
 
 def world_to_trc(xyz: np.ndarray) -> np.ndarray:
@@ -175,12 +184,7 @@ def read_trc(path: str | os.PathLike) -> Trajectories:
         wrong number of fields or a non-number (named with its line).
     """
     p = Path(path)
-    try:
-        lines = p.read_text(encoding="utf-8").splitlines()
-    except FileNotFoundError:
-        raise InputError(str(p), "a TRC file", "no such file") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputError(str(p), "a readable TRC file", f"{type(e).__name__}: {e}") from None
+    lines = read_text(p, "a readable TRC file").splitlines()
     if len(lines) < 5 or not lines[0].startswith("PathFileType") or not lines[1].startswith("DataRate"):
         raise InputError(str(p), "a TRC header (PathFileType, DataRate ... lines)", repr(lines[:1])[:80])
     keys = lines[1].split("\t")
@@ -212,7 +216,7 @@ def read_trc(path: str | os.PathLike) -> Trajectories:
         except ValueError:
             raise InputError(f"{p}: line {i}", "numbers (or empty fields)", repr(line)[:80]) from None
     pos = np.array(rows, float).reshape(len(rows), n_markers, 3) * TRC_UNITS[units]
-    return Trajectories(trc_to_world(pos), tuple(names), np.array(frames, int) - 1, rate)
+    return _in_file(p, lambda: Trajectories(trc_to_world(pos), tuple(names), np.array(frames, int) - 1, rate))
 
 
 # --------------------------------------------------------------------------- C3D
@@ -257,15 +261,10 @@ def read_c3d(path: str | os.PathLike) -> Trajectories:
     InputError
         A missing or unreadable file, or units other than mm / m.
     """
-    import ezc3d
+    from toolkit.io.c3d import open_c3d
 
     p = Path(path)
-    if not p.is_file():
-        raise InputError(str(p), "a C3D file", "no such file")
-    try:
-        c3d = ezc3d.c3d(str(p))
-    except Exception as e:  # ezc3d raises plain RuntimeError / IOError on a bad file
-        raise InputError(str(p), "a readable C3D file", f"{type(e).__name__}: {e}") from None
+    c3d = open_c3d(p)
     par = c3d["parameters"]
     units = str(par["POINT"].get("UNITS", {}).get("value", ["mm"])[0]).strip() or "mm"
     if units not in ("mm", "m"):
@@ -283,8 +282,8 @@ def read_c3d(path: str | os.PathLike) -> Trajectories:
             if isinstance(v, dict) and "value" in v and k not in ("__METADATA__", "AXES"):
                 val = v["value"]
                 meta[k.lower()] = str(val[0]) if len(val) else ""
-    return Trajectories(trc_to_world(pos), names, np.arange(first, first + pos.shape[0]),
-                        float(c3d["header"]["points"]["frame_rate"]), meta)
+    return _in_file(p, lambda: Trajectories(trc_to_world(pos), names, np.arange(first, first + pos.shape[0]),
+                                            float(c3d["header"]["points"]["frame_rate"]), meta))
 
 
 # --------------------------------------------------------------------------- CSV
@@ -312,10 +311,7 @@ def read_csv(path: str | os.PathLike) -> Trajectories:
         A missing file, a header without ``frame,time`` and ``<name>_x/_y/_z`` triples, or a bad row.
     """
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(str(p), "a trajectories CSV file", "no such file") from None
+    text = read_text(p, "a trajectories CSV file")
     meta, body = {}, []
     for line in text.splitlines():
         if line.startswith("#"):
@@ -341,8 +337,8 @@ def read_csv(path: str | os.PathLike) -> Trajectories:
         raise InputError(str(p), f"{len(cols) + 2} fields per row", "rows of other lengths")
     for k in ("units", "axes"):
         meta.pop(k, None)
-    return Trajectories(np.array(vals, float).reshape(len(frames), len(names), 3), tuple(names),
-                        np.array(frames, int), rate, meta)
+    return _in_file(p, lambda: Trajectories(np.array(vals, float).reshape(len(frames), len(names), 3), tuple(names),
+                                            np.array(frames, int), rate, meta))
 
 
 # --------------------------------------------------------------------------- the 14 joints

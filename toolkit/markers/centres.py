@@ -423,6 +423,181 @@ def _kabsch_per_frame(ref: np.ndarray, pts: np.ndarray):
     return rot, trans
 
 
+def _fit_circles(rp: np.ndarray, tp: np.ndarray, pts: np.ndarray, local: np.ndarray, fit: dict,
+                 pref: np.ndarray | None, ppts: np.ndarray | None, iterations: int, outlier_m: float):
+    """Refine the circles (and, with the parent's markers, the parent's poses), then again without outliers.
+
+    Refined with every sample, then (``outlier_m > 0``) again without the child samples far off their circles
+    (a mislabel, a swap).  Each refinement round fits the parent's pose per frame to its reference markers and
+    the child markers' nearest points on their circles (Kabsch), then the circles again.
+
+    Parameters
+    ----------
+    rp : ndarray of shape (T, 3, 3)
+    tp : ndarray of shape (T, 3)
+        The parent's motion, NaN where unknown.
+    pts : ndarray of shape (T, K, 3)
+        The child's markers, world, metres.
+    local : ndarray of shape (T, K, 3)
+        The child's markers in the parent's frame.
+    fit : dict
+        The first fit of :func:`_circles`.
+    pref : ndarray of shape (P, 3) or None
+        The parent's markers in its frame (None: no refinement of the parent).
+    ppts : ndarray of shape (T, P, 3) or None
+        The parent's markers in the world.
+    iterations : int
+        Refinement rounds per stage (0 without the parent's markers).
+    outlier_m : float
+        Distance from the circle beyond which a sample is left out, metres (0: keep all).
+
+    Returns
+    -------
+    rp, tp : ndarray
+        The parent's motion (refined).
+    local : ndarray of shape (T, K, 3)
+        The child's markers in the (refined) parent's frame.
+    fit : dict
+        The circles.
+    use : ndarray of shape (T, K), bool
+        The samples used.
+    """
+    known = np.isfinite(tp).all(axis=1)  # frames the parent's own fit kept
+    use = np.isfinite(local).all(axis=-1)
+    # refined with every sample, then (outlier_m > 0) again without the samples far off their circles
+    for stage in range(2 if outlier_m > 0 else 1):
+        if stage:  # a child sample far off its circle (a mislabel, a swap) is left out
+            use = np.isfinite(local).all(axis=-1) & ~(_circle_distances(local, fit) > outlier_m)
+            fit = _circles(np.where(use[..., None], local, np.nan))
+        for _ in range(iterations):
+            targets = np.where(use[..., None], _on_circles(local, fit), np.nan)
+            ref = np.concatenate([np.broadcast_to(pref, (len(rp), *pref.shape)), targets], axis=1)
+            r2, t2 = _kabsch_per_frame(ref, np.concatenate([ppts, pts], axis=1))
+            ok = np.isfinite(t2).all(axis=1) & known
+            rp, tp = np.where(ok[:, None, None], r2, rp), np.where(ok[:, None], t2, tp)
+            local = np.einsum("tji,tkj->tki", rp, pts - tp[:, None])
+            fit = _circles(np.where(use[..., None], local, np.nan))
+    return rp, tp, local, fit, use
+
+
+def _circle_distances_and_rom(local: np.ndarray, fit: dict) -> tuple[list, float]:
+    """Distances of the child markers from their circles, and the largest angular extent about the axis.
+
+    Parameters
+    ----------
+    local : ndarray of shape (T, K, 3)
+        The child's markers in the parent's frame (NaN: not used), metres.
+    fit : dict
+        From :func:`_circles`.
+
+    Returns
+    -------
+    dist : list of ndarray
+        Per kept marker, its distance from its circle in each frame it is seen, metres.
+    rom : float
+        Largest 2.5-97.5 percentile angular extent of a marker about the axis, degrees (markers within 5 cm of
+        the axis give none).
+    """
+    n, u, v, c0, radii = fit["n"], fit["u"], fit["v"], fit["c0"], fit["radii"]
+    dist, rom = [], 0.0
+    for j, k in enumerate(fit["keep"]):
+        y = local[:, k][np.isfinite(local[:, k]).all(axis=1)]
+        d = y - c0
+        h = d @ n
+        perp = d - h[:, None] * n
+        rho = np.linalg.norm(perp, axis=1)
+        dist.append(np.sqrt((h - fit["levels"][j]) ** 2 + (rho - radii[j]) ** 2))
+        if radii[j] > 0.05:  # a marker near the axis gives no angle
+            ang = np.arctan2(perp @ v, perp @ u)
+            ang = np.angle(np.exp(1j * (ang - np.angle(np.exp(1j * ang).mean()))))  # about the mean direction
+            rom = max(rom, float(np.degrees(np.percentile(ang, 97.5) - np.percentile(ang, 2.5))))
+    return dist, rom
+
+
+def _circle_inputs(rot_parent, trans_parent, points, parent_reference, parent_points, iterations: int):
+    """Check the inputs of :func:`circle_axis`.
+
+    Parameters
+    ----------
+    rot_parent, trans_parent, points, parent_reference, parent_points, iterations
+        As :func:`circle_axis`.
+
+    Returns
+    -------
+    rp : ndarray of shape (T, 3, 3)
+    tp : ndarray of shape (T, 3)
+    pts : ndarray of shape (T, K, 3)
+    pref : ndarray of shape (P, 3) or None
+        None when the parent's poses are not refined.
+    ppts : ndarray of shape (T, P, 3) or None
+
+    Raises
+    ------
+    InputError
+        Wrong shapes.
+    """
+    rp, tp = _check_motion(rot_parent, trans_parent, "rot_parent/trans_parent")
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 3 or pts.shape[0] != rp.shape[0] or pts.shape[2] != 3 or pts.shape[1] < 1:
+        raise InputError("points", f"an array of shape ({rp.shape[0]}, K, 3), K >= 1", f"{pts.shape}")
+    pref = ppts = None
+    if parent_reference is not None and parent_points is not None and iterations > 0:
+        pref = np.asarray(parent_reference, dtype=float)
+        ppts = np.asarray(parent_points, dtype=float)
+        if pref.ndim != 2 or pref.shape[1] != 3 or ppts.shape != (rp.shape[0], pref.shape[0], 3):
+            raise InputError("parent_reference/parent_points", f"(P, 3) and ({rp.shape[0]}, P, 3)",
+                             f"{pref.shape}, {ppts.shape}")
+    return rp, tp, pts, pref, ppts
+
+
+def _axis_point(fit: dict, rp: np.ndarray, tp: np.ndarray, anchor) -> np.ndarray:
+    """The joint centre on the axis: nearest the anchor, else at the markers' mean level (parent's frame).
+
+    Parameters
+    ----------
+    fit : dict
+        From :func:`_circles`.
+    rp : ndarray of shape (T, 3, 3)
+    tp : ndarray of shape (T, 3)
+    anchor : ndarray of shape (T, 3) or (3,) or None
+        World, metres.
+
+    Returns
+    -------
+    ndarray of shape (3,)
+        Metres, parent's frame.
+    """
+    n, c0 = fit["n"], fit["c0"]
+    lam = float((fit["mean"] - c0) @ n)
+    anc_local = _local_anchor(rp, tp, anchor)
+    if anc_local is not None:
+        lam = float((anc_local - c0) @ n)
+    c = c0 + lam * n
+    return c
+
+
+def _parent_distances(rp: np.ndarray, tp: np.ndarray, pref: np.ndarray, ppts: np.ndarray) -> np.ndarray:
+    """Distances of the parent's markers from their places under its fitted poses.
+
+    Parameters
+    ----------
+    rp : ndarray of shape (T, 3, 3)
+    tp : ndarray of shape (T, 3)
+    pref : ndarray of shape (P, 3)
+        The parent's markers in its frame.
+    ppts : ndarray of shape (T, P, 3)
+        The parent's markers in the world, metres.
+
+    Returns
+    -------
+    ndarray of shape (M,)
+        The finite distances, metres.
+    """
+    fitted = np.einsum("tij,kj->tki", rp, pref) + tp[:, None]
+    e = np.linalg.norm(fitted - ppts, axis=-1)
+    return e[np.isfinite(e)]
+
+
 def circle_axis(rot_parent, trans_parent, points: np.ndarray, *, anchor: np.ndarray | None = None,
                 parent_reference: np.ndarray | None = None, parent_points: np.ndarray | None = None,
                 iterations: int = 5, outlier_m: float = 0.015) -> CentreFit:
@@ -501,58 +676,20 @@ def circle_axis(rot_parent, trans_parent, points: np.ndarray, *, anchor: np.ndar
     InputError
         Wrong shapes; fewer than three frames of a marker seen with the parent's motion.
     """
-    rp, tp = _check_motion(rot_parent, trans_parent, "rot_parent/trans_parent")
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim != 3 or pts.shape[0] != rp.shape[0] or pts.shape[2] != 3 or pts.shape[1] < 1:
-        raise InputError("points", f"an array of shape ({rp.shape[0]}, K, 3), K >= 1", f"{pts.shape}")
-    refine = parent_reference is not None and parent_points is not None and iterations > 0
-    if refine:
-        pref = np.asarray(parent_reference, dtype=float)
-        ppts = np.asarray(parent_points, dtype=float)
-        if pref.ndim != 2 or pref.shape[1] != 3 or ppts.shape != (rp.shape[0], pref.shape[0], 3):
-            raise InputError("parent_reference/parent_points", f"(P, 3) and ({rp.shape[0]}, P, 3)",
-                             f"{pref.shape}, {ppts.shape}")
+    rp, tp, pts, pref, ppts = _circle_inputs(rot_parent, trans_parent, points, parent_reference, parent_points,
+                                             iterations)
+    refine = pref is not None
     local = np.einsum("tji,tkj->tki", rp, pts - tp[:, None])  # (T, K, 3), parent's frame
     fit = _circles(local)
-    known = np.isfinite(tp).all(axis=1)  # frames the parent's own fit kept
-    use = np.isfinite(local).all(axis=-1)
-    # refined with every sample, then (outlier_m > 0) again without the samples far off their circles
-    for stage in range(2 if outlier_m > 0 else 1):
-        if stage:  # a child sample far off its circle (a mislabel, a swap) is left out
-            use = np.isfinite(local).all(axis=-1) & ~(_circle_distances(local, fit) > outlier_m)
-            fit = _circles(np.where(use[..., None], local, np.nan))
-        for _ in range(iterations if refine else 0):
-            targets = np.where(use[..., None], _on_circles(local, fit), np.nan)
-            ref = np.concatenate([np.broadcast_to(pref, (len(rp), *pref.shape)), targets], axis=1)
-            r2, t2 = _kabsch_per_frame(ref, np.concatenate([ppts, pts], axis=1))
-            ok = np.isfinite(t2).all(axis=1) & known
-            rp, tp = np.where(ok[:, None, None], r2, rp), np.where(ok[:, None], t2, tp)
-            local = np.einsum("tji,tkj->tki", rp, pts - tp[:, None])
-            fit = _circles(np.where(use[..., None], local, np.nan))
+    rp, tp, local, fit, use = _fit_circles(rp, tp, pts, local, fit, pref, ppts, iterations if refine else 0,
+                                           outlier_m)
     local = np.where(use[..., None], local, np.nan)
-    n, u, v, c0, radii = fit["n"], fit["u"], fit["v"], fit["c0"], fit["radii"]
-    dist, rom = [], 0.0
-    for j, k in enumerate(fit["keep"]):
-        y = local[:, k][np.isfinite(local[:, k]).all(axis=1)]
-        d = y - c0
-        h = d @ n
-        perp = d - h[:, None] * n
-        rho = np.linalg.norm(perp, axis=1)
-        dist.append(np.sqrt((h - fit["levels"][j]) ** 2 + (rho - radii[j]) ** 2))
-        if radii[j] > 0.05:  # a marker near the axis gives no angle
-            ang = np.arctan2(perp @ v, perp @ u)
-            ang = np.angle(np.exp(1j * (ang - np.angle(np.exp(1j * ang).mean()))))  # about the mean direction
-            rom = max(rom, float(np.degrees(np.percentile(ang, 97.5) - np.percentile(ang, 2.5))))
+    n, radii = fit["n"], fit["radii"]
+    dist, rom = _circle_distances_and_rom(local, fit)
     if refine:
-        fitted = np.einsum("tij,kj->tki", rp, pref) + tp[:, None]
-        e = np.linalg.norm(fitted - ppts, axis=-1)
-        dist.append(e[np.isfinite(e)])
+        dist.append(_parent_distances(rp, tp, pref, ppts))
     residual = float(np.sqrt(np.mean(np.concatenate(dist) ** 2)))
-    lam = float((fit["mean"] - c0) @ n)
-    anc_local = _local_anchor(rp, tp, anchor)
-    if anc_local is not None:
-        lam = float((anc_local - c0) @ n)
-    c = c0 + lam * n
+    c = _axis_point(fit, rp, tp, anchor)
     centre = np.einsum("tij,j->ti", rp, c) + tp
     axis = np.einsum("tij,j->ti", rp, n)
     k = len(radii)

@@ -265,9 +265,31 @@ class _Tokens:
         return v
 
 
-def parse_bvh(text: str, source: str = "<bvh>") -> BvhMotion:
-    """Parse BVH text; see :func:`read_bvh`."""
-    tk = _Tokens(text, source)
+def _parse_hierarchy(tk: _Tokens) -> tuple[list, list, list, list, list]:
+    """Parse the ``HIERARCHY`` section: every ``ROOT`` and its joints, depth first.
+
+    Parameters
+    ----------
+    tk : _Tokens
+        At ``HIERARCHY``; left at the token after the last root's ``}``.
+
+    Returns
+    -------
+    names : list of str
+    parents : list of int
+        Parent index of each joint (-1 for a root).
+    offsets : list of list of float
+        Each joint's ``OFFSET`` (3 values, file units).
+    channels : list of tuple of str
+        Each joint's channel names.
+    ends : list of (int, ndarray of shape (3,))
+        ``End Site`` offsets with their joint.
+
+    Raises
+    ------
+    InputError
+        Naming the line, what was expected and what was found.
+    """
     names, parents, offsets, channels, ends = [], [], [], [], []
     tk.expect("HIERARCHY")
 
@@ -334,21 +356,35 @@ def parse_bvh(text: str, source: str = "<bvh>") -> BvhMotion:
         joint_block(-1)
     if not names:
         raise tk.error("'ROOT'")
-    tk.expect("MOTION")
-    tk.expect("Frames:")
-    n_tok, n_line = tk.next("a frame count")
-    if not n_tok.isdigit():
-        tk.i -= 1
-        raise tk.error("a non-negative integer frame count")
-    n_frames = int(n_tok)
-    tk.expect("Frame")
-    tk.expect("Time:")
-    frame_time = tk.number("frame time")
-    if frame_time <= 0:
-        raise tk.error("a positive frame time", repr(frame_time), line=tk.items[tk.i - 1][1])
-    n_ch = sum(len(c) for c in channels)
+    return names, parents, offsets, channels, ends
+
+
+def _frame_values(rest: list, n_frames: int, n_ch: int, n_line: int, source: str) -> np.ndarray:
+    """The ``MOTION`` values: ``n_ch`` finite numbers per frame, one frame per line.
+
+    Parameters
+    ----------
+    rest : list of (str, int)
+        The tokens after ``Frame Time:`` with their line numbers.
+    n_frames : int
+        The ``Frames:`` count.
+    n_ch : int
+        Channels per frame.
+    n_line : int
+        Line of the ``Frames:`` count.
+    source : str
+        The file, for messages.
+
+    Returns
+    -------
+    ndarray of shape (n_frames * n_ch,)
+
+    Raises
+    ------
+    InputError
+        Naming the line: a wrong number of values, a value not a finite number, a frame split over lines.
+    """
     # frame data: one line per frame
-    rest = tk.items[tk.i:]
     if len(rest) != n_frames * n_ch:
         # find the offending line for a helpful message
         by_line: dict[int, int] = {}
@@ -378,6 +414,27 @@ def parse_bvh(text: str, source: str = "<bvh>") -> BvhMotion:
             if first_lines[f] != last_lines[f]:
                 raise InputError(f"{source}: line {first_lines[f]}", f"{n_ch} channel values on one line",
                                  "a frame split over several lines")
+    return values
+
+
+def parse_bvh(text: str, source: str = "<bvh>") -> BvhMotion:
+    """Parse BVH text; see :func:`read_bvh`."""
+    tk = _Tokens(text, source)
+    names, parents, offsets, channels, ends = _parse_hierarchy(tk)
+    tk.expect("MOTION")
+    tk.expect("Frames:")
+    n_tok, n_line = tk.next("a frame count")
+    if not n_tok.isdigit():
+        tk.i -= 1
+        raise tk.error("a non-negative integer frame count")
+    n_frames = int(n_tok)
+    tk.expect("Frame")
+    tk.expect("Time:")
+    frame_time = tk.number("frame time")
+    if frame_time <= 0:
+        raise tk.error("a positive frame time", repr(frame_time), line=tk.items[tk.i - 1][1])
+    n_ch = sum(len(c) for c in channels)
+    values = _frame_values(tk.items[tk.i:], n_frames, n_ch, n_line, source)
     return BvhMotion(joint_names=tuple(names), parents=tuple(parents),
                      offsets=np.array(offsets, float).reshape(-1, 3), channels=tuple(channels),
                      end_sites=tuple(ends), frame_time=float(frame_time),

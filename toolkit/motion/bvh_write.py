@@ -82,36 +82,23 @@ def _fmt(values) -> str:
     return " ".join(f"{v:.9f}" for v in values)
 
 
-def write_bvh(path: str | os.PathLike, joints: np.ndarray, fps: float, skeleton: Skeleton = SKELETON_14,
-              units: float = 0.01, rest: str = "median") -> None:
-    """Export a 14-joint sequence as BVH (Y-up, ZYX Euler channels).
-
-    The hierarchy (see ``docs/motion.md``): ``ROOT neck`` (6 channels,
-    position + torso orientation), for every bone ``neck -> X`` a zero-offset
-    joint ``neck_to_X`` that turns that bone, then one joint per 14-joint
-    joint, each turning its outgoing bone; leaves carry an ``End Site``.
-    Rest offsets point along a standing pose with lengths from ``rest``.
-    Bone twist convention: each joint's local rotation is the minimal
-    rotation (no twist about the bone) that takes the bone from where its
-    parent's frame carries it to its measured direction; the root's
-    orientation is the torso frame (up = mid-hip to neck, left = hip and
-    shoulder lines).  Re-reading gives the joint positions back exactly when
-    bone lengths are constant.
+def _checked_joints(skeleton: Skeleton, joints, fps: float, units: float, rest: str) -> np.ndarray:
+    """Check the arguments of :func:`write_bvh`.
 
     Parameters
     ----------
-    path : str or PathLike
-        Written atomically (temporary file + ``os.replace``).
-    joints : ndarray of shape (T, 14, 3)
-        Metres, world, z up; finite.
-    fps : float
-        Frames per second.
-    skeleton : Skeleton
-        Must be :data:`SKELETON_14` (the only layout this writer knows).
-    units : float
-        Metres per file unit (default centimetres).
-    rest : {"median", "first"}
-        Bone lengths of the rest offsets: median over frames, or the first frame.
+    skeleton, joints, fps, units, rest
+        As :func:`write_bvh`.
+
+    Returns
+    -------
+    ndarray of shape (T, 14, 3)
+        The joints, metres.
+
+    Raises
+    ------
+    InputError
+        Another skeleton, a wrong shape, non-finite joints, or a bad ``fps``, ``units`` or ``rest``.
     """
     if skeleton is not SKELETON_14 and skeleton != SKELETON_14:
         raise InputError("skeleton", "SKELETON_14", getattr(skeleton, "name", repr(skeleton)))
@@ -126,16 +113,29 @@ def write_bvh(path: str | os.PathLike, joints: np.ndarray, fps: float, skeleton:
         raise InputError("units", "a positive number of metres per file unit", repr(units))
     if rest not in ("median", "first"):
         raise InputError("rest", "'median' or 'first'", repr(rest))
-    # world (z up, metres) -> file (y up, units)
-    M = UP_AXES["y"]
-    q = (j @ M) / units            # inverse rotation: M is orthogonal, x_file = M^T x_world
+    return j
+
+
+def _local_rotations(g: dict, rest_dir: dict, bone_len: dict) -> tuple[dict, list]:
+    """Each joint's local rotation (no twist about its bone) and the hierarchy below the root ``neck``.
+
+    Parameters
+    ----------
+    g : dict of str to ndarray of shape (T, 3)
+        Joint positions, file frame and units.
+    rest_dir : dict of str to ndarray of shape (3,)
+        Rest direction of the bone ending at each joint.
+    bone_len : dict of str to float
+        Rest length of the bone ending at each joint, file units.
+
+    Returns
+    -------
+    local : dict of str to ndarray of shape (T, 3, 3)
+        Local rotation of every joint (helpers ``neck_to_X`` included).
+    order : list of (str, str, ndarray of shape (3,))
+        ``(name, parent, rest offset)`` of every joint below the root, parents first.
+    """
     names = SKELETON_14.joint_names
-    g = {n: q[:, i] for i, n in enumerate(names)}
-    lengths = SKELETON_14.bone_lengths(q)
-    L = np.median(lengths, 0) if rest == "median" else lengths[0]
-    bone_len = {names[c]: L[b] for b, (_, c) in enumerate(SKELETON_14.bones)}
-    rest_dir = _rest_directions(SKELETON_14)
-    T = len(q)
     R_root = _torso_frame(g)
     R_global = {"neck": R_root}
     local = {"neck": R_root}
@@ -172,6 +172,28 @@ def write_bvh(path: str | os.PathLike, joints: np.ndarray, fps: float, skeleton:
             Rg = Rp
         local[n] = np.einsum("tji,tjk->tik", Rp, Rg)
         R_global[n] = Rg
+    return local, order
+
+
+def _hierarchy(order: list, g: dict, local: dict, rest_dir: dict, bone_len: dict) -> tuple[list, list]:
+    """The ``HIERARCHY`` section's lines and the motion's channel columns, depth first from the root.
+
+    Parameters
+    ----------
+    order : list of (str, str, ndarray of shape (3,))
+        From :func:`_local_rotations`.
+    g : dict of str to ndarray of shape (T, 3)
+        Joint positions, file frame and units.
+    local : dict of str to ndarray of shape (T, 3, 3)
+    rest_dir : dict of str to ndarray of shape (3,)
+    bone_len : dict of str to float
+
+    Returns
+    -------
+    lines : list of str
+    columns : list of ndarray of shape (T, 3)
+        The channels of every joint in file order (root position first).
+    """
     children_of: dict = {}
     offsets = {"neck": np.zeros(3)}
     for name, parent, off in order:
@@ -204,6 +226,53 @@ def write_bvh(path: str | os.PathLike, joints: np.ndarray, fps: float, skeleton:
         lines.append(f"{ind}}}")
 
     emit("neck", 0)
+    return lines, columns
+
+
+def write_bvh(path: str | os.PathLike, joints: np.ndarray, fps: float, skeleton: Skeleton = SKELETON_14,
+              units: float = 0.01, rest: str = "median") -> None:
+    """Export a 14-joint sequence as BVH (Y-up, ZYX Euler channels).
+
+    The hierarchy (see ``docs/motion.md``): ``ROOT neck`` (6 channels,
+    position + torso orientation), for every bone ``neck -> X`` a zero-offset
+    joint ``neck_to_X`` that turns that bone, then one joint per 14-joint
+    joint, each turning its outgoing bone; leaves carry an ``End Site``.
+    Rest offsets point along a standing pose with lengths from ``rest``.
+    Bone twist convention: each joint's local rotation is the minimal
+    rotation (no twist about the bone) that takes the bone from where its
+    parent's frame carries it to its measured direction; the root's
+    orientation is the torso frame (up = mid-hip to neck, left = hip and
+    shoulder lines).  Re-reading gives the joint positions back exactly when
+    bone lengths are constant.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        Written atomically (temporary file + ``os.replace``).
+    joints : ndarray of shape (T, 14, 3)
+        Metres, world, z up; finite.
+    fps : float
+        Frames per second.
+    skeleton : Skeleton
+        Must be :data:`SKELETON_14` (the only layout this writer knows).
+    units : float
+        Metres per file unit (default centimetres).
+    rest : {"median", "first"}
+        Bone lengths of the rest offsets: median over frames, or the first frame.
+    """
+    j = _checked_joints(skeleton, joints, fps, units, rest)
+    # world (z up, metres) -> file (y up, units)
+    M = UP_AXES["y"]
+    q = (j @ M) / units            # inverse rotation: M is orthogonal, x_file = M^T x_world
+    names = SKELETON_14.joint_names
+    g = {n: q[:, i] for i, n in enumerate(names)}
+    lengths = SKELETON_14.bone_lengths(q)
+    L = np.median(lengths, 0) if rest == "median" else lengths[0]
+    bone_len = {names[c]: L[b] for b, (_, c) in enumerate(SKELETON_14.bones)}
+    rest_dir = _rest_directions(SKELETON_14)
+    T = len(q)
+    local, order = _local_rotations(g, rest_dir, bone_len)
+    lines, columns = _hierarchy(order, g, local, rest_dir, bone_len)
     data = np.concatenate(columns, axis=1)
     lines += ["MOTION", f"Frames: {T}", f"Frame Time: {1.0 / fps:.10f}"]
     lines += [_fmt(row) for row in data]

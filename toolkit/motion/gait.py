@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
@@ -21,8 +23,47 @@ LINE_HALF_LENGTH_M = 3.0
 SWING_START_SLOPE = 0.8
 
 
-def _gait(ctx: _Ctx, running: bool) -> _Plan:
-    p, t, T = ctx.p, ctx.t, ctx.T
+@dataclass(frozen=True)
+class _GaitParams:
+    """The drawn parameters of one walk or run (lengths in metres, angles in radians)."""
+
+    cadence: float
+    step: float
+    duty: float
+    heel_off_at: float
+    ahead: float
+    knee_stance: float
+    knee_swing: float
+    alpha_max: float
+    lift: float
+    drop: float
+    bob: float
+    sway: float
+    lean0: float
+    arm_swing: float
+    elbow0: float
+    arm_rot: float
+    pelvis_rot: float
+    thorax_rot: float
+    pelvis_roll: float
+    half_width: float
+    phase0: float
+
+
+def _gait_params(ctx: _Ctx, running: bool) -> _GaitParams:
+    """Draw the gait's parameters (recorded in ``ctx.params``), in a fixed order.
+
+    Parameters
+    ----------
+    ctx : _Ctx
+    running : bool
+        Running ranges, else walking ranges.
+
+    Returns
+    -------
+    _GaitParams
+    """
+    p = ctx.p
     H = p.height
     if running:
         cadence = ctx.uniform("cadence_hz", *RUN_CADENCE_HZ)
@@ -63,14 +104,28 @@ def _gait(ctx: _Ctx, running: bool) -> _Plan:
     pelvis_roll = ctx.deg("pelvis_roll_deg", 2.0, 5.0)
     half_width = p.hip_half_width * ctx.uniform("step_width_ratio", 0.8, 1.2)
     phase0 = ctx.uniform("phase", 0.0, 1.0)
-    f = cadence / 2.0                      # strides per second
-    speed = step * cadence
-    # the ankle lands ``ahead * step`` in front of the pelvis; the pelvis passes
-    # over it ``mid`` of a stride after contact
-    mid = ahead * step / (2 * step)
-    ctx.params["speed_m_s"] = speed
+    return _GaitParams(cadence, step, duty, heel_off_at, ahead, knee_stance, knee_swing, alpha_max, lift, drop, bob,
+                       sway, lean0, arm_swing, elbow0, arm_rot, pelvis_rot, thorax_rot, pelvis_roll, half_width,
+                       phase0)
 
-    # path: a line through the origin when it fits, else a circle around it
+
+def _gait_path(ctx: _Ctx, speed: float, running: bool):
+    """The path of the pelvis: a line through the origin when the travel fits, else a circle around it.
+
+    Parameters
+    ----------
+    ctx : _Ctx
+        Draws the path's parameters (recorded in ``ctx.params``).
+    speed : float
+        Walking speed, metres per second.
+    running : bool
+        Allows a wider circle.
+
+    Returns
+    -------
+    callable
+        ``path(s)``: arc length ``s`` (N,) metres -> positions (N, 2) metres and headings (N,) radians.
+    """
     travel = speed * max(ctx.duration, 1e-9)
     offset = ctx.uniform("path_offset_m", -0.3, 0.3)
     heading0 = ctx.uniform("heading", 0.0, 2 * np.pi)
@@ -98,82 +153,161 @@ def _gait(ctx: _Ctx, running: bool) -> _Plan:
             # tangent direction (-sin, cos) * sign -> heading angle
             head = th + (0.0 if ccw else np.pi)
             return pos, head
+    return path
 
-    s_t = speed * t
-    P, psi = path(s_t)
-    fwd, right = _heading_vectors(psi)
-    phase = f * t + phase0
 
-    plan = _Plan(T)
-    ah = p.ankle_height
+def _plan_foot(ctx: _Ctx, plan: _Plan, side: int, off: float, lat: float, g: _GaitParams, path, phase: np.ndarray,
+               mid: float, speed: float, running: bool) -> None:
+    """Plan one foot: footprints along the path, the ankle through stance, heel-off and swing, the knee's flexion.
+
+    Parameters
+    ----------
+    ctx : _Ctx
+        Draws the footprints' jitter.
+    plan : _Plan
+        Its ``ankle``, ``planted``, ``in_reach`` and ``min_knee`` of ``side`` are written.
+    side : int
+        ``LEFT`` or ``RIGHT``.
+    off : float
+        Phase offset of this foot, strides.
+    lat : float
+        -1 for the left foot, +1 for the right.
+    g : _GaitParams
+    path : callable
+        From :func:`_gait_path`.
+    phase : ndarray of shape (T,)
+        Stride phase of each frame.
+    mid : float
+        Fraction of a stride after contact when the pelvis passes over the ankle.
+    speed : float
+        Metres per second.
+    running : bool
+    """
+    T = ctx.T
+    f = g.cadence / 2.0                      # strides per second
+    duty, heel_off_at, alpha_max = g.duty, g.heel_off_at, g.alpha_max
+    ah = ctx.p.ankle_height
     dx_max, dz_max = _heel_off(ctx, alpha_max)
-    for side, off, lat in ((LEFT, 0.0, -1.0), (RIGHT, 0.5, 1.0)):
-        u = phase - off
-        k = np.floor(u).astype(int)
-        local = u - k
-        ks = np.arange(k.min() - 1, k.max() + 3)
-        t_fp = (ks + mid + off - phase0) / f
-        Pf, psif = path(speed * t_fp)
-        fwd_f, right_f = _heading_vectors(psif)
-        jitter = np.clip(ctx.rng.normal(0.0, 0.008, (len(ks), 2)), -0.02, 0.02)
-        fp = Pf + lat * half_width * right_f[:, :2] + jitter
-        i = k - ks[0]
-        here, nxt = fp[i], fp[i + 1]
-        fdir = fwd_f[i, :2]
-        target = np.zeros((T, 3))
-        flat = local < heel_off_at
-        heel = (local >= heel_off_at) & (local < duty)
-        swing = local >= duty
-        target[:, :2] = here
-        target[:, 2] = ah
-        al = alpha_max * _smooth((local - heel_off_at) / (duty - heel_off_at))
-        dx, dz = _heel_off(ctx, al)
-        target[heel, :2] = here[heel] + dx[heel, None] * fdir[heel]
-        target[heel, 2] = ah + dz[heel]
-        tau = (local - duty) / (1 - duty)
-        lift_off = here + dx_max * fdir
-        # horizontal swing: leaves with some speed, lands with none
-        tc = np.clip(tau, 0, 1)
-        prog = 3 * tc ** 2 - 2 * tc ** 3 + SWING_START_SLOPE * (tc ** 3 - 2 * tc ** 2 + tc)
-        sw_xy = lift_off + (nxt - lift_off) * prog[:, None]
-        sw_z = ah + dz_max * (1 - _smooth(2 * tau)) + lift * _bump(tau)
-        target[swing, :2] = sw_xy[swing]
-        target[swing, 2] = sw_z[swing]
-        plan.ankle[:, side] = target
-        plan.planted[:, side] = flat
-        # the pelvis height respects flat feet and the landing half of swing;
-        # push-off and early swing are pulled toward the hip instead (the heel
-        # then rises further, as in a real push-off)
-        plan.in_reach[:, side] = flat | (swing & (tau > 0.5))
-        # knee flexion schedule over the cycle (loading, push-off, swing peak, landing)
-        if running:
-            keys_u = [0.0, 0.5 * duty, duty, duty + 0.35 * (1 - duty), duty + 0.85 * (1 - duty), 1.0]
-            keys_k = [np.deg2rad(15), knee_stance, np.deg2rad(25), knee_swing, np.deg2rad(20),
-                      np.deg2rad(15)]
-        else:
-            keys_u = [0.0, 0.12, heel_off_at, duty, duty + 0.3 * (1 - duty),
-                      duty + 0.85 * (1 - duty), 1.0]
-            keys_k = [np.deg2rad(5), knee_stance, np.deg2rad(5), np.deg2rad(35), knee_swing,
-                      np.deg2rad(5), np.deg2rad(5)]
-        plan.min_knee[:, side] = PchipInterpolator(keys_u, keys_k)(local)
-    # pelvis and trunk
+    u = phase - off
+    k = np.floor(u).astype(int)
+    local = u - k
+    ks = np.arange(k.min() - 1, k.max() + 3)
+    t_fp = (ks + mid + off - g.phase0) / f
+    Pf, psif = path(speed * t_fp)
+    fwd_f, right_f = _heading_vectors(psif)
+    jitter = np.clip(ctx.rng.normal(0.0, 0.008, (len(ks), 2)), -0.02, 0.02)
+    fp = Pf + lat * g.half_width * right_f[:, :2] + jitter
+    i = k - ks[0]
+    here, nxt = fp[i], fp[i + 1]
+    fdir = fwd_f[i, :2]
+    target = np.zeros((T, 3))
+    flat = local < heel_off_at
+    heel = (local >= heel_off_at) & (local < duty)
+    swing = local >= duty
+    target[:, :2] = here
+    target[:, 2] = ah
+    al = alpha_max * _smooth((local - heel_off_at) / (duty - heel_off_at))
+    dx, dz = _heel_off(ctx, al)
+    target[heel, :2] = here[heel] + dx[heel, None] * fdir[heel]
+    target[heel, 2] = ah + dz[heel]
+    tau = (local - duty) / (1 - duty)
+    lift_off = here + dx_max * fdir
+    # horizontal swing: leaves with some speed, lands with none
+    tc = np.clip(tau, 0, 1)
+    prog = 3 * tc ** 2 - 2 * tc ** 3 + SWING_START_SLOPE * (tc ** 3 - 2 * tc ** 2 + tc)
+    sw_xy = lift_off + (nxt - lift_off) * prog[:, None]
+    sw_z = ah + dz_max * (1 - _smooth(2 * tau)) + g.lift * _bump(tau)
+    target[swing, :2] = sw_xy[swing]
+    target[swing, 2] = sw_z[swing]
+    plan.ankle[:, side] = target
+    plan.planted[:, side] = flat
+    # the pelvis height respects flat feet and the landing half of swing;
+    # push-off and early swing are pulled toward the hip instead (the heel
+    # then rises further, as in a real push-off)
+    plan.in_reach[:, side] = flat | (swing & (tau > 0.5))
+    # knee flexion schedule over the cycle (loading, push-off, swing peak, landing)
+    if running:
+        keys_u = [0.0, 0.5 * duty, duty, duty + 0.35 * (1 - duty), duty + 0.85 * (1 - duty), 1.0]
+        keys_k = [np.deg2rad(15), g.knee_stance, np.deg2rad(25), g.knee_swing, np.deg2rad(20),
+                  np.deg2rad(15)]
+    else:
+        keys_u = [0.0, 0.12, heel_off_at, duty, duty + 0.3 * (1 - duty),
+                  duty + 0.85 * (1 - duty), 1.0]
+        keys_k = [np.deg2rad(5), g.knee_stance, np.deg2rad(5), np.deg2rad(35), g.knee_swing,
+                  np.deg2rad(5), np.deg2rad(5)]
+    plan.min_knee[:, side] = PchipInterpolator(keys_u, keys_k)(local)
+
+
+def _plan_trunk(ctx: _Ctx, plan: _Plan, g: _GaitParams, P: np.ndarray, psi: np.ndarray, right: np.ndarray,
+                phase: np.ndarray, mid: float, running: bool) -> None:
+    """Plan the pelvis, trunk, head and arms: sway, bob, rotation and lean with the stride, arms swinging opposite.
+
+    Parameters
+    ----------
+    ctx : _Ctx
+    plan : _Plan
+        Its pelvis, trunk, head, shoulder and elbow fields are written.
+    g : _GaitParams
+    P : ndarray of shape (T, 2)
+        Pelvis path, metres.
+    psi : ndarray of shape (T,)
+        Heading, radians.
+    right : ndarray of shape (T, 3)
+        Right of the heading.
+    phase : ndarray of shape (T,)
+        Stride phase.
+    mid : float
+    running : bool
+    """
     w = 2 * np.pi
     left_dir = -right[:, :2]
-    plan.pelvis_xy = P + (sway * np.cos(w * (phase - mid)))[:, None] * left_dir
-    plan.pelvis_z = ctx.standing_height(0.0) - drop + bob * np.cos(2 * w * (phase - mid))
-    plan.yaw = psi - pelvis_rot * np.cos(w * phase)
-    plan.roll = pelvis_roll * np.cos(w * (phase - mid))
+    plan.pelvis_xy = P + (g.sway * np.cos(w * (phase - mid)))[:, None] * left_dir
+    plan.pelvis_z = ctx.standing_height(0.0) - g.drop + g.bob * np.cos(2 * w * (phase - mid))
+    plan.yaw = psi - g.pelvis_rot * np.cos(w * phase)
+    plan.roll = g.pelvis_roll * np.cos(w * (phase - mid))
     plan.pitch[:] = np.deg2rad(3.0)
-    plan.lean = lean0 + 0.25 * lean0 * np.cos(2 * w * (phase - mid))
-    plan.twist = (pelvis_rot + thorax_rot) * np.cos(w * phase)
+    plan.lean = g.lean0 + 0.25 * g.lean0 * np.cos(2 * w * (phase - mid))
+    plan.twist = (g.pelvis_rot + g.thorax_rot) * np.cos(w * phase)
     plan.head_pitch = -0.6 * plan.lean
-    swing_arm = arm_swing * np.cos(w * (phase - 0.05))
+    swing_arm = g.arm_swing * np.cos(w * (phase - 0.05))
     plan.shoulder[:, LEFT, 0] = -swing_arm + (np.deg2rad(5.0) if running else 0.0)
     plan.shoulder[:, RIGHT, 0] = swing_arm + (np.deg2rad(5.0) if running else 0.0)
     plan.shoulder[:, :, 1] = np.deg2rad(8.0)
-    plan.shoulder[:, :, 2] = arm_rot
-    plan.elbow[:, LEFT] = elbow0 + 0.4 * np.maximum(-swing_arm, 0)
-    plan.elbow[:, RIGHT] = elbow0 + 0.4 * np.maximum(swing_arm, 0)
+    plan.shoulder[:, :, 2] = g.arm_rot
+    plan.elbow[:, LEFT] = g.elbow0 + 0.4 * np.maximum(-swing_arm, 0)
+    plan.elbow[:, RIGHT] = g.elbow0 + 0.4 * np.maximum(swing_arm, 0)
+
+
+def _gait(ctx: _Ctx, running: bool) -> _Plan:
+    """A walk or a run: parameters, path, the two feet, then pelvis, trunk and arms.
+
+    Parameters
+    ----------
+    ctx : _Ctx
+    running : bool
+
+    Returns
+    -------
+    _Plan
+    """
+    t, T = ctx.t, ctx.T
+    g = _gait_params(ctx, running)
+    f = g.cadence / 2.0                      # strides per second
+    speed = g.step * g.cadence
+    # the ankle lands ``ahead * step`` in front of the pelvis; the pelvis passes
+    # over it ``mid`` of a stride after contact
+    mid = g.ahead * g.step / (2 * g.step)
+    ctx.params["speed_m_s"] = speed
+    path = _gait_path(ctx, speed, running)
+    s_t = speed * t
+    P, psi = path(s_t)
+    fwd, right = _heading_vectors(psi)
+    phase = f * t + g.phase0
+
+    plan = _Plan(T)
+    for side, off, lat in ((LEFT, 0.0, -1.0), (RIGHT, 0.5, 1.0)):
+        _plan_foot(ctx, plan, side, off, lat, g, path, phase, mid, speed, running)
+    _plan_trunk(ctx, plan, g, P, psi, right, phase, mid, running)
     return plan
 
 

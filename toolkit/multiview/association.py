@@ -238,29 +238,24 @@ def pair_ray_distances(cam_a, det_a: np.ndarray, cam_b, det_b: np.ndarray,
     return out
 
 
-def associate_frame(detections, rig: Rig, config: AssociationConfig = AssociationConfig()) -> FrameAssociation:
-    """Group the detections of one frame into people (see the module docstring).
+def _pair_costs(dets: list, rig: Rig, config: AssociationConfig) -> tuple[list, np.ndarray]:
+    """Every detection a node; the ray distance between every two detections of different views.
 
     Parameters
     ----------
-    detections : list of ndarray of shape (P_v, K, 3)
-        Per camera of ``rig``, every person detected: ``(x, y, confidence)`` pixels, NaN /
-        confidence 0 for keypoints not detected; ``P_v`` may differ between views (and be 0).
+    dets : list of ndarray of shape (P_v, K, 3)
+        Checked detections per view.
     rig : Rig
     config : AssociationConfig
 
     Returns
     -------
-    FrameAssociation
-
-    Raises
-    ------
-    InputError
-        Not one array per camera, or arrays not of shape (P, K, 3) with one K.
+    nodes : list of (int, int)
+        ``(view, detection)`` of each node.
+    C : ndarray of shape (N, N)
+        Ray distance of each pair of nodes, metres (inf within a view or without enough shared keypoints).
     """
-    dets = _check_detections(detections, rig)
     V = len(rig)
-    K = next((d.shape[1] for d in dets if d.shape[1]), 0)
     nodes = [(v, i) for v in range(V) for i in range(len(dets[v]))]
     N = len(nodes)
     C = np.full((N, N), np.inf)
@@ -271,8 +266,30 @@ def associate_frame(detections, rig: Rig, config: AssociationConfig = Associatio
                                    config.min_shared_keypoints)
             C[start[a]:start[a + 1], start[b]:start[b + 1]] = D
             C[start[b]:start[b + 1], start[a]:start[a + 1]] = D.T
-    thr, hard = config.max_ray_distance_m, config.max_ray_distance_m * config.max_ray_distance_factor
-    view_of = np.array([v for v, _ in nodes], int)
+    return nodes, C
+
+
+def _grown_clusters(C: np.ndarray, view_of: np.ndarray, thr: float, hard: float) -> list:
+    """Greedy clusters: hypotheses grown from every agreeing pair; the one seen by most views (then the lowest
+    ray distance) is taken, its detections leave, and the rest are grown again.  Left-overs are single nodes.
+
+    Parameters
+    ----------
+    C : ndarray of shape (N, N)
+        Ray distances, metres.
+    view_of : ndarray of int, shape (N,)
+        The view of each node.
+    thr : float
+        Largest mean ray distance of a member, metres.
+    hard : float
+        Largest ray distance of any pair within a cluster, metres.
+
+    Returns
+    -------
+    list of list of int
+        Node indices of each cluster.
+    """
+    N = len(C)
 
     def grow(members):
         """Add, view by view (closest first), the detection agreeing best with the members."""
@@ -296,8 +313,6 @@ def associate_frame(detections, rig: Rig, config: AssociationConfig = Associatio
         fin = np.isfinite(c) & ~np.eye(len(members), dtype=bool)
         return float(c[fin].mean()) if fin.any() else np.inf
 
-    # hypotheses grown from every agreeing pair; the one seen by most views (then the lowest ray
-    # distance) is taken, its detections leave, and the rest are grown again
     available = np.ones(N, bool)
     clusters = []
     while True:
@@ -314,19 +329,31 @@ def associate_frame(detections, rig: Rig, config: AssociationConfig = Associatio
         clusters.append(best)
         available[best] = False
     clusters += [[n] for n in np.flatnonzero(available)]
-    clusters = _refine(clusters, C, view_of, thr, hard)
+    return clusters
 
-    people, unassigned = [], []
-    for cl in clusters:
-        if len(cl) < config.min_views:
-            unassigned += [nodes[n] for n in cl]
-            continue
-        g = np.full(V, -1)
-        for n in cl:
-            g[nodes[n][0]] = nodes[n][1]
-        c = C[np.ix_(cl, cl)]
-        fin = np.isfinite(c) & ~np.eye(len(cl), dtype=bool)
-        people.append((g, float(c[fin].mean()) if fin.any() else np.inf))
+
+def _in_sight(people: list, dets: list, rig: Rig, K: int, config: AssociationConfig) -> tuple[list, list]:
+    """Triangulate each person; keep those in sight of enough views, counting the views that should see them
+    but have no detection there.
+
+    Parameters
+    ----------
+    people : list of (ndarray of int, shape (V,), float)
+        Detection per view (-1 none) and cost of each person.
+    dets : list of ndarray of shape (P_v, K, 3)
+    rig : Rig
+    K : int
+        Keypoints per detection.
+    config : AssociationConfig
+
+    Returns
+    -------
+    kept : list of (ndarray of int, float, ndarray of shape (K, 3), int)
+        Groups, costs, joints (metres) and unexplained views of the people kept.
+    outside : list of ndarray of int, shape (V,)
+        Groups of people in sight of too few views.
+    """
+    V = len(rig)
     kept, outside = [], []
     need = config.views_needed(V)
     boxes = [_boxes(d, config.min_confidence) for d in dets]
@@ -342,6 +369,50 @@ def associate_frame(detections, rig: Rig, config: AssociationConfig = Associatio
             box = _boxes(rig[v].project(X[np.isfinite(X).all(-1)])[None, :, :], None)[0]
             unexplained += int(not (_cover(boxes[v], box) >= EXPLAINED_OVERLAP).any())
         kept.append((g, c, X, unexplained))
+    return kept, outside
+
+
+def associate_frame(detections, rig: Rig, config: AssociationConfig = AssociationConfig()) -> FrameAssociation:
+    """Group the detections of one frame into people (see the module docstring).
+
+    Parameters
+    ----------
+    detections : list of ndarray of shape (P_v, K, 3)
+        Per camera of ``rig``, every person detected: ``(x, y, confidence)`` pixels, NaN /
+        confidence 0 for keypoints not detected; ``P_v`` may differ between views (and be 0).
+    rig : Rig
+    config : AssociationConfig
+
+    Returns
+    -------
+    FrameAssociation
+
+    Raises
+    ------
+    InputError
+        Not one array per camera, or arrays not of shape (P, K, 3) with one K.
+    """
+    dets = _check_detections(detections, rig)
+    V = len(rig)
+    K = next((d.shape[1] for d in dets if d.shape[1]), 0)
+    nodes, C = _pair_costs(dets, rig, config)
+    thr, hard = config.max_ray_distance_m, config.max_ray_distance_m * config.max_ray_distance_factor
+    view_of = np.array([v for v, _ in nodes], int)
+    clusters = _grown_clusters(C, view_of, thr, hard)
+    clusters = _refine(clusters, C, view_of, thr, hard)
+
+    people, unassigned = [], []
+    for cl in clusters:
+        if len(cl) < config.min_views:
+            unassigned += [nodes[n] for n in cl]
+            continue
+        g = np.full(V, -1)
+        for n in cl:
+            g[nodes[n][0]] = nodes[n][1]
+        c = C[np.ix_(cl, cl)]
+        fin = np.isfinite(c) & ~np.eye(len(cl), dtype=bool)
+        people.append((g, float(c[fin].mean()) if fin.any() else np.inf))
+    kept, outside = _in_sight(people, dets, rig, K, config)
     kept.sort(key=lambda p: (-(p[0] >= 0).sum(), p[1]))
     groups = np.array([p[0] for p in kept], int).reshape(len(kept), V)
     cost = np.array([p[1] for p in kept], float)

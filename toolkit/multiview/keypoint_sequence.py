@@ -397,6 +397,93 @@ def offsets_cross_validation(points2d: np.ndarray, weights: np.ndarray, rig: Rig
     return float(np.median(b)), float(np.median(a))
 
 
+def _decide_sequence_flips(pts: np.ndarray, w: np.ndarray, rig: Rig, noise: float, config: KeypointConfig,
+                           skeleton: Skeleton, obs, frames: np.ndarray) -> np.ndarray:
+    """Decide each frame's left/right flips (decisive ones only) and apply them to ``pts`` and ``w`` in place.
+
+    Parameters
+    ----------
+    pts : ndarray of shape (n_views, T, n_joints, 2)
+        Keypoints, pixels; relabelled in place.
+    w : ndarray of shape (n_views, T, n_joints)
+        Weights; permuted in place with the keypoints.
+    rig : Rig
+    noise : float
+        Detector noise, pixels.
+    config : KeypointConfig
+    skeleton : Skeleton
+    obs : Observer
+        Receives a ``text`` per frame with flips.
+    frames : ndarray of shape (T,)
+        Frame indices for the reports.
+
+    Returns
+    -------
+    ndarray of object, shape (T, n_views)
+        The flip applied to each view in each frame ("" none).
+    """
+    V, T = pts.shape[:2]
+    flips = np.full((T, V), "", dtype=object)
+    prev = None
+    for t in range(T):
+        p2, f = decide_flips(pts[:, t], w[:, t], rig, noise, config, skeleton, prev)
+        if any(f):
+            perms = {m: flip_permutation(skeleton, m) for m in set(f) if m}
+            for v, m in enumerate(f):
+                if m:
+                    w[v, t] = w[v, t, perms[m]]
+            pts[:, t] = p2
+            flips[t] = f
+            obs.report("text", name="keypoints/flips", frame=int(frames[t]),
+                       text=", ".join(f"{rig[v].name}: {m}" for v, m in enumerate(f) if m))
+        Xt, _ = triangulate_batch(rig, pts[:, t:t + 1], w[:, t:t + 1])
+        if np.isfinite(Xt[0]).any():
+            prev = Xt[0]
+
+    return flips
+
+
+def _offset_decision(pts: np.ndarray, w: np.ndarray, rig: Rig, noise: float,
+                     config: KeypointConfig) -> tuple[OffsetDecision, np.ndarray]:
+    """Sequence offsets, kept only when they lower the held-out joints' reprojection error enough.
+
+    Parameters
+    ----------
+    pts : ndarray of shape (n_views, T, n_joints, 2)
+    w : ndarray of shape (n_views, T, n_joints)
+    rig : Rig
+    noise : float
+        Detector noise, pixels.
+    config : KeypointConfig
+
+    Returns
+    -------
+    decision : OffsetDecision
+    O_seq : ndarray of shape (n_views, 2)
+        The sequence offsets fitted (zeros unless ``config.offsets == "sequence"``), pixels.
+    """
+    V = pts.shape[0]
+    O_seq = np.zeros((V, 2))
+    heldout = (float("nan"), float("nan"))
+    if config.offsets == "sequence":
+        heldout = offsets_cross_validation(pts, w, rig, noise, config.multiview)
+        O_seq = sequence_offsets(pts, w, rig, noise, config.multiview)
+        gain = heldout[0] - heldout[1]
+        kept = bool(np.isfinite(gain) and gain > config.offset_cv_min_gain * heldout[0]
+                    and gain > config.offset_cv_min_gain_px)
+        reason = (f"held-out joints' median reprojection error {heldout[0]:.2f} px without offsets, "
+                  f"{heldout[1]:.2f} px with offsets fitted on the other joints: "
+                  + ("they generalise, kept" if kept else
+                     f"not lower by {100 * config.offset_cv_min_gain:.0f} % and {config.offset_cv_min_gain_px} px, "
+                     "rejected (what they fit is detector noise, not calibration)"))
+        decision = OffsetDecision("sequence" if kept else "none", O_seq, kept, heldout, reason)
+    elif config.offsets == "frame":
+        decision = OffsetDecision("frame", O_seq, False, heldout, "per-frame offsets asked for (offsets='frame')")
+    else:
+        decision = OffsetDecision("none", O_seq, False, heldout, "no offsets asked for (offsets='none')")
+    return decision, O_seq
+
+
 def triangulate_keypoint_sequence(points2d: np.ndarray, rig: Rig, config: KeypointConfig = KeypointConfig(), *,
                                   weights: np.ndarray | None = None, observer: Observer | None = None,
                                   skeleton: Skeleton = SKELETON_14, frames: np.ndarray | None = None
@@ -437,42 +524,10 @@ def triangulate_keypoint_sequence(points2d: np.ndarray, rig: Rig, config: Keypoi
     noise = max(float(np.nanmedian(e0)) if np.isfinite(e0).any() else MIN_NOISE_PX, MIN_NOISE_PX)
 
     # labels: decisive flips only, frame by frame
-    flips = np.full((T, V), "", dtype=object)
-    prev = None
-    for t in range(T):
-        p2, f = decide_flips(pts[:, t], w[:, t], rig, noise, config, skeleton, prev)
-        if any(f):
-            perms = {m: flip_permutation(skeleton, m) for m in set(f) if m}
-            for v, m in enumerate(f):
-                if m:
-                    w[v, t] = w[v, t, perms[m]]
-            pts[:, t] = p2
-            flips[t] = f
-            obs.report("text", name="keypoints/flips", frame=int(frames[t]),
-                       text=", ".join(f"{rig[v].name}: {m}" for v, m in enumerate(f) if m))
-        Xt, _ = triangulate_batch(rig, pts[:, t:t + 1], w[:, t:t + 1])
-        if np.isfinite(Xt[0]).any():
-            prev = Xt[0]
+    flips = _decide_sequence_flips(pts, w, rig, noise, config, skeleton, obs, frames)
 
     # offsets
-    O_seq = np.zeros((V, 2))
-    heldout = (float("nan"), float("nan"))
-    if config.offsets == "sequence":
-        heldout = offsets_cross_validation(pts, w, rig, noise, config.multiview)
-        O_seq = sequence_offsets(pts, w, rig, noise, config.multiview)
-        gain = heldout[0] - heldout[1]
-        kept = bool(np.isfinite(gain) and gain > config.offset_cv_min_gain * heldout[0]
-                    and gain > config.offset_cv_min_gain_px)
-        reason = (f"held-out joints' median reprojection error {heldout[0]:.2f} px without offsets, "
-                  f"{heldout[1]:.2f} px with offsets fitted on the other joints: "
-                  + ("they generalise, kept" if kept else
-                     f"not lower by {100 * config.offset_cv_min_gain:.0f} % and {config.offset_cv_min_gain_px} px, "
-                     "rejected (what they fit is detector noise, not calibration)"))
-        decision = OffsetDecision("sequence" if kept else "none", O_seq, kept, heldout, reason)
-    elif config.offsets == "frame":
-        decision = OffsetDecision("frame", O_seq, False, heldout, "per-frame offsets asked for (offsets='frame')")
-    else:
-        decision = OffsetDecision("none", O_seq, False, heldout, "no offsets asked for (offsets='none')")
+    decision, O_seq = _offset_decision(pts, w, rig, noise, config)
     obs.report("text", name="keypoints/offsets", text=decision.reason + "; offsets (px): " + ", ".join(
         f"{cam.name} ({o[0]:+.1f}, {o[1]:+.1f})" for cam, o in zip(rig, O_seq)))
 

@@ -174,6 +174,120 @@ def triangulate_views(rig: Rig, points2d: np.ndarray, weights: np.ndarray | None
     return o, d, X, dist
 
 
+def _active_views(valid: np.ndarray, cfg: MultiViewConfig) -> np.ndarray:
+    """The views whose offsets are optimised.
+
+    A view's offset is observable only through joints that another view also sees: at least
+    ``cfg.min_view_joints`` of them, in two views at least; never the reference view.
+
+    Parameters
+    ----------
+    valid : ndarray of shape (n_views, n_joints), bool
+        Joints seen (finite, weight > 0).
+    cfg : MultiViewConfig
+
+    Returns
+    -------
+    ndarray of shape (n_views,), bool
+
+    Raises
+    ------
+    InputError
+        ``cfg.reference_view`` not a view index.
+    """
+    n_views = valid.shape[0]
+    shared = valid & (valid.sum(axis=0) >= 2)[None]
+    active = shared.sum(axis=1) >= cfg.min_view_joints
+    if active.sum() < 2:
+        active[:] = False
+    if cfg.reference_view is not None:
+        if cfg.reference_view >= n_views:
+            raise InputError("MultiViewConfig.reference_view", f"a view index < {n_views}",
+                             repr(cfg.reference_view))
+        active[cfg.reference_view] = False
+    if not cfg.optimise_offsets:
+        active[:] = False
+    return active
+
+
+def _prior_rows(rig: Rig, X0: np.ndarray, act: np.ndarray, cfg: MultiViewConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Weights of the offsets' prior and rows of the gauge prior, in the residual's units.
+
+    The offsets' gauge (a 3D translation of the body seen in every active view) is an orthonormal
+    basis of its image shifts, with the prior weight of that component (``cfg.gauge_prior_px``).
+    For the ray residual both are scaled by each view's pixel footprint (metres per pixel at the body).
+
+    Parameters
+    ----------
+    rig : Rig
+    X0 : ndarray of shape (N, 3)
+        Finite joints triangulated at the starting offsets, metres.
+    act : ndarray of int, shape (n_active,)
+        The active views.
+    cfg : MultiViewConfig
+
+    Returns
+    -------
+    prior_w : ndarray of shape (n_active,)
+        Weight of each active view's offset prior.
+    gauge_rows : ndarray of shape (3 or 0, 2 * n_active)
+        Gauge prior rows (none when fewer than 2 active views or no point).
+    """
+    n_views = len(rig)
+    sig = np.array([cfg.offset_prior_of(rig[int(i)].name) for i in act], float)
+    prior_w = np.where(np.isfinite(sig), cfg.keypoint_sigma_px / sig, 0.0)
+    if cfg.residual == "ray":
+        foot = np.array([np.median(cam.depth_of(X0)) / np.sqrt(cam.K[0, 0] * cam.K[1, 1]) if len(X0) else 1.0
+                         for cam in rig])
+        prior_w = prior_w * foot[act]
+
+    gauge_rows = np.zeros((0, 2 * len(act)))
+    if len(act) >= 2 and len(X0) and np.isfinite(cfg.gauge_prior_px):
+        G = gauge_basis(rig, X0.mean(axis=0)).reshape(n_views, 2, 3)[act].reshape(-1, 3)
+        if np.isfinite(G).all():
+            Q, _ = np.linalg.qr(G)
+            wg = cfg.keypoint_sigma_px / cfg.gauge_prior_px
+            if cfg.residual == "ray":
+                wg = wg * float(np.mean(foot[act]))
+            gauge_rows = wg * Q.T
+
+    return prior_w, gauge_rows
+
+
+def _exact_fit(rig: Rig, pts: np.ndarray, w: np.ndarray, offsets: np.ndarray, active: np.ndarray, converged: bool,
+               message: str, nfev: int) -> OffsetFit:
+    """The fit's final values with the exact camera model.
+
+    Parameters
+    ----------
+    rig : Rig
+    pts : ndarray of shape (n_views, n_joints, 2)
+        Pixels, NaN where not valid.
+    w : ndarray of shape (n_views, n_joints)
+        Ray weights.
+    offsets : ndarray of shape (n_views, 2)
+        The optimised offsets, pixels.
+    active : ndarray of shape (n_views,), bool
+    converged : bool
+    message : str
+        The optimiser's message.
+    nfev : int
+
+    Returns
+    -------
+    OffsetFit
+    """
+    uv = pts + offsets[:, None, :]
+    _, _, X, dist = triangulate_views(rig, uv, w)
+    reproj = np.linalg.norm(np.stack([cam.project(X) for cam in rig]) - uv, axis=-1)
+    cost = mean_ray_distance(dist, w)
+    ok = converged and np.isfinite(cost)
+    if not np.isfinite(cost):
+        message = "no joint was seen by two views"
+    return OffsetFit(offsets=offsets, joints3d=X, ray_distances=dist, reprojection_errors=reproj,
+                     cost=float(cost), active=active, success=bool(ok), message=message, nfev=nfev)
+
+
 def fit_offsets(points2d: np.ndarray, rig: Rig, config: MultiViewConfig | None = None, *,
                 weights: np.ndarray | None = None, initial_offsets: np.ndarray | None = None) -> OffsetFit:
     """Optimise one 2D offset per view so that the joints' rays agree.
@@ -212,18 +326,7 @@ def fit_offsets(points2d: np.ndarray, rig: Rig, config: MultiViewConfig | None =
     B = cfg.max_offset_px
     init = np.clip(init, -_ATANH_CLIP * B, _ATANH_CLIP * B)
 
-    # a view's offset is observable only through joints that another view also sees
-    shared = valid & (valid.sum(axis=0) >= 2)[None]
-    active = shared.sum(axis=1) >= cfg.min_view_joints
-    if active.sum() < 2:
-        active[:] = False
-    if cfg.reference_view is not None:
-        if cfg.reference_view >= n_views:
-            raise InputError("MultiViewConfig.reference_view", f"a view index < {n_views}",
-                             repr(cfg.reference_view))
-        active[cfg.reference_view] = False
-    if not cfg.optimise_offsets:
-        active[:] = False
+    active = _active_views(valid, cfg)
     act = np.flatnonzero(active)
     base = np.where(active[:, None], 0.0, init)  # fixed offsets of inactive views
 
@@ -246,24 +349,7 @@ def fit_offsets(points2d: np.ndarray, rig: Rig, config: MultiViewConfig | None =
     # pixel footprint per view (metres per pixel at the body), for the ray residual's prior
     _, _, _, X0 = evaluate(init[None])
     X0 = X0[0][np.isfinite(X0[0]).all(-1)]
-    sig = np.array([cfg.offset_prior_of(rig[int(i)].name) for i in act], float)
-    prior_w = np.where(np.isfinite(sig), cfg.keypoint_sigma_px / sig, 0.0)
-    if cfg.residual == "ray":
-        foot = np.array([np.median(cam.depth_of(X0)) / np.sqrt(cam.K[0, 0] * cam.K[1, 1]) if len(X0) else 1.0
-                         for cam in rig])
-        prior_w = prior_w * foot[act]
-
-    # the offsets' gauge (a 3D translation of the body seen in every active view): an orthonormal
-    # basis of its image shifts, and the prior weight of that component (GAUGE_PRIOR_PX)
-    gauge_rows = np.zeros((0, 2 * len(act)))
-    if len(act) >= 2 and len(X0) and np.isfinite(cfg.gauge_prior_px):
-        G = gauge_basis(rig, X0.mean(axis=0)).reshape(n_views, 2, 3)[act].reshape(-1, 3)
-        if np.isfinite(G).all():
-            Q, _ = np.linalg.qr(G)
-            wg = cfg.keypoint_sigma_px / cfg.gauge_prior_px
-            if cfg.residual == "ray":
-                wg = wg * float(np.mean(foot[act]))
-            gauge_rows = wg * Q.T
+    prior_w, gauge_rows = _prior_rows(rig, X0, act, cfg)
 
     def residual_rows(P):
         O = offsets_of(P)
@@ -301,16 +387,7 @@ def fit_offsets(points2d: np.ndarray, rig: Rig, config: MultiViewConfig | None =
             if not lin.distorted or moved < _RELINEARISE_PX:
                 break
             lin = _Linearised(rig, pts, offsets)  # lens distortion: linearise again where we are
-    # final values with the exact camera model
-    uv = pts + offsets[:, None, :]
-    _, _, X, dist = triangulate_views(rig, uv, w)
-    reproj = np.linalg.norm(np.stack([cam.project(X) for cam in rig]) - uv, axis=-1)
-    cost = mean_ray_distance(dist, w)
-    ok = converged and np.isfinite(cost)
-    if not np.isfinite(cost):
-        message = "no joint was seen by two views"
-    return OffsetFit(offsets=offsets, joints3d=X, ray_distances=dist, reprojection_errors=reproj,
-                     cost=float(cost), active=active, success=bool(ok), message=message, nfev=nfev)
+    return _exact_fit(rig, pts, w, offsets, active, converged, message, nfev)
 
 
 class _Linearised:

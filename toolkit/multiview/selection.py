@@ -403,6 +403,162 @@ def _robust_masks(fit: OffsetFit, w: np.ndarray, cfg: MultiViewConfig):
     return None
 
 
+def _check_start(initial_offsets, previous_joints3d, n_views: int, n_joints: int):
+    """Check the starting offsets and the previous frame's joints.
+
+    Parameters
+    ----------
+    initial_offsets : array_like of shape (n_views, 2) or None
+        Pixels.
+    previous_joints3d : array_like of shape (n_joints, 3) or None
+        Metres.
+    n_views, n_joints : int
+
+    Returns
+    -------
+    init : ndarray of shape (n_views, 2)
+        The offsets (zeros when not given).
+    previous_joints3d : ndarray of shape (n_joints, 3) or None
+
+    Raises
+    ------
+    InputError
+        A wrong shape or non-finite offsets.
+    """
+    if initial_offsets is not None:
+        init = np.asarray(initial_offsets, float)
+        if init.shape != (n_views, 2) or not np.all(np.isfinite(init)):
+            raise InputError("initial_offsets", f"a finite array of shape ({n_views}, 2)", f"shape {init.shape}")
+    else:
+        init = np.zeros((n_views, 2))
+    if previous_joints3d is not None:
+        previous_joints3d = np.asarray(previous_joints3d, float)
+        if previous_joints3d.shape != (n_joints, 3):
+            raise InputError("previous_joints3d", f"an array of shape ({n_joints}, 3)",
+                             f"shape {previous_joints3d.shape}")
+    return init, previous_joints3d
+
+
+def _combo_arrays(ext: np.ndarray, ext_w: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The 2D poses and weights of one combination.
+
+    Parameters
+    ----------
+    ext : ndarray of shape (n_views, K, n_joints, 2)
+        Extended candidates (flips included), pixels.
+    ext_w : ndarray of shape (n_views, K, n_joints)
+        Their weights.
+    c : ndarray of int, shape (n_views,)
+        The candidate of each view (-1: the view takes no part).
+
+    Returns
+    -------
+    pts : ndarray of shape (n_views, n_joints, 2)
+        NaN for views taking no part.
+    w : ndarray of shape (n_views, n_joints)
+        0 for views taking no part.
+    """
+    n_views, n_joints = ext.shape[0], ext.shape[2]
+    pts = np.stack([ext[v, c[v]] if c[v] >= 0 else np.full((n_joints, 2), np.nan) for v in range(n_views)])
+    w = np.stack([ext_w[v, c[v]] if c[v] >= 0 else np.zeros(n_joints) for v in range(n_views)])
+    return pts, w
+
+
+def _refine_leading(order: list, combos: np.ndarray, costs: np.ndarray, ext: np.ndarray, ext_w: np.ndarray, k: int,
+                    rig: Rig, cfg: MultiViewConfig, init: np.ndarray, skeleton: Skeleton) -> dict:
+    """Fit the offsets of the best-screening combinations (up to ``cfg.refine_top`` classes), their mirrors for free.
+
+    Parameters
+    ----------
+    order : list of int
+        Combinations with a finite screening cost, cheapest first.
+    combos : ndarray of int, shape (n_combinations, n_views)
+    costs : ndarray of shape (n_combinations,)
+        Screening costs.
+    ext : ndarray of shape (n_views, K, n_joints, 2)
+    ext_w : ndarray of shape (n_views, K, n_joints)
+    k : int
+        Candidates per view before the flips (combination entry ``x`` is flip ``x // k`` of candidate ``x % k``).
+    rig : Rig
+    cfg : MultiViewConfig
+    init : ndarray of shape (n_views, 2)
+        Starting offsets, pixels.
+    skeleton : Skeleton
+
+    Returns
+    -------
+    dict of int to OffsetFit
+        The fit of every refined combination (mirrors included).
+    """
+    fits: dict[int, OffsetFit] = {}
+    row_of = {tuple(c): i for i, c in enumerate(combos.tolist())}
+    mirrors = _mirror_slots(cfg.flips, skeleton)
+
+    n_classes, best_refined, best_screened = 0, np.inf, np.inf
+    for i in order:
+        if i in fits:
+            continue
+        # costs only grow along ``order``; a combination that screens as well as the best
+        # refined one (e.g. its mirror among the candidates) is always refined, for the tie-break
+        limit = max(cfg.refine_ratio * best_refined, best_screened * (1 + cfg.tie_relative))
+        if n_classes == cfg.refine_top or costs[i] > limit:
+            break
+        n_classes += 1
+        pts, w = _combo_arrays(ext, ext_w, combos[i])
+        f = fit_offsets(pts, rig, cfg, weights=w, initial_offsets=init)
+        fits[i] = f
+        if f.cost < best_refined:
+            best_refined, best_screened = f.cost, costs[i]
+        # mirror combinations (every view flipped by the same flip g) give the same fit with
+        # the joints relabelled: no need to optimise them again
+        for table, perm in mirrors:
+            c = combos[i]
+            m = tuple(int(table[x // k] * k + x % k) if x >= 0 else -1 for x in c)
+            j = row_of.get(m)
+            if j is not None and j not in fits:
+                fits[j] = _permuted(f, perm)
+    return fits
+
+
+def _robust_refit(fit: OffsetFit, pts: np.ndarray, w: np.ndarray, rig: Rig, cfg: MultiViewConfig,
+                  init: np.ndarray) -> tuple[OffsetFit, np.ndarray, str]:
+    """Robust mode: drop the outlying joints or views (:func:`_robust_masks`) and fit again, until none is left.
+
+    Parameters
+    ----------
+    fit : OffsetFit
+        The chosen combination's fit.
+    pts : ndarray of shape (n_views, n_joints, 2)
+        Its 2D poses, pixels.
+    w : ndarray of shape (n_views, n_joints)
+        Its weights.
+    rig : Rig
+    cfg : MultiViewConfig
+    init : ndarray of shape (n_views, 2)
+
+    Returns
+    -------
+    fit : OffsetFit
+    w : ndarray of shape (n_views, n_joints)
+        The weights left.
+    message : str
+        The views dropped, for the selection's message ("" when none).
+    """
+    n_views, n_joints = w.shape
+    w0 = w
+    message = ""
+    for _ in range(n_views * n_joints):
+        new_w = _robust_masks(fit, w, cfg)
+        if new_w is None:
+            break
+        w = new_w
+        fit = fit_offsets(pts, rig, cfg, weights=w, initial_offsets=init)
+    dropped = ~(w > 0).any(axis=1) & (w0 > 0).any(axis=1)
+    if dropped.any():
+        message += f"; robust mode dropped view(s) {[rig[int(v)].name for v in np.flatnonzero(dropped)]}"
+    return fit, w, message
+
+
 def select_multiview(candidates: np.ndarray, rig: Rig, config: MultiViewConfig | None = None, *,
                      weights: np.ndarray | None = None, initial_offsets: np.ndarray | None = None,
                      previous_joints3d: np.ndarray | None = None, observer: Observer | None = None,
@@ -452,17 +608,7 @@ def select_multiview(candidates: np.ndarray, rig: Rig, config: MultiViewConfig |
     obs = as_observer(observer)
     cand = _check(candidates, rig, weights, skeleton)
     n_views, k, n_joints = cand.shape[:3]
-    if initial_offsets is not None:
-        init = np.asarray(initial_offsets, float)
-        if init.shape != (n_views, 2) or not np.all(np.isfinite(init)):
-            raise InputError("initial_offsets", f"a finite array of shape ({n_views}, 2)", f"shape {init.shape}")
-    else:
-        init = np.zeros((n_views, 2))
-    if previous_joints3d is not None:
-        previous_joints3d = np.asarray(previous_joints3d, float)
-        if previous_joints3d.shape != (n_joints, 3):
-            raise InputError("previous_joints3d", f"an array of shape ({n_joints}, 3)",
-                             f"shape {previous_joints3d.shape}")
+    init, previous_joints3d = _check_start(initial_offsets, previous_joints3d, n_views, n_joints)
     ext, ext_w = extend_candidates(cand, weights, cfg.flips, skeleton)
     ext_w = np.where(np.isfinite(ext).all(-1), ext_w, 0.0)
     ext = np.where((ext_w > 0)[..., None], ext, np.nan)
@@ -477,39 +623,8 @@ def select_multiview(candidates: np.ndarray, rig: Rig, config: MultiViewConfig |
         _report(obs, rig, cand, sel, None, None, frame, skeleton, report_prefix)
         return sel
 
-    fits: dict[int, OffsetFit] = {}
-    row_of = {tuple(c): i for i, c in enumerate(combos.tolist())}
-    mirrors = _mirror_slots(cfg.flips, skeleton)
+    fits = _refine_leading(order, combos, costs, ext, ext_w, k, rig, cfg, init, skeleton)
 
-    def combo_arrays(i):
-        c = combos[i]
-        pts = np.stack([ext[v, c[v]] if c[v] >= 0 else np.full((n_joints, 2), np.nan) for v in range(n_views)])
-        w = np.stack([ext_w[v, c[v]] if c[v] >= 0 else np.zeros(n_joints) for v in range(n_views)])
-        return pts, w
-
-    n_classes, best_refined, best_screened = 0, np.inf, np.inf
-    for i in order:
-        if i in fits:
-            continue
-        # costs only grow along ``order``; a combination that screens as well as the best
-        # refined one (e.g. its mirror among the candidates) is always refined, for the tie-break
-        limit = max(cfg.refine_ratio * best_refined, best_screened * (1 + cfg.tie_relative))
-        if n_classes == cfg.refine_top or costs[i] > limit:
-            break
-        n_classes += 1
-        pts, w = combo_arrays(i)
-        f = fit_offsets(pts, rig, cfg, weights=w, initial_offsets=init)
-        fits[i] = f
-        if f.cost < best_refined:
-            best_refined, best_screened = f.cost, costs[i]
-        # mirror combinations (every view flipped by the same flip g) give the same fit with
-        # the joints relabelled: no need to optimise them again
-        for table, perm in mirrors:
-            c = combos[i]
-            m = tuple(int(table[x // k] * k + x % k) if x >= 0 else -1 for x in c)
-            j = row_of.get(m)
-            if j is not None and j not in fits:
-                fits[j] = _permuted(f, perm)
     for i, f in fits.items():
         costs[i] = f.cost
         refined[i] = True
@@ -517,19 +632,11 @@ def select_multiview(candidates: np.ndarray, rig: Rig, config: MultiViewConfig |
     order = _prefer_plausible(order, costs, fits, cfg)
     best = _tie_break(order, costs, combos, k, previous_joints3d, fits, cfg, skeleton)
     fit = fits[best]
-    pts, w = combo_arrays(best)
-    w0 = w
+    pts, w = _combo_arrays(ext, ext_w, combos[best])
     message = fit.message
     if cfg.robust:
-        for _ in range(n_views * n_joints):
-            new_w = _robust_masks(fit, w, cfg)
-            if new_w is None:
-                break
-            w = new_w
-            fit = fit_offsets(pts, rig, cfg, weights=w, initial_offsets=init)
-        dropped = ~(w > 0).any(axis=1) & (w0 > 0).any(axis=1)
-        if dropped.any():
-            message += f"; robust mode dropped view(s) {[rig[int(v)].name for v in np.flatnonzero(dropped)]}"
+        fit, w, dropped_msg = _robust_refit(fit, pts, w, rig, cfg, init)
+        message += dropped_msg
     used = (w > 0).any(axis=1) & np.isfinite(fit.ray_distances).any(axis=1)
     c = combos[best]
     raw = np.where(used[:, None, None], pts, np.nan)

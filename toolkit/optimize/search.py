@@ -125,6 +125,147 @@ _REASON_COLORS = np.array([[0, 200, 0], [128, 128, 128], [139, 69, 19], [255, 0,
                            [255, 128, 0]], np.uint8)
 
 
+def _why_not_searched(scorer: PositionScorer, vis: dict, start: float, joint: int,
+                      config: OptimizeConfig) -> tuple[str, str]:
+    """Why the joint is not searched at all: unscorable, seen in too few views or by too few camera pairs.
+
+    Parameters
+    ----------
+    scorer : PositionScorer
+    vis : dict of int to ndarray of shape (V, C), bool
+        Per adjacent part, the billboards used in each view.
+    start : float
+        Score of the joint's start.
+    joint : int
+    config : OptimizeConfig
+
+    Returns
+    -------
+    status : str
+        ``"unscorable"``, ``"few_views"``, ``"not_decisive"``, or "" when the joint is searched.
+    why : str
+        The reason, for the report ("" when searched).
+    """
+    sk = scorer.skeleton
+    name = sk.joint_names[joint]
+    if not np.isfinite(start):
+        why = (f"{name}: kept: no camera pair sees its bones "
+               f"({', '.join(sk.parts[p].name for p in scorer.adjacent_parts(joint))}): "
+               "empty segments or edge-on billboards")
+        return "unscorable", why
+    n_views = int(np.any([(v.sum(axis=1) >= 2) for v in vis.values()], axis=0).sum()) if vis else 0
+    if n_views < config.min_views:
+        why = (f"{name}: kept: its bones are scored in {n_views} view(s), fewer than {config.min_views} "
+               "(the cameras see each other's billboards edge-on)")
+        return "few_views", why
+    n_pairs = _scoring_pairs(vis)
+    if config.decisive and n_pairs < config.min_pairs:
+        # no move could be decisive: skip the search (two cameras: one pair, every view compares
+        # the same two images)
+        why = (f"{name}: kept: its bones are scored by {n_pairs} camera pair(s), a decisive move needs "
+               f"{config.min_pairs}")
+        return "not_decisive", why
+    return "", ""
+
+
+def _key(p: np.ndarray) -> tuple:
+    """Dictionary key of a position (metres) on a 0.1 mm grid."""
+    return tuple(np.round(p / 1e-4).astype(np.int64))
+
+
+def _grid_search(scorer: PositionScorer, cons: AnthropometricConstraints, J: np.ndarray, joint: int, vis: dict,
+                 start_score: float, penalty, config: OptimizeConfig):
+    """Adaptive grid search: candidates around the best ``keep_best`` positions, the step halved each level.
+
+    Parameters
+    ----------
+    scorer : PositionScorer
+    cons : AnthropometricConstraints
+    J : ndarray of shape (14, 3)
+        The pose, metres; ``J[joint]`` is the start.
+    joint : int
+    vis : dict of int to ndarray of shape (V, C), bool
+        Per adjacent part, the billboards used in each view.
+    start_score : float
+        Score given to the start.
+    penalty : callable
+        Prior cost of positions (..., 3) -> (...).
+    config : OptimizeConfig
+
+    Returns
+    -------
+    seen : dict of tuple to float
+        Score of every evaluated position by :func:`_key` (0 for rejected ones).
+    pos_of : dict of tuple to ndarray of shape (3,)
+        The position of each key, metres.
+    rej_pos : list of ndarray of shape (3,)
+        Candidates breaking a rule.
+    rej_code : list of int
+        Their reasons (:data:`~toolkit.anthropometry.constraints.REASONS`).
+    """
+    x0 = J[joint].copy()
+    offs = _offsets(config.grid_radius)
+    seen: dict[tuple, float] = {}
+    rej_pos, rej_code = [], []
+    seen[_key(x0)] = start_score
+    pos_of = {_key(x0): x0}
+    centres = [x0]
+    step = config.initial_step_m
+    while True:
+        cands = np.unique(np.concatenate([c + step * offs for c in centres]), axis=0)
+        new = [c for c in cands if _key(c) not in seen]
+        if new:
+            new = np.array(new)
+            valid, codes = joint_rule_reasons(cons, J, joint, new)
+            # the level's valid candidates are scored together (one batch of the scorer)
+            scores = iter(scorer.candidate_scores(J, joint, new[valid], vis) if valid.any() else ())
+            for p, ok, code in zip(new, valid, codes):
+                k = _key(p)
+                pos_of[k] = p
+                if ok:
+                    s = next(scores)
+                    seen[k] = float(s) if np.isfinite(s) else 0.0
+                else:
+                    seen[k] = 0.0
+                    rej_pos.append(p)
+                    rej_code.append(int(code))
+        ranked = sorted(seen.items(), key=lambda kv: -(kv[1] - penalty(pos_of[kv[0]])))
+        centres = [pos_of[k] for k, _ in ranked[:config.keep_best]]
+        if step <= config.min_step_m * (1 + 1e-9):
+            break
+        step = max(step / 2.0, config.min_step_m)
+    return seen, pos_of, rej_pos, rej_code
+
+
+def _report_candidates(obs, name: str, P: np.ndarray, S: np.ndarray, rej_pos: list, rej_code: list,
+                       frame: int | None) -> None:
+    """Report the evaluated candidates coloured by score and the rejected ones by reason, with their counts.
+
+    Parameters
+    ----------
+    obs : Observer
+    name : str
+        The joint's name.
+    P : ndarray of shape (N, 3)
+        Evaluated positions, metres.
+    S : ndarray of shape (N,)
+        Their scores.
+    rej_pos : list of ndarray of shape (3,)
+    rej_code : list of int
+    frame : int or None
+    """
+    obs.report("points3d", name=f"optimize/candidates/{name}", points=P, colors=_score_color(S, S.max()),
+               radii=0.004, frame=frame)
+    n_rej = len(rej_pos)
+    if n_rej:
+        codes = np.array(rej_code)
+        obs.report("points3d", name=f"optimize/rejected/{name}", points=np.array(rej_pos),
+                   colors=_REASON_COLORS[codes], radii=0.004, frame=frame)
+        counts = {REASONS[c]: int((codes == c).sum()) for c in np.unique(codes)}
+        obs.report("text", name="optimize/rejected", frame=frame,
+                   text=f"{name}: {n_rej} candidates rejected: {counts}")
+
+
 def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
                    constraints: AnthropometricConstraints | None = None,
                    config: OptimizeConfig = OptimizeConfig(), *, observer: Observer | None = None,
@@ -177,26 +318,10 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
             why += " (its start breaks an anthropometric rule; no decisive move obeys them)"
         return JointStep(joint, x0, score, score, scorer.n_evaluations - n0, n_rej, status, why)
 
-    if not np.isfinite(start):
-        why = (f"{name}: kept: no camera pair sees its bones "
-               f"({', '.join(sk.parts[p].name for p in scorer.adjacent_parts(joint))}): "
-               "empty segments or edge-on billboards")
+    status, why = _why_not_searched(scorer, vis, start, joint, config)
+    if status:
         obs.report("text", name="optimize/kept", text=why, frame=frame)
-        return keep("unscorable", why, start)
-    n_views = int(np.any([(v.sum(axis=1) >= 2) for v in vis.values()], axis=0).sum()) if vis else 0
-    if n_views < config.min_views:
-        why = (f"{name}: kept: its bones are scored in {n_views} view(s), fewer than {config.min_views} "
-               "(the cameras see each other's billboards edge-on)")
-        obs.report("text", name="optimize/kept", text=why, frame=frame)
-        return keep("few_views", why, start)
-    n_pairs = _scoring_pairs(vis)
-    if config.decisive and n_pairs < config.min_pairs:
-        # no move could be decisive: skip the search (two cameras: one pair, every view compares
-        # the same two images)
-        why = (f"{name}: kept: its bones are scored by {n_pairs} camera pair(s), a decisive move needs "
-               f"{config.min_pairs}")
-        obs.report("text", name="optimize/kept", text=why, frame=frame)
-        return keep("not_decisive", why, start)
+        return keep(status, why, start)
     # A start that breaks a rule is not a candidate, but with decisive moves it keeps its real
     # score: the rules say the joint is wrong, not where it should be, so a move still needs the
     # margin and the evidence (taking the best valid candidate, the source's rule, moved stage-1
@@ -208,54 +333,16 @@ def optimize_joint(scorer: PositionScorer, joints: np.ndarray, joint: int,
         """Prior cost of position(s) ``p`` (..., 3): 0 without an anchor or weight."""
         return prior_w * np.sum((np.asarray(p) - (0.0 if anchor is None else anchor)) ** 2, axis=-1)
 
-    offs = _offsets(config.grid_radius)
-    seen: dict[tuple, float] = {}
-    rej_pos, rej_code = [], []
-    key = lambda p: tuple(np.round(p / 1e-4).astype(np.int64))  # noqa: E731  0.1 mm
-    seen[key(x0)] = start_score
-    pos_of = {key(x0): x0}
-    centres = [x0]
-    step = config.initial_step_m
-    while True:
-        cands = np.unique(np.concatenate([c + step * offs for c in centres]), axis=0)
-        new = [c for c in cands if key(c) not in seen]
-        if new:
-            new = np.array(new)
-            valid, codes = joint_rule_reasons(cons, J, joint, new)
-            # the level's valid candidates are scored together (one batch of the scorer)
-            scores = iter(scorer.candidate_scores(J, joint, new[valid], vis) if valid.any() else ())
-            for p, ok, code in zip(new, valid, codes):
-                k = key(p)
-                pos_of[k] = p
-                if ok:
-                    s = next(scores)
-                    seen[k] = float(s) if np.isfinite(s) else 0.0
-                else:
-                    seen[k] = 0.0
-                    rej_pos.append(p)
-                    rej_code.append(int(code))
-        ranked = sorted(seen.items(), key=lambda kv: -(kv[1] - penalty(pos_of[kv[0]])))
-        centres = [pos_of[k] for k, _ in ranked[:config.keep_best]]
-        if step <= config.min_step_m * (1 + 1e-9):
-            break
-        step = max(step / 2.0, config.min_step_m)
+    seen, pos_of, rej_pos, rej_code = _grid_search(scorer, cons, J, joint, vis, start_score, penalty, config)
     keys = list(seen)
     P = np.array([pos_of[k] for k in keys])
     S = np.array([seen[k] for k in keys])
-    obs.report("points3d", name=f"optimize/candidates/{name}", points=P, colors=_score_color(S, S.max()),
-               radii=0.004, frame=frame)
     n_rej = len(rej_pos)
-    if n_rej:
-        codes = np.array(rej_code)
-        obs.report("points3d", name=f"optimize/rejected/{name}", points=np.array(rej_pos),
-                   colors=_REASON_COLORS[codes], radii=0.004, frame=frame)
-        counts = {REASONS[c]: int((codes == c).sum()) for c in np.unique(codes)}
-        obs.report("text", name="optimize/rejected", frame=frame,
-                   text=f"{name}: {n_rej} candidates rejected: {counts}")
+    _report_candidates(obs, name, P, S, rej_pos, rej_code, frame)
     n_eval = scorer.n_evaluations - n0
-    rejected = {key(p) for p in rej_pos}
+    rejected = {_key(p) for p in rej_pos}
     if not start_valid[0]:
-        rejected.add(key(x0))
+        rejected.add(_key(x0))
     valid_mask = np.array([k not in rejected for k in keys])
     if not valid_mask.any():
         why = f"{name}: kept: every candidate breaks a constraint"

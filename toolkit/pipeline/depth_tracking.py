@@ -13,7 +13,12 @@ The run is identified like every run of :mod:`toolkit.pipeline.run`
 the config less its runtime fields), so a folder of another input or other
 options is refused (or moved aside with ``replace_stale``); it is not resumed
 frame by frame: the tracker carries its state from frame to frame, so a run
-always tracks from the first frame and replaces the earlier results.
+always tracks from the first frame and replaces the earlier results.  Ctrl-C
+keeps the frames tracked so far (``skeleton.npz`` with ``status``
+"interrupted"), but never in place of a complete run's results; an unreadable
+frame is tracked as a frame without depth and named (``unreadable``); a rerun
+of fewer frames (``max_frames``) than a complete ``skeleton.npz`` holds is
+refused.
 """
 
 from __future__ import annotations
@@ -29,7 +34,8 @@ import numpy as np
 from toolkit.depth.tracker_state import TrackerConfig
 from toolkit.errors import InputError
 from toolkit.pipeline.parallel import ParallelConfig, map_tasks
-from toolkit.pipeline.run import RunResult, open_run
+from toolkit.pipeline.run import (STOPPED_INTERRUPTED, RunResult, check_frames_held, open_run,
+                                  terminate_as_interrupt)
 
 #: Depth file readers (``"auto"``: by suffix).
 READERS = ("auto", "png", "raw", "open3d", "npy")
@@ -160,26 +166,49 @@ class _Images:
         atomic_write_png(Path(self.folder) / f"skeleton_{r.index:03d}.png", img)  # frame order of the input
 
 
-def _track(config: DepthTrackingRunConfig, inp, n: int, observer):
-    """Track the first ``n`` frames of ``inp`` (:class:`~toolkit.depth.TrackResult`)."""
+@dataclass
+class _Tracked:
+    """What :func:`_track` got through: the frames tracked, those unreadable, and whether Ctrl-C stopped it."""
+
+    result: object
+    unreadable: list
+    interrupted: bool
+
+
+def _track(config: DepthTrackingRunConfig, inp, n: int, observer, log) -> _Tracked:
+    """Track the first ``n`` frames of ``inp``; keep what was tracked when Ctrl-C stops it.
+
+    A frame that cannot be read (a damaged file) is tracked as a frame
+    without any reading (the tracker loses the person there and recovers
+    after), named in a warning and in ``unreadable``; it does not end the run.
+    """
     from tqdm import tqdm
 
     from toolkit.depth import STATE_NAMES, DepthTracker, track_sequence
+    from toolkit.depth.tracker import TrackResult
 
     tracker = DepthTracker(inp.camera, inp.pose_known, config.tracker, background=inp.background, rng=config.seed,
                            observer=observer)
     images = _Images(config.images, inp, tracker)
     bar = tqdm(total=n, unit="frame", disable=not config.progress)
+    done, unreadable = [], []
+    w, h = inp.camera.size
 
     def frames():
         for i in range(n):
-            d = inp.read(i)
+            try:
+                d = inp.read(i)
+            except InputError as e:
+                unreadable.append(i)
+                log(f"warning: frame {i} unreadable, tracked as a frame without depth: {e}")
+                d = np.full((h, w), np.nan, np.float32)
             images.keep(i, d)
             yield d
 
     checkpoint = getattr(observer, "checkpoint", None)
 
     def step(r):
+        done.append(r)
         bar.update(1)
         if callable(checkpoint) and (r.index + 1) % RECORDING_PART_FRAMES == 0:
             checkpoint()
@@ -187,22 +216,48 @@ def _track(config: DepthTrackingRunConfig, inp, n: int, observer):
         images.draw(r)
 
     try:
-        return track_sequence(tracker, frames(), independent=config.independent, progress=step)
+        with terminate_as_interrupt():
+            res = track_sequence(tracker, frames(), independent=config.independent, progress=step)
+        interrupted = False
+    except KeyboardInterrupt:
+        res = TrackResult(done, config.tracker.output if tracker.frame.pose_known else "camera")
+        interrupted = True
     finally:
         bar.close()
+    if n and len(unreadable) == n:
+        raise InputError(str(Path(inp.frames[0]).parent), "at least one readable depth frame",
+                         f"{n} unreadable frames (the first: {inp.frames[0].name})")
+    return _Tracked(res, unreadable, interrupted)
 
 
-def _write(out: Path, res, inp, n: int) -> dict | None:
+def _held(out: Path) -> tuple[int, str]:
+    """Frames of the ``skeleton.npz`` an earlier run left in ``out`` and its status (0, "" when none)."""
+    f = out / "skeleton.npz"
+    if not f.is_file():
+        return 0, ""
+    try:
+        with np.load(f, allow_pickle=False) as z:
+            return len(z["frames"]), str(z["status"]) if "status" in z.files else "complete"
+    except (OSError, ValueError, KeyError):
+        return 0, ""
+
+
+def _write(out: Path, tracked: _Tracked, inp) -> dict | None:
     """``skeleton.npz`` and, with ground truth in world coordinates, ``metrics.json`` (returned)."""
     from toolkit.depth import STATE_NAMES
     from toolkit.depth.evaluate import summarise
     from toolkit.io import atomic_save_npz, atomic_write_text
     from toolkit.skeleton import SKELETON_13
 
+    res = tracked.result
+    n = len(res.frames)
+    unreadable = np.zeros(n, bool)
+    unreadable[[i for i in tracked.unreadable if i < n]] = True
     atomic_save_npz(out / "skeleton.npz", joints=res.joints, names=np.array(SKELETON_13.joint_names),
                     state=res.states, state_names=np.array(STATE_NAMES), observed=res.observed,
                     explained=res.explained, supported=res.supported, reason=res.reasons,
-                    frames=np.array([p.name for p in inp.frames[:n]]), coordinates=np.array(res.coordinates))
+                    frames=np.array([p.name for p in inp.frames[:n]]), coordinates=np.array(res.coordinates),
+                    unreadable=unreadable, status=np.array("interrupted" if tracked.interrupted else "complete"))
     if inp.truth is None or res.coordinates != "world":
         return None
     s = summarise(res.joints, inp.truth["joints"][:n], res.states,
@@ -210,6 +265,7 @@ def _write(out: Path, res, inp, n: int) -> dict | None:
     metrics = {"mpjpe_mm": 1000 * s.mpjpe_m, "mpjpe_visible_mm": 1000 * s.mpjpe_visible_m,
                "mpjpe_unoccluded_mm": 1000 * s.mpjpe_unoccluded_m, "tracked_share": s.tracked_share,
                "estimated_share": s.estimated_share, "frames": s.n_frames,
+               "status": "interrupted" if tracked.interrupted else "complete",
                "per_point_mm": {k: 1000 * float(v) for k, v in zip(SKELETON_13.joint_names, s.per_point_m)}}
     atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
     return metrics
@@ -253,24 +309,34 @@ def run(config: DepthTrackingRunConfig, *, dataset, out, observer=None, log=prin
     from toolkit.io.runs import run_recording
 
     out = Path(out)
+    log = log or (lambda *_: None)
     inp = _open(config, dataset)
     n = len(inp) if config.max_frames is None else min(len(inp), max(int(config.max_frames), 0))
-    open_run(out, "depth_tracking", dataset, config, n, exclude=DepthTrackingRunConfig.RUNTIME,
-             extra={"input": input_identity(inp)}, replace_stale=config.replace_stale, recording=False, log=log)
+    folder = open_run(out, "depth_tracking", dataset, config, n, exclude=DepthTrackingRunConfig.RUNTIME,
+                      extra={"input": input_identity(inp)}, replace_stale=config.replace_stale, recording=False,
+                      log=log)
+    held, held_status = _held(out) if folder.resumed else (0, "")
+    if held_status == "complete":
+        check_frames_held(out, n, held, what="a complete skeleton.npz")
     own = observer is None and config.recording
     obs = _recording(out, run_recording(out, False)[1]) if own else observer
     t0 = time.perf_counter()
     try:
-        res = _track(config, inp, n, obs)
+        tracked = _track(config, inp, n, obs, log)
     finally:
         if own:
             obs.close()
     wall = time.perf_counter() - t0
-    scores = _write(out, res, inp, n)
+    res, done = tracked.result, len(tracked.result.frames)
+    keep = tracked.interrupted and held_status == "complete"  # never replace complete results by partial ones
+    if keep:
+        log(f"{out}: interrupted after {done} of {n} frames; the complete results of the earlier run are kept")
+    scores = None if keep else _write(out, tracked, inp)
     metrics = {"states": {name: int((res.states == k).sum()) for k, name in enumerate(STATE_NAMES)},
-               "cpu_ms_median": float(np.nanmedian(res.timings("total")) * 1000) if n else float("nan"),
-               **(scores or {})}
-    return RunResult(out, n, n, n, 0, "", wall, metrics, out / "recording.rrd" if own else None,
+               "cpu_ms_median": float(np.nanmedian(res.timings("total")) * 1000) if done else float("nan"),
+               "unreadable_frames": [inp.frames[i].name for i in tracked.unreadable], **(scores or {})}
+    return RunResult(out, n, done, done, 0, STOPPED_INTERRUPTED if tracked.interrupted else "", wall, metrics,
+                     out / "recording.rrd" if own else None,
                      {"input": str(dataset), "kind": inp.kind, "size": tuple(inp.camera.size),
                       "coordinates": res.coordinates, "skeleton": out / "skeleton.npz", "images": config.images,
                       "has_groundtruth": scores is not None})
@@ -337,10 +403,15 @@ def summary_lines(result: RunResult) -> list:
     """What a depth-tracking run says when it ends (the recipe prints these)."""
     m, x, out = result.metrics, result.extra, result.out
     w, h = x["size"]
-    lines = [f"tracked {result.frames} frames of {x['input']} ({x['kind']}, {w}x{h}) in {result.seconds:.1f} s: "
+    lines = [f"tracked {result.processed} frames of {x['input']} ({x['kind']}, {w}x{h}) in {result.seconds:.1f} s: "
              + ", ".join(f"{v} {k}" for k, v in m["states"].items())
              + f"; median {m['cpu_ms_median']:.1f} ms CPU per frame",
              f"  skeleton ({x['coordinates']} coordinates): {x['skeleton']}"]
+    if result.stopped:
+        lines.append(f"  {result.stopped}: {result.processed} of {result.frames} frames tracked (Ctrl-C)")
+    if m.get("unreadable_frames"):
+        lines.append(f"  warning: {len(m['unreadable_frames'])} unreadable frames tracked as frames without depth: "
+                     + ", ".join(m["unreadable_frames"][:5]) + (" ..." if len(m["unreadable_frames"]) > 5 else ""))
     if result.recording is not None:
         lines.append(f"  recording:                  {result.recording}  (open with: rerun {result.recording})")
     if x["has_groundtruth"]:

@@ -93,8 +93,9 @@ class FreeViewpointRunConfig:
         One of :data:`BACKGROUNDS`.
     people : str
         With keypoints: ``"all"`` follows every participant (:mod:`toolkit.pipeline.people`),
-        ``"main"`` the person the cameras agree on.  Stage 1 from the silhouette database
-        follows one person.
+        ``"main"`` the person the cameras agree on.  From the silhouette database: ``"all"``
+        follows every person found on the ground in the cameras' foreground
+        (:func:`toolkit.pipeline.people.locate_silhouette_people`), ``"main"`` one person.
     progress : bool
         Show a progress bar.
     workers : int
@@ -255,6 +256,15 @@ class _Stage1:
                                            observer=self.observer)
         db = self._database()
         s1config = Stage1Config().with_refined_cameras(refined_cameras(self.out))  # tight prior where refined
+        if c.people == "all":
+            from toolkit.pipeline.people import estimate_people_silhouettes, locate_silhouette_people
+
+            if not hasattr(self, "_located"):  # the same people for every part of the run
+                self._located = locate_silhouette_people(self.ds, self.rig, foreground=fg, log=self.log)
+            if self._located is not None:
+                return ((p, None) for p in estimate_people_silhouettes(
+                    self.ds, db, self.rig, self._located, s1config, frames=frames, foreground=fg,
+                    observer=self.observer))
         return estimate_dataset(self.ds, db, s1config, foreground=fg, frames=frames, rig=self.rig,
                                 observer=self.observer)
 

@@ -399,6 +399,131 @@ class SeededSilhouettes:
         return [masks.get(c) if c in masks and masks[c].any() else None for c in self.rig.names]
 
 
+def _silhouette_models(source: str, names: Sequence[str], plates: dict, readers: dict, foreground, rig: Rig,
+                       observer: Observer | None):
+    """Build the silhouette models a source needs: background extractors or the seeded segmenter.
+
+    Parameters
+    ----------
+    source : str
+        One of :data:`SILHOUETTE_SOURCES` but ``auto``.
+    names : sequence of str
+        The cameras, rig order.
+    plates : dict of str to ndarray (H, W, 3)
+        Clean plates of the cameras that have one.
+    readers : dict of str to VideoReader
+        Video readers of (at least) the cameras without a plate, when ``source == "background"``.
+    foreground : toolkit.foreground.ForegroundConfig or None
+        Background subtraction's options.
+    rig : Rig
+    observer : Observer or None
+
+    Returns
+    -------
+    extractors : dict of str to ForegroundExtractor or None
+        Per camera, fitted to its plate or its video (``source == "background"``).
+    seeded : SeededSilhouettes or None
+        The keypoint-seeded segmenter (``source == "seeded"``).
+    """
+    extractors = seeded = None
+    if source == "background":
+        from toolkit.foreground import ForegroundExtractor
+
+        extractors = {c: ForegroundExtractor(foreground).fit([plates[c]] if c in plates else readers[c])
+                      for c in names}
+    elif source == "seeded":
+        seeded = SeededSilhouettes(rig, observer=observer)
+    return extractors, seeded
+
+
+def _frame_images(t: int, names: Sequence[str], shared, readers: dict, obs, log_images: bool) -> dict:
+    """Each camera's image of frame ``t``, None where it cannot be read.
+
+    Parameters
+    ----------
+    t : int
+        The frame.
+    names : sequence of str
+        The cameras, rig order.
+    shared : callable or None
+        ``dataset.frame(camera, t)``; None to read through ``readers``.
+    readers : dict of str to VideoReader
+        Per camera, its video reader (used when ``shared`` is None).
+    obs : Observer
+        Told each image read when ``log_images``.
+    log_images : bool
+
+    Returns
+    -------
+    dict of str to (ndarray (H, W, 3) or None)
+    """
+    images = {}
+    for c in names:
+        try:
+            images[c] = shared(c, t) if shared is not None else readers[c].read(t)
+        except (InputError, IndexError):
+            images[c] = None
+        if log_images and images[c] is not None:
+            obs.report("image", camera=c, image=images[c], frame=t)
+    return images
+
+
+def _frame_masks(t: int, source: str, names: Sequence[str], images: dict, est, rig: Rig, masks_dir,
+                 extractors: dict | None, seeded, previous: dict, obs, log_images: bool) -> list:
+    """Each camera's silhouette of frame ``t`` from the chosen source.
+
+    Parameters
+    ----------
+    t : int
+        The frame.
+    source : str
+        ``masks``, ``background`` or ``seeded``.
+    names : sequence of str
+        The cameras, rig order.
+    images : dict of str to (ndarray (H, W, 3) or None)
+        This frame's images.
+    est : toolkit.silhouettes.estimate.FrameEstimate
+        This frame's keypoint estimate (seeds the ``seeded`` source).
+    rig : Rig
+    masks_dir : path-like or None
+        Masks given (``source == "masks"``).
+    extractors : dict of str to ForegroundExtractor or None
+        Background extractors (``source == "background"``).
+    seeded : SeededSilhouettes or None
+        The seeded segmenter (``source == "seeded"``).
+    previous : dict of str to ((image, mask) or None)
+        Per camera, the previous frame's usable image and mask (``source == "background"``);
+        updated in place for the next frame.
+    obs : Observer
+        Told each seeded mask when ``log_images``.
+    log_images : bool
+
+    Returns
+    -------
+    list of (ndarray (H, W) bool or None)
+        Rig order.
+    """
+    masks: list = []
+    if source == "masks":
+        masks = [read_mask(masks_dir, c, t, rig[c].size) if images[c] is not None else None for c in names]
+    elif source == "background":
+        for c in names:
+            if images[c] is None:
+                masks.append(None)
+                previous[c] = None
+                continue
+            sil = extractors[c].extract(images[c], previous[c])
+            previous[c] = (images[c], sil.mask) if sil.usable else None
+            masks.append(sil.mask)
+    else:
+        masks = seeded.segment_frame(t, images, est)
+        if log_images:
+            for c, m in zip(names, masks):
+                if m is not None:
+                    obs.report("mask", camera=c, mask=m, name="stage1/silhouette", frame=t)
+    return masks
+
+
 def estimate_from_keypoints(dataset, keypoints: str | os.PathLike, rig: Rig | None = None,
                             config: KeypointStage1Config = KeypointStage1Config(), *,
                             frames: Sequence[int] | None = None, silhouettes: str = "auto",
@@ -463,45 +588,15 @@ def estimate_from_keypoints(dataset, keypoints: str | os.PathLike, rig: Rig | No
     readers = {c: VideoReader(dataset.video_path(c)) for c in names
                if (source == "background" and c not in plates) or shared is None}
     try:
-        extractors = seeded = None
-        if source == "background":
-            from toolkit.foreground import ForegroundExtractor
-
-            extractors = {c: ForegroundExtractor(foreground).fit([plates[c]] if c in plates else readers[c])
-                          for c in names}
-        elif source == "seeded":
-            seeded = SeededSilhouettes(rig, observer=observer)
+        extractors, seeded = _silhouette_models(source, names, plates, readers, foreground, rig, observer)
         previous: dict = {c: None for c in names}
         setup = (time.perf_counter() - t_setup) / max(len(todo), 1)  # each frame's share of the silhouette models
         for t in todo:
             t1 = time.perf_counter()
             est = stage1.estimate(t)
-            images = {}
-            for c in names:
-                try:
-                    images[c] = shared(c, t) if shared is not None else readers[c].read(t)
-                except (InputError, IndexError):
-                    images[c] = None
-                if log_images and images[c] is not None:
-                    obs.report("image", camera=c, image=images[c], frame=t)
-            masks: list = []
-            if source == "masks":
-                masks = [read_mask(masks_dir, c, t, rig[c].size) if images[c] is not None else None for c in names]
-            elif source == "background":
-                for c in names:
-                    if images[c] is None:
-                        masks.append(None)
-                        previous[c] = None
-                        continue
-                    sil = extractors[c].extract(images[c], previous[c])
-                    previous[c] = (images[c], sil.mask) if sil.usable else None
-                    masks.append(sil.mask)
-            else:
-                masks = seeded.segment_frame(t, images, est)
-                if log_images:
-                    for c, m in zip(names, masks):
-                        if m is not None:
-                            obs.report("mask", camera=c, mask=m, name="stage1/silhouette", frame=t)
+            images = _frame_images(t, names, shared, readers, obs, log_images)
+            masks = _frame_masks(t, source, names, images, est, rig, masks_dir, extractors, seeded, previous, obs,
+                                 log_images)
             est.timings["foreground"] = time.perf_counter() - t1
             est.timings["keypoints"] = t_kp
             est.timings["stage1"] = time.perf_counter() - t1 + t_kp + setup

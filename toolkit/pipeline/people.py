@@ -19,6 +19,14 @@ with the one in front.  Each person then goes through stages 2-4 on its own
 :func:`toolkit.rendering.freeviewpoint.render_views` draws the people far to
 near in every view.
 
+Without keypoints (synthetic scenes, a studio with clean plates),
+:func:`locate_silhouette_people` finds where every person stands from the
+cameras' foreground alone (:mod:`toolkit.silhouettes.people`: ground-plane
+occupancy chosen greedily, ghosts explained away), and
+:func:`estimate_people_silhouettes` gives each person its share of the
+foreground and a silhouette-database estimator of its own.  A scene in which
+no probed frame holds two people runs the one-person stage unchanged.
+
 People keep the index of their track over the whole run (``person_0`` is the
 one followed longest); ``OUT/people3d.npz`` holds their joints.
 """
@@ -37,7 +45,7 @@ from toolkit.errors import InputError
 from toolkit.observe import as_observer
 
 __all__ = ["PeopleFrame", "triangulate_people", "estimate_people", "exclusive_masks", "PARTICIPANT_MIN_SHARE",
-           "PEOPLE_CHOICES"]
+           "PEOPLE_CHOICES", "locate_silhouette_people", "estimate_people_silhouettes"]
 
 #: A person followed in at least this share of the frames is a participant (drawn); the others are passers-by.
 PARTICIPANT_MIN_SHARE = 0.25
@@ -307,3 +315,207 @@ def combined_labels(results: list, rig: Rig) -> dict:
         if lab is not None:
             out[cam.name] = lab
     return out
+
+
+def _foreground_extractors(dataset, rig: Rig, foreground) -> dict:
+    """Per camera of ``rig`` a fitted foreground extractor that keeps every blob: on the dataset's clean
+    plate where it has one (as the one-person stage does), else on the camera's video."""
+    from dataclasses import replace
+
+    from toolkit.foreground import ForegroundConfig, ForegroundExtractor
+    from toolkit.io import VideoReader
+
+    foreground = foreground or ForegroundConfig()
+    # every person's blob: none of the one-person clean-up that keeps the largest component
+    foreground = replace(foreground, morphology=replace(foreground.morphology, keep_components=0,
+                                                        min_component_fraction=0.0))
+    out = {}
+    for c in rig.names:
+        plate = getattr(dataset, "background", lambda _c: None)(c)
+        if plate is not None:
+            out[c] = ForegroundExtractor(foreground).fit([plate])
+            continue
+        reader = VideoReader(dataset.video_path(c))
+        try:
+            out[c] = ForegroundExtractor(foreground).fit(reader)
+        finally:
+            reader.close()
+    return out
+
+
+def _frame_masks(dataset, rig: Rig, extractors: dict, t: int) -> tuple[dict, list]:
+    """Frame ``t``'s images (camera -> image or None) and foreground masks (rig order, None: no frame)."""
+    images, masks = {}, []
+    for c in rig.names:
+        try:
+            images[c] = dataset.frame(c, t)
+        except (InputError, IndexError):
+            images[c] = None
+        masks.append(None if images[c] is None else extractors[c].extract(images[c]).mask)
+    return images, masks
+
+
+def _raw_masks(dataset, rig: Rig, extractors: dict, t: int) -> list:
+    """Frame ``t``'s foreground per camera before the clean-up, opened by 3 px (quick; None: no frame)."""
+    out = []
+    for c in rig.names:
+        try:
+            img = dataset.frame(c, t)
+        except (InputError, IndexError):
+            out.append(None)
+            continue
+        raw = extractors[c].raw_mask(img).astype(np.uint8)
+        out.append(cv2.morphologyEx(raw, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)) > 0)
+    return out
+
+
+def _several_blobs(masks: list, share: float = 0.3, min_px: int = 50) -> bool:
+    """Whether two cameras or more show two foreground blobs or more, each at least ``share`` of the
+    camera's largest and ``min_px`` pixels."""
+    n = 0
+    for m in masks:
+        if m is None:
+            continue
+        k, _, stats, _ = cv2.connectedComponentsWithStats(np.asarray(m, np.uint8), connectivity=8)
+        areas = stats[1:, cv2.CC_STAT_AREA]
+        if len(areas) and np.sum(areas >= max(share * areas.max(), min_px)) >= 2:
+            n += 1
+    return n >= 2
+
+
+def locate_silhouette_people(dataset, rig: Rig, *, foreground=None, config=None, probe_frames: int = 8,
+                             log=None) -> tuple[np.ndarray, np.ndarray] | None:
+    """Where every participant stands in every frame, from the cameras' foreground alone.
+
+    First ``probe_frames`` frames spread over the sequence are looked at: if in none of them two
+    cameras show two large foreground blobs, or none holds two people on the ground, the scene is one
+    person's (None: the one-person stage runs unchanged).  Otherwise every
+    frame is searched and the positions are tracked
+    (:func:`toolkit.silhouettes.people.track_positions`).
+
+    Parameters
+    ----------
+    dataset : toolkit.io.Dataset
+    rig : Rig
+    foreground : toolkit.foreground.ForegroundConfig, optional
+    config : toolkit.silhouettes.people.PeopleSilhouettesConfig, optional
+    probe_frames : int
+    log : callable, optional
+
+    Returns
+    -------
+    (positions (P, T, 2) metres, found (P, T) bool) or None
+    """
+    from toolkit.silhouettes.people import (
+        PeopleSilhouettesConfig,
+        ground_grid,
+        locate_people,
+        refine_positions,
+        track_positions,
+    )
+
+    config = config or PeopleSilhouettesConfig()
+    T = dataset.n_frames
+    extractors = _foreground_extractors(dataset, rig, foreground)
+    grid = ground_grid(rig, config)
+    found: dict[int, np.ndarray] = {}
+
+    def locate(t):
+        masks = _frame_masks(dataset, rig, extractors, t)[1]
+        return refine_positions(masks, rig, locate_people(masks, grid, config)[0], config)
+
+    probe = sorted({int(round(x)) for x in np.linspace(0, T - 1, min(probe_frames, T))})
+    if not any(_several_blobs(_raw_masks(dataset, rig, extractors, t)) for t in probe):
+        return None  # one blob per camera everywhere: one person (the cheap test spares the search)
+    for t in probe:
+        found[t] = locate(t)
+    if max(len(p) for p in found.values()) < 2:
+        return None
+    for t in range(T):
+        if t not in found:
+            found[t] = locate(t)
+    positions, seen = track_positions([found[t] for t in range(T)], config)
+    if len(positions) < 2:
+        return None
+    if log is not None:
+        log(f"people from silhouettes: {len(positions)} followed ("
+            + ", ".join(f"person_{k} in {int(s.sum())} frames" for k, s in enumerate(seen)) + ")")
+    return positions, seen
+
+
+def _mirrored(est):
+    """A stage-1 estimate with left and right swapped in 3D and in every view (its mirror image: the same
+    rays), its selection dropped."""
+    from dataclasses import replace
+
+    from toolkit.multiview.selection import flip_permutation
+    from toolkit.skeleton import SKELETON_14
+
+    perm = flip_permutation(SKELETON_14, "all")
+    return replace(est, joints3d=np.asarray(est.joints3d)[perm], poses2d=np.asarray(est.poses2d)[:, perm],
+                   candidates_px=np.asarray(est.candidates_px)[..., perm, :], selection=None)
+
+
+def estimate_people_silhouettes(dataset, database, rig: Rig, located, s1config=None, *, frames=None,
+                                foreground=None, config=None, observer=None) -> Iterator[PeopleFrame]:
+    """Stage 1 of every participant from silhouettes, frame by frame.
+
+    The cameras' foreground is split between the people
+    (:func:`toolkit.silhouettes.people.split_masks`) and each person has a silhouette-database
+    estimator of its own (:class:`toolkit.silhouettes.pipeline.SilhouettePoseEstimator`); a person
+    moving whose hips face backwards takes its mirror image
+    (:func:`toolkit.silhouettes.people.faces_backwards`).
+
+    Parameters
+    ----------
+    dataset : toolkit.io.Dataset
+    database : SilhouetteDatabase
+    rig : Rig
+    located : tuple
+        :func:`locate_silhouette_people`'s positions and found flags.
+    s1config : Stage1Config, optional
+    frames : sequence of int, optional
+        Increasing frame indices (default: all).
+    foreground : toolkit.foreground.ForegroundConfig, optional
+    config : toolkit.silhouettes.people.PeopleSilhouettesConfig, optional
+    observer : Observer, optional
+
+    Yields
+    ------
+    PeopleFrame
+    """
+    from toolkit.silhouettes.pipeline import SilhouettePoseEstimator
+    from toolkit.silhouettes.people import PeopleSilhouettesConfig, faces_backwards, ground_velocities, split_masks
+    from toolkit.skeleton import SKELETON_14
+
+    config = config or PeopleSilhouettesConfig()
+    obs = as_observer(observer)
+    positions, _ = located
+    velocity = ground_velocities(positions, getattr(dataset, "fps", None) or 25.0)
+    hips = (SKELETON_14.joint_names.index("l_hip"), SKELETON_14.joint_names.index("r_hip"))
+    names = [f"person_{k}" for k in range(len(positions))]
+    t0 = time.perf_counter()
+    extractors = _foreground_extractors(dataset, rig, foreground)
+    todo = list(range(dataset.n_frames)) if frames is None else [int(t) for t in frames]
+    setup = (time.perf_counter() - t0) / max(len(todo), 1)
+    estimators = [SilhouettePoseEstimator(rig, database, s1config, observer if k == 0 else None)
+                  for k in range(len(positions))]
+    for t in todo:
+        t1 = time.perf_counter()
+        images, masks = _frame_masks(dataset, rig, extractors, t)
+        for c, img in images.items():
+            if img is not None:
+                obs.report("image", camera=c, image=img, frame=t)
+        t_fg = time.perf_counter() - t1
+        person_masks, usable = split_masks(masks, rig, positions[:, t], config)
+        ests = [est.step([m if ok else None for m, ok in zip(own, oks)], t)
+                for est, own, oks in zip(estimators, person_masks, usable)]
+        ests = [_mirrored(e) if faces_backwards(e.joints3d, velocity[k, t], *hips) else e for k, e in enumerate(ests)]
+        for k, person in enumerate(person_masks):
+            for c, m in zip(rig.names, person):
+                if m is not None:
+                    obs.report("mask", camera=c, mask=m, name=f"stage1/silhouette/{names[k]}", frame=t)
+        timings = {"foreground": t_fg, "stage1": time.perf_counter() - t1 + setup}
+        for e in ests:
+            e.timings.update(timings)
+        yield PeopleFrame(t, ests, person_masks, names, timings)

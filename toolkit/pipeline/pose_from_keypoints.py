@@ -13,8 +13,11 @@ in ``OUT/person_<k>/``.
 The sequence offsets tie every frame to the others, so the run is not resumed
 frame by frame: it always triangulates the whole sequence, and writes its
 results at the end, also after an error or Ctrl-C (frames not processed are
-NaN).  Its identity (derived from the config, :func:`~toolkit.pipeline.run.
-config_identity`) is recorded in ``poses3d.json`` under ``run``.
+NaN), but never over the results of a complete run.  Its identity (derived
+from the config, :func:`~toolkit.pipeline.run.config_identity`) is recorded
+in ``poses3d.json`` under ``run``, and with a fingerprint of every input file
+in ``OUT/run.json``: a folder of another run is refused (or moved aside with
+``replace_stale``).
 """
 
 from __future__ import annotations
@@ -31,12 +34,19 @@ from toolkit.io.video import VIDEO_SUFFIXES
 from toolkit.multiview import FLIP_MODES, MAX_OFFSET_PX, MIN_JOINT_CONFIDENCE, MIN_VIEW_CONFIDENCE
 from toolkit.multiview.keypoint_sequence import OFFSET_MODES
 from toolkit.pipeline.detect_keypoints import DetectConfig
-from toolkit.pipeline.run import STOPPED_INTERRUPTED, RunResult, config_identity
+from toolkit.pipeline.run import STOPPED_INTERRUPTED, RunResult, config_identity, terminate_as_interrupt
 
 #: ``format`` names accepted, mapped to the names of toolkit.skeleton.mappings ("auto": found from the files).
 FORMATS = {"auto": None, "body_25b": "body_25b", "body_25": "body_25", "coco17": "coco_17", "coco_17": "coco_17",
            "coco_18": "coco_18", "coco": "coco_18", "halpe_26": "halpe_26", "coco_133": "coco_133",
            "blazepose_33": "blazepose_33"}
+#: Median ray distance (metres) above which a run warns that cameras may be paired with the wrong keypoints or
+#: the calibration is off: the Pose2Sim demo's is 7.5-9.9 mm, two swapped keypoint folders of the synthetic
+#: test scene give 60 mm.
+RAY_DISTANCE_WARNING_M = 0.04
+#: Share of the triangulated frames with joints behind a camera that sees them above which the calibration is
+#: refused (a correct one has none: a camera sees nothing behind it).
+MAX_SHARE_BEHIND = 0.5
 #: Frame rate assumed when neither ``fps``, a Pose2Sim Config.toml nor the videos give one (said so in the outputs).
 ASSUMED_FPS = 30.0
 #: Trajectory files that may be written besides ``poses3d.npz``.
@@ -91,6 +101,9 @@ class PoseFromKeypointsConfig:
         Every person found, each in ``OUT/person_<k>/`` (default: the person most cameras agree on).
     recording : bool
         Write ``recording.rrd``.
+    replace_stale : bool
+        Move an output folder of another run (other keypoints, calibration or options) aside
+        instead of refusing it.
     progress : bool
         Show a progress bar (reading the videos).
     detection : DetectConfig
@@ -115,11 +128,12 @@ class PoseFromKeypointsConfig:
     check_ground: bool = True
     multi_person: bool = False
     recording: bool = True
+    replace_stale: bool = False
     progress: bool = True
     detection: DetectConfig = DetectConfig()
 
     #: Fields that do not change the results (left out of the run identity).
-    RUNTIME = ("videos", "recording", "progress")
+    RUNTIME = ("videos", "recording", "replace_stale", "progress")
 
     def __post_init__(self):
         checks = (("format", self.format in FORMATS, f"one of {sorted(FORMATS)}"),
@@ -202,6 +216,15 @@ def _describe_inputs(session, fps: float, fps_from: str) -> list:
     lines = [f"{n_cams} cameras matched {session.matching} ("
              + ", ".join(f"{c.name} <- {f.name}" for c, f in zip(rig, session.sources))
              + f"), {n_frames} frames at {fps:g} fps ({fps_from}), format {kin.format.fmt} ({kin.format.reason})"]
+    if session.matching == "by order":
+        lines.append("  warning: no keypoint folder names a calibration camera, so they were paired in sorted order; "
+                     "name the folders after the cameras if that order is not the calibration's")
+    firsts = [(cam.name, int(np.min(cd.frames))) for cam, cd in zip(rig, kin.cameras) if np.size(cd.frames)]
+    if len({f for _, f in firsts}) > 1:
+        lines.append("  warning: the cameras' frame numbers start at different values ("
+                     + ", ".join(f"{name} {f}" for name, f in firsts)
+                     + "): frames are matched by number, so a frame is seen only by the cameras whose files share "
+                     "its number; if the cameras started together, renumber the files (or give sync.json)")
     for c, cam in enumerate(rig):
         if kin.missing[c].any() or kin.empty[c].any():
             lines.append(f"  {cam.name}: {int(kin.missing[c].sum())} frames without a file, "
@@ -224,10 +247,38 @@ def _triangulate(config: PoseFromKeypointsConfig, session, observer):
     pts = np.stack([c[0][:, 0] for c in cand], axis=1)  # (n_cams, T, 14, 2)
     wts = np.stack([c[1][:, 0] for c in cand], axis=1)
     seq = triangulate_keypoint_sequence(pts, session.rig, keypoint_config(config), weights=wts, observer=observer)
+    _check_in_front(seq, session)
     if observer is not None:
         for t, v in enumerate(seq.violations):
             observer.report("scalar", name="anthropometry/violations", value=len(v), frame=t)
     return seq
+
+
+def _check_in_front(seq, session) -> None:
+    """Refuse a triangulation whose joints lie behind the cameras that see them (a pose in the wrong convention).
+
+    A calibration written as ``world_from_cam`` where ``cam_from_world`` is meant can pass every check of
+    the calibration alone (:mod:`toolkit.cameras.validate`) and still give rays that meet, metres away,
+    behind the cameras; no camera sees a point behind it, so most frames so placed mean a wrong calibration.
+    """
+    ok = np.asarray(seq.success, bool)
+    if not ok.any():
+        return
+    joints = np.asarray(seq.joints3d)[ok]                              # (n_ok, 14, 3)
+    seen = np.isfinite(np.asarray(seq.poses2d)[:, ok]).all(axis=-1)    # (n_cams, n_ok, 14)
+    behind = np.zeros(joints.shape[0], bool)
+    cams_behind = set()
+    for c, cam in enumerate(session.rig):
+        z = cam.depth_of(joints)
+        bad = (seen[c] & np.isfinite(z) & (z <= 0)).any(axis=1)
+        behind |= bad
+        if bad.any():
+            cams_behind.add(cam.name)
+    if behind.mean() > MAX_SHARE_BEHIND:
+        raise InputError(f"{session.calibration}: rotation/translation",
+                         "camera poses (cam_from_world, world to camera) that put the joints each camera sees in "
+                         "front of it", f"the joints behind {sorted(cams_behind)} in {int(behind.sum())} of "
+                         f"{behind.size} frames (a world_from_cam pose, or a translation of the other sign?)")
 
 
 def _log_videos(videos: list, session, observer, progress: bool) -> None:
@@ -326,6 +377,27 @@ def _write_outputs(w: _Written, seq, status: str) -> list:
     return exported
 
 
+def _worth_writing(out: Path, seq, status: str, log) -> bool:
+    """Whether this run's outputs are at least as good as those ``out`` holds (never replace them by worse).
+
+    A run that computed nothing (an error or Ctrl-C before the triangulation)
+    writes NaN placeholders only where there is nothing yet; an interrupted
+    or failed run never replaces the outputs of a complete one.
+    """
+    meta = out / "poses3d.json"
+    if not (out / "poses3d.npz").is_file() or not meta.is_file():
+        return True
+    try:
+        old = json.loads(meta.read_text(encoding="utf-8")).get("status")
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, AttributeError):
+        old = None
+    if seq is None or (old == "complete" and status != "complete"):
+        log(f"{out}: the outputs of an earlier run ({old or 'status unknown'}) kept: this run is {status} "
+            f"{'with nothing computed' if seq is None else 'before the end'}")
+        return False
+    return True
+
+
 def _metrics(seq, status: str, rig, n_frames: int) -> dict:
     """The figures a person's summary shows (``RunResult.metrics``)."""
     arrays = _arrays(seq, len(rig), n_frames)
@@ -344,6 +416,11 @@ def _metrics(seq, status: str, rig, n_frames: int) -> dict:
         m.update({"mean_offset_px": {c: float(o) for c, o in zip(rig.names, off)},
                   "mean_ray_distance_m": float(np.nanmean(arrays["cost"][ok])),
                   "frames_breaking_constraints": int(sum(len(v) > 0 for v in seq.violations))})
+        median = float(np.nanmedian(arrays["cost"][ok]))
+        if median > RAY_DISTANCE_WARNING_M:
+            m["warnings"] = [f"median ray distance {1000 * median:.0f} mm (over {1000 * RAY_DISTANCE_WARNING_M:.0f} "
+                             "mm): the rays of the cameras barely meet; check that each keypoint folder is paired "
+                             "with its camera and that the calibration is of this capture"]
     return m
 
 
@@ -386,9 +463,10 @@ def run_person(config: PoseFromKeypointsConfig, session, out, *, observer=None, 
         log(line)
     status, seq, t0 = "complete", None, time.perf_counter()
     try:
-        if videos and observer is not None:
-            _log_videos(videos, session, observer, config.progress)
-        seq = _triangulate(config, session, observer)
+        with terminate_as_interrupt():
+            if videos and observer is not None:
+                _log_videos(videos, session, observer, config.progress)
+            seq = _triangulate(config, session, observer)
         status = "interrupted" if seq.interrupted else status
     except KeyboardInterrupt:
         status = "interrupted"
@@ -396,7 +474,9 @@ def run_person(config: PoseFromKeypointsConfig, session, out, *, observer=None, 
         status = "failed"
         raise
     finally:
-        exported = _write_outputs(w, seq, status)
+        exported = []
+        if _worth_writing(out, seq, status, log):
+            exported = _write_outputs(w, seq, status)
         if own:
             observer.close()
         for v in videos:
@@ -414,6 +494,39 @@ def run_person(config: PoseFromKeypointsConfig, session, out, *, observer=None, 
 def run_identity(config: PoseFromKeypointsConfig) -> dict:
     """What the run's results depend on: the system and its config less :attr:`~PoseFromKeypointsConfig.RUNTIME`."""
     return {"recipe": "pose_from_keypoints", "config": config_identity(config, exclude=config.RUNTIME)}
+
+
+def _start(config: PoseFromKeypointsConfig, dataset, out: Path, log) -> bool:
+    """Record (or check) which inputs and options ``out`` belongs to (``OUT/run.json``).
+
+    The identity holds the config and a fingerprint of every input file (the
+    keypoints or the trial folder, and the calibration), so a folder of another
+    run is refused, or moved aside with ``replace_stale``.  The same run again
+    replaces the outputs (the triangulation is not resumed).  Returns whether
+    the folder was new (or emptied by ``replace_stale``).
+    """
+    from toolkit.io.pose2sim import is_pose2sim_trial, read_pose2sim_trial
+    from toolkit.io.runs import dataset_fingerprint, start_run
+
+    inputs = {"keypoints": dataset_fingerprint(dataset, exclude=(out,)) if Path(dataset).exists() else str(dataset)}
+    files = [config.calibration] if config.calibration is not None else []
+    if is_pose2sim_trial(dataset):  # the session's calibration and Config.toml files, outside the trial folder
+        trial = read_pose2sim_trial(dataset)
+        if config.calibration is None and trial.calibration is not None:
+            files.append(trial.calibration)
+        files += list(trial.config_files)
+    inputs["files"] = [dataset_fingerprint(f) for f in files if Path(f).is_file()]
+    return not start_run(out, {**run_identity(config), "inputs": inputs}, replace_stale=config.replace_stale,
+                         log=log)
+
+
+def _undo_start(out: Path) -> None:
+    """Remove the ``run.json`` :func:`_start` wrote into a new folder, and the folder if it is then empty."""
+    from toolkit.io.runs import RUN_FILE
+
+    (out / RUN_FILE).unlink(missing_ok=True)
+    if out.is_dir() and not any(out.iterdir()):
+        out.rmdir()
 
 
 def _open(config: PoseFromKeypointsConfig, dataset, out: Path, log=None):
@@ -450,7 +563,13 @@ def run(config: PoseFromKeypointsConfig, *, dataset, out, observer=None, log=pri
     InputError
         Bad keypoints, calibration, videos or options.
     """
-    session = _open(config, dataset, out, log)
+    fresh = _start(config, dataset, Path(out), log)
+    try:
+        session = _open(config, dataset, out, log)
+    except InputError:
+        if fresh:  # nothing of this run is there: leave no run.json naming it
+            _undo_start(Path(out))
+        raise
     if not config.multi_person:
         return run_person(config, session, out, observer=observer, log=log)
     return _run_people(config, session, Path(out), observer, log)
@@ -474,7 +593,7 @@ def _run_people(config: PoseFromKeypointsConfig, session, out: Path, observer, l
     log(f"{people.n_people} people found in {len(kin.frames)} frames (seen by two cameras or more, in the "
         f"capture volume, tracked over time): {n_part} participants, {people.n_people - n_part} transient "
         f"(followed in under {PARTICIPANT_MIN_SHARE:.0%} of the frames)")
-    summary, results = [], []
+    summary, results, finished = [], [], False
     try:
         for k in range(people.n_people):
             name, seen = f"person_{k}", people.views[k] > 0
@@ -489,12 +608,16 @@ def _run_people(config: PoseFromKeypointsConfig, session, out: Path, observer, l
             sub = replace(config, multi_person=False, videos=config.videos if k == 0 else None)
             results.append((name, _person_header(summary[-1]), run_person(
                 sub, one, out / name, observer=obs, log=log, identity=run_identity(config))))
+        finished = not any(r.stopped for _, _, r in results)
     finally:
-        atomic_write_text(out / "people.json", json.dumps({
-            "people": summary, "frames": len(kin.frames),
-            "participants": sum(p["role"] == "participant" for p in summary),
-            "participant_rule": f"followed in at least {PARTICIPANT_MIN_SHARE:.0%} of the frames (else transient)",
-            "cameras": rig.names, "rule": PEOPLE_RULE}, indent=2) + "\n")
+        if not finished and (out / "people.json").is_file():  # an earlier run's complete list is kept
+            log(f"{out / 'people.json'}: kept (this run stopped after {len(results)} of {people.n_people} people)")
+        else:
+            atomic_write_text(out / "people.json", json.dumps({
+                "people": summary, "frames": len(kin.frames),
+                "participants": sum(p["role"] == "participant" for p in summary),
+                "participant_rule": f"followed in at least {PARTICIPANT_MIN_SHARE:.0%} of the frames (else transient)",
+                "cameras": rig.names, "rule": PEOPLE_RULE}, indent=2) + "\n")
         if own:
             observer.close()
     stopped = STOPPED_INTERRUPTED if any(r.stopped for _, _, r in results) else ""
@@ -521,6 +644,7 @@ def _person_lines(result: RunResult) -> list:
                      + ", ".join(f"{c} {o:.1f}" for c, o in m["mean_offset_px"].items()))
         lines.append(f"  mean ray distance: {1000 * m['mean_ray_distance_m']:.1f} mm; frames breaking an "
                      f"anthropometric constraint: {m['frames_breaking_constraints']}")
+    lines += [f"  warning: {w}" for w in m.get("warnings", [])]
     lines.append(f"  3D joints:     {files['3D joints']}")
     lines += [f"  trajectories:  {p}" for p in result.extra["exported"]]
     lines += [f"  {k + ':':14s} {files[k]}" for k in ("offsets", "flips", "2D joints", "anthropometry")]

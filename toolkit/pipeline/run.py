@@ -24,11 +24,13 @@ here, once:
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import os
+import signal
+import threading
 import time
-import tomllib
 import types
 import typing
 from dataclasses import dataclass, field
@@ -38,6 +40,7 @@ from toolkit.errors import InputError
 from toolkit.io.atomic import atomic_write_text
 from toolkit.io.frames import frame_filename
 from toolkit.io.runs import dataset_fingerprint, run_recording, start_run
+from toolkit.io.text import load_toml
 from toolkit.pipeline.parallel import ParallelConfig, ReportBuffer, map_tasks, replay
 
 #: Sub-folder of a run's output holding one JSON record per finished frame.
@@ -214,13 +217,7 @@ def load_config(cls, path: str | os.PathLike | None, **overrides):
     """
     data = {}
     if path is not None:
-        p = Path(path)
-        try:
-            data = tomllib.loads(p.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise InputError(str(p), "a TOML config file", "no such file") from None
-        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
-            raise InputError(str(p), "a TOML config file", f"unreadable: {e}") from None
+        data = load_toml(path, "a TOML config file")
     config = config_from_dict(cls, data, where=str(path) if path is not None else cls.__name__)
     given = {k: v for k, v in overrides.items() if v is not None}
     return dataclasses.replace(config, **given) if given else config
@@ -274,6 +271,45 @@ class FrameRecords:
             except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
                 raise InputError(str(p), "a frame record (JSON) written by this run", f"unreadable: {e}") from None
         return out
+
+
+def check_frames_held(out: str | os.PathLike, n_frames: int, held: int, *, what: str = "finished frames") -> None:
+    """Refuse a run of fewer frames than its folder already holds results of (the same run, resumed).
+
+    The frame count (``--max-frames``) is not part of a run's identity, so a
+    second run with a smaller one resumes the folder; it would then write the
+    run's summaries (poses, metrics) for its first ``n_frames`` only, over
+    those of every frame the folder holds.
+
+    Parameters
+    ----------
+    out : path
+        The run's output folder.
+    n_frames : int
+        Frames this run covers.
+    held : int
+        Frames the folder holds results of (the highest finished frame + 1).
+    what : str
+        What the folder holds, for the message.
+
+    Raises
+    ------
+    InputError
+        ``held > n_frames``.
+    """
+    if held > n_frames:
+        raise InputError(str(out), f"a run of at least the {held} frames the folder holds {what} of (its summaries "
+                         "cover them all)", f"a run of {n_frames} frames (a smaller frame limit): give a limit "
+                         f"of {held} frames or more, or none, or another --out")
+
+
+def _records_held(out: Path) -> int:
+    """The highest frame index with a record in ``out/frames/``, plus one (0: none)."""
+    folder = Path(out) / FRAMES_DIR
+    if not folder.is_dir():
+        return 0
+    idx = [int(p.stem) for p in folder.glob("*.json") if p.stem.isdigit()]
+    return max(idx) + 1 if idx else 0
 
 
 @dataclass(frozen=True)
@@ -332,11 +368,14 @@ def open_run(out: str | os.PathLike, recipe: str, dataset_root, config, n_frames
     Raises
     ------
     InputError
-        ``out`` holds another run's results (and not ``replace_stale``).
+        ``out`` holds another run's results (and not ``replace_stale``), or
+        finished frames of this run beyond ``n_frames`` (:func:`check_frames_held`).
     """
-    identity = {"recipe": recipe, "dataset": dataset_fingerprint(dataset_root),
+    identity = {"recipe": recipe, "dataset": dataset_fingerprint(dataset_root, exclude=(out,)),
                 "config": config_identity(config, exclude=exclude), **(extra or {})}
     resumed = start_run(out, identity, replace_stale=replace_stale, log=log)
+    if resumed:
+        check_frames_held(out, n_frames, _records_held(Path(out)))
     records = FrameRecords(Path(out), n_frames)
     rec = rec_id = None
     if resumed:  # a killed run's recording parts: one file again before this part is named
@@ -395,6 +434,31 @@ class RunResult:
         return self.finished == self.frames
 
 
+@contextlib.contextmanager
+def terminate_as_interrupt():
+    """While the body runs, SIGTERM (``kill``, a job scheduler's stop) stops it as Ctrl-C does.
+
+    Python ends on SIGTERM without running ``finally`` blocks, so a run
+    stopped so lost what it held (its last results, the end of its
+    recording).  Inside this context SIGTERM raises :class:`KeyboardInterrupt`
+    in the main thread instead, and the run's Ctrl-C path keeps what is
+    finished.  Outside the main thread (where signals cannot be caught) it
+    does nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum, _frame):
+        raise KeyboardInterrupt(f"signal {signal.Signals(signum).name}")
+
+    old = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
 @dataclass(frozen=True)
 class _FrameCall:
     """One frame's task as the workers run it: ``task(*args, observer=...)``, its reports kept."""
@@ -420,7 +484,8 @@ def run_frames(task, frames, *, total: int, parallel: ParallelConfig = ParallelC
     ``observer`` in frame order by this process, which alone writes the
     recording; after each frame the observer's ``checkpoint()`` (where it has
     one) closes a part of the recording, so a run killed outright leaves a
-    recording that opens.  With one worker the same task runs in this process
+    recording that opens.  SIGTERM stops the loop as Ctrl-C does
+    (:func:`terminate_as_interrupt`).  With one worker the same task runs in this process
     (:func:`~toolkit.pipeline.parallel.map_tasks`).
 
     Parameters
@@ -463,8 +528,9 @@ def run_frames(task, frames, *, total: int, parallel: ParallelConfig = ParallelC
 
     t0 = time.perf_counter()
     try:
-        map_tasks(_FrameCall(task, observer is not None), frames, parallel=parallel, on_result=finished,
-                  total=total, progress=progress, desc=desc, unit="frame")
+        with terminate_as_interrupt():
+            map_tasks(_FrameCall(task, observer is not None), frames, parallel=parallel, on_result=finished,
+                      total=total, progress=progress, desc=desc, unit="frame")
     except KeyboardInterrupt:
         stopped = STOPPED_INTERRUPTED
     return processed, stopped, time.perf_counter() - t0

@@ -172,6 +172,45 @@ class RenderResult:
 UNDERLAY_MAX_FRONT = 1
 
 
+def _fan_billboards(model: BillboardModel):
+    """The billboards of every fan, by fan and camera.
+
+    Parameters
+    ----------
+    model : BillboardModel
+        ``F`` fans, ``C`` cameras.
+
+    Returns
+    -------
+    anchors : ndarray of shape (F, 3)
+        Middle of each fan's axis, metres.
+    normals : ndarray of shape (F, C, 3)
+        Billboard normals (``(0, 0, 1)`` where a camera has no billboard).
+    points : ndarray of shape (F, C, 3)
+        Billboard centres (the anchor where a camera has none), metres.
+    present : ndarray of shape (F, C), bool
+        A camera has a billboard in the fan.
+    borrowed : ndarray of shape (F, C), bool
+        The billboard is a stand-in borrowed from another source.
+    """
+    names = model.rig.names
+    n_f, n_c = len(model.fans), len(names)
+    anchors = np.array([f.axis.mean(axis=0) for f in model.fans]).reshape(n_f, 3)
+    normals = np.zeros((n_f, n_c, 3))
+    points = np.repeat(anchors[:, None], n_c, axis=1)
+    present = np.zeros((n_f, n_c), bool)
+    borrowed = np.zeros((n_f, n_c), bool)
+    for i, f in enumerate(model.fans):
+        for b in f.billboards:
+            j = names.index(b.camera)
+            normals[i, j] = b.normal
+            points[i, j] = b.center
+            present[i, j] = True
+            borrowed[i, j] = bool(getattr(b, "borrowed", False))
+    normals[~present] = (0.0, 0.0, 1.0)
+    return anchors, normals, points, present, borrowed
+
+
 def fan_weights(model: BillboardModel, camera: Camera, config: BlendConfig = BlendConfig()) -> CameraWeights:
     """Camera weights (eqs. 5, 7, fade) of every fan of ``model`` for the view ``camera``.
 
@@ -206,21 +245,8 @@ def fan_weights(model: BillboardModel, camera: Camera, config: BlendConfig = Ble
 
     ``omega`` of the result is relative to each fan's nearest camera (1 there).
     """
-    names = model.rig.names
-    n_f, n_c = len(model.fans), len(names)
-    anchors = np.array([f.axis.mean(axis=0) for f in model.fans]).reshape(n_f, 3)
-    normals = np.zeros((n_f, n_c, 3))
-    points = np.repeat(anchors[:, None], n_c, axis=1)
-    present = np.zeros((n_f, n_c), bool)
-    borrowed = np.zeros((n_f, n_c), bool)
-    for i, f in enumerate(model.fans):
-        for b in f.billboards:
-            j = names.index(b.camera)
-            normals[i, j] = b.normal
-            points[i, j] = b.center
-            present[i, j] = True
-            borrowed[i, j] = bool(getattr(b, "borrowed", False))
-    normals[~present] = (0.0, 0.0, 1.0)
+    n_f, n_c = len(model.fans), len(model.rig.names)
+    anchors, normals, points, present, borrowed = _fan_billboards(model)
     src, eye = model.rig.centers, camera.center
     w = camera_weights(anchors, eye, src, angle_sigma=config.angle_sigma,
                        attenuation_sigma_m=config.attenuation_sigma_m)
@@ -546,6 +572,181 @@ def _jump(rgb: np.ndarray) -> np.ndarray:
     return j
 
 
+def _fan_layers(model: BillboardModel, i: int, camera: Camera, warper: Warper, cw: CameraWeights,
+                config: BlendConfig, centers: dict, free_deg: dict, sections: dict, px_per_m_i: float) -> list:
+    """The billboards of fan ``i`` brought into the view, each with its camera index.
+
+    Parameters
+    ----------
+    model : BillboardModel
+    i : int
+        The fan.
+    camera : Camera
+        The view.
+    warper : Warper
+    cw : CameraWeights
+        The fans' camera weights for the view.
+    config : BlendConfig
+    centers : dict of str to ndarray of shape (3,)
+        The source cameras' centres by name, metres.
+    free_deg : dict of int to float
+        Free turning angle per part, degrees.
+    sections : dict of int to ndarray
+        Cross-section ratios of the parts that have them.
+    px_per_m_i : float
+        Image scale at the fan, pixels per metre.
+
+    Returns
+    -------
+    list of (int, tuple)
+        ``(camera index, (rgb, alpha, (x0, y0, x1, y1)))`` per billboard drawn (the warper's output).
+    """
+    fan = model.fans[i]
+    names = model.rig.names
+    weight = cw.weight  # (F, C): omega * f (fade folded into alpha below)
+    eye = camera.center
+    layers = []
+    depth_m = config.thickness * part_depth(fan) if config.face_view and config.thickness > 0 else 0.0
+    widths = view_widths(fan, centers, eye) if config.face_view and config.view_width else {}
+    ratio = sections.get(fan.part)
+    if config.face_view and ratio is not None:
+        widths = section_widths(fan, centers, eye, model.joints, ratio) or widths
+    for b in fan.billboards:
+        j = names.index(b.camera)
+        if cw.fade[i, j] <= 0 or (weight[i, j] <= 0 and j != cw.nearest[i]):
+            continue
+        pose = facing_pose(b, eye, free_deg.get(b.part, config.turn_free_deg)) if config.face_view else None
+        if pose is not None and widths:  # the part's width from this view, not the source's
+            k = 1.0 + (widths.get(b.camera, 1.0) - 1.0) * (1.0 - float(omega(cw.beta[i, j], config.angle_sigma)))
+            pose = stretch_across(pose, b, k)
+        got = warper(b, camera, pose)
+        back_m = depth_m * _steeper(b, model.rig.centers[j], eye) if pose is not None else 0.0
+        if back_m * px_per_m_i >= MIN_BACK_PX:  # the part's far side, seen by a view steeper than the source
+            got = _front_over_back(got, warper(b, camera, behind_pose(pose, b, eye, back_m)))
+        if got is None:
+            continue
+        if getattr(b, "borrowed", False):  # a stand-in its source did not see: faded out near that source,
+            keep = np.float32(1.0 - float(omega(cw.beta[i, j], BORROW_FADE_SIGMA)))
+            got = (got[0], got[1] * keep, got[2])
+            if b.original is not None:  # under what that source did see of the limb
+                o = b.original
+                po = facing_pose(o, eye, free_deg.get(o.part, config.turn_free_deg)) if config.face_view else None
+                got = _front_over_back(warper(o, camera, po), got)
+            if got is None:
+                continue
+        layers.append((j, got))
+    return layers
+
+
+def _blend_fan(layers: list, i: int, cw: CameraWeights, config: BlendConfig):
+    """Blend the layers of fan ``i``: colour by eq. 8, alpha by eq. 10, weights eq. 9.
+
+    Parameters
+    ----------
+    layers : list of (int, tuple)
+        From :func:`_fan_layers` (not empty).
+    i : int
+        The fan.
+    cw : CameraWeights
+    config : BlendConfig
+
+    Returns
+    -------
+    box : tuple of int
+        ``(x0, y0, x1, y1)`` of the blend in the view, pixels.
+    colour : ndarray of shape (h, w, 3), float32
+    a_v : ndarray of shape (h, w), float32
+        Alpha 0..1.
+    dom : ndarray of shape (h, w), int8
+        The camera of the largest weight per pixel (-1 none).
+    """
+    x0 = min(g[2][0] for _, g in layers)
+    y0 = min(g[2][1] for _, g in layers)
+    x1 = max(g[2][2] for _, g in layers)
+    y1 = max(g[2][3] for _, g in layers)
+    shape = (y1 - y0, x1 - x0)
+    num = np.zeros(shape + (3,), np.float32)
+    den = np.zeros(shape, np.float32)
+    a_num = np.zeros(shape, np.float32)
+    a_den = np.zeros(shape, np.float32)
+    a_near = np.zeros(shape, np.float32)
+    best = np.zeros(shape, np.float32)
+    dom = np.full(shape, -1, np.int8)
+    for j, (c, a, (lx0, ly0, lx1, ly1)) in layers:
+        sl = (slice(ly0 - y0, ly1 - y0), slice(lx0 - x0, lx1 - x0))
+        if config.binary_alpha:
+            a = (a >= 0.5).astype(np.float32)
+        a = a * np.float32(cw.fade[i, j])
+        wj = a * np.float32(cw.omega[i, j] * cw.attenuation[i, j])  # eq. 9
+        num[sl] += c * wj[..., None]
+        den[sl] += wj
+        a_num[sl] += a * wj
+        a_den[sl] += a * np.float32(cw.omega[i, j])
+        if j == cw.nearest[i]:
+            a_near[sl] = a
+        better = wj > best[sl]
+        best[sl] = np.where(better, wj, best[sl])
+        dom[sl] = np.where(better, j, dom[sl])
+    colour = num / np.maximum(den, 1e-12)[..., None]  # eq. 8
+    a_v = np.where(a_near > 0, a_near, a_num / np.maximum(a_den, 1e-12))  # eq. 10
+    a_v = np.where(den > 1e-12, np.clip(a_v, 0.0, 1.0), 0.0).astype(np.float32)
+    return (x0, y0, x1, y1), colour, a_v, dom
+
+
+def _discontinuities(rgb: np.ndarray, alpha: np.ndarray, top: np.ndarray, dominant: np.ndarray, drawn_box: tuple,
+                     model: BillboardModel, camera: Camera, config: BlendConfig) -> tuple[np.ndarray, np.ndarray]:
+    """The discontinuities of the render and their smoothing (``rgb`` and ``alpha`` changed in place).
+
+    Parameters
+    ----------
+    rgb : ndarray of shape (H, W, 3), float32
+    alpha : ndarray of shape (H, W), float32
+    top : ndarray of shape (H, W), uint8
+        Top fan's part per pixel (0 none).
+    dominant : ndarray of shape (H, W), int8
+        Camera of the largest weight per pixel.
+    drawn_box : tuple of int
+        ``(x0, y0, x1, y1)`` of everything drawn, one pixel wider, clipped to the image.
+    model : BillboardModel
+    camera : Camera
+        The view.
+    config : BlendConfig
+
+    Returns
+    -------
+    disc : ndarray of shape (H, W), bool
+        The discontinuities.
+    smoothed : ndarray of shape (H, W), bool
+        The band smoothed around them.
+    """
+    h_img, w_img = top.shape
+    bx0, by0, bx1, by1 = drawn_box
+    box = (slice(by0, by1), slice(bx0, bx1))
+    disc = np.zeros((h_img, w_img), bool)
+    smoothed = np.zeros_like(disc)
+    # subject against background: always; between fans or where another camera takes over: only where
+    # the colour actually jumps (a visible seam), so the inside of a part stays sharp
+    t_box = top[box]
+    inner = (_edges(t_box) & (t_box > 0)) | (_edges(dominant[box]) & (t_box > 0))
+    disc[box] = _edges(t_box > 0) | (inner & (_jump(rgb[box]) > config.smoothing_min_jump))
+    # smoothing strength: 0 on a source camera (exact reproduction), -> 1 far from all of them
+    strength = float(attenuation(np.min(np.linalg.norm(model.rig.centers - camera.center, axis=1)),
+                                 config.attenuation_sigma_m))
+    if config.smoothing and strength > 0 and disc[box].any():
+        pad = config.smoothing_band_px + int(np.ceil(3 * config.smoothing_sigma_px)) + 1
+        sl = (slice(max(by0 - pad, 0), min(by1 + pad, h_img)), slice(max(bx0 - pad, 0), min(bx1 + pad, w_img)))
+        k = 2 * config.smoothing_band_px + 1
+        band = cv2.dilate(disc[sl].astype(np.uint8), np.ones((k, k), np.uint8)) > 0
+        stack = np.dstack([rgb[sl], alpha[sl]])
+        blur = cv2.GaussianBlur(stack, (0, 0), config.smoothing_sigma_px, borderType=cv2.BORDER_REPLICATE)
+        mix = (band * np.float32(strength))[..., None]
+        stack = stack + mix * (blur - stack)
+        rgb[sl] = stack[..., :3]
+        alpha[sl] = stack[..., 3]
+        smoothed[sl] = band
+    return disc, smoothed
+
+
 def composite(model: BillboardModel, camera: Camera, warper: Warper, config: BlendConfig = BlendConfig(),
               observer: Observer | None = None, frame: int | None = None) -> RenderResult:
     """Render the billboard model into ``camera`` with view-dependent blending.
@@ -579,81 +780,21 @@ def composite(model: BillboardModel, camera: Camera, warper: Warper, config: Ble
         return RenderResult(rgb, alpha, top, dominant, z, z, None, (), STATUS_EMPTY_MODEL)
     names = model.rig.names
     cw = fan_weights(model, camera, config)
-    weight = cw.weight  # (F, C): omega * f (fade folded into alpha below)
     depth = camera.depth_of(np.array([f.axis.mean(axis=0) for f in model.fans]))
     px_per_m = float(camera.K[0, 0]) / np.maximum(depth, 1e-6)  # image scale at each fan
     order = [i for i in np.argsort(-depth, kind="stable") if depth[i] > 0]
     drawn = []
     centers = dict(zip(names, model.rig.centers))
-    eye = camera.center
     free_deg = config.free_angles_deg()
     sections = config.section_ratio_ids()
     bx0, by0, bx1, by1 = w_img, h_img, 0, 0  # box of everything drawn
     for i in order:
         fan = model.fans[i]
-        layers = []
-        depth_m = config.thickness * part_depth(fan) if config.face_view and config.thickness > 0 else 0.0
-        widths = view_widths(fan, centers, eye) if config.face_view and config.view_width else {}
-        ratio = sections.get(fan.part)
-        if config.face_view and ratio is not None:
-            widths = section_widths(fan, centers, eye, model.joints, ratio) or widths
-        for b in fan.billboards:
-            j = names.index(b.camera)
-            if cw.fade[i, j] <= 0 or (weight[i, j] <= 0 and j != cw.nearest[i]):
-                continue
-            pose = facing_pose(b, eye, free_deg.get(b.part, config.turn_free_deg)) if config.face_view else None
-            if pose is not None and widths:  # the part's width from this view, not the source's
-                k = 1.0 + (widths.get(b.camera, 1.0) - 1.0) * (1.0 - float(omega(cw.beta[i, j], config.angle_sigma)))
-                pose = stretch_across(pose, b, k)
-            got = warper(b, camera, pose)
-            back_m = depth_m * _steeper(b, model.rig.centers[j], eye) if pose is not None else 0.0
-            if back_m * px_per_m[i] >= MIN_BACK_PX:  # the part's far side, seen by a view steeper than the source
-                got = _front_over_back(got, warper(b, camera, behind_pose(pose, b, eye, back_m)))
-            if got is None:
-                continue
-            if getattr(b, "borrowed", False):  # a stand-in its source did not see: faded out near that source,
-                keep = np.float32(1.0 - float(omega(cw.beta[i, j], BORROW_FADE_SIGMA)))
-                got = (got[0], got[1] * keep, got[2])
-                if b.original is not None:  # under what that source did see of the limb
-                    o = b.original
-                    po = facing_pose(o, eye, free_deg.get(o.part, config.turn_free_deg)) if config.face_view else None
-                    got = _front_over_back(warper(o, camera, po), got)
-                if got is None:
-                    continue
-            layers.append((j, got))
+        layers = _fan_layers(model, i, camera, warper, cw, config, centers, free_deg, sections, px_per_m[i])
         if not layers:
             continue
-        x0 = min(g[2][0] for _, g in layers)
-        y0 = min(g[2][1] for _, g in layers)
-        x1 = max(g[2][2] for _, g in layers)
-        y1 = max(g[2][3] for _, g in layers)
+        (x0, y0, x1, y1), colour, a_v, dom = _blend_fan(layers, i, cw, config)
         bx0, by0, bx1, by1 = min(bx0, x0), min(by0, y0), max(bx1, x1), max(by1, y1)
-        shape = (y1 - y0, x1 - x0)
-        num = np.zeros(shape + (3,), np.float32)
-        den = np.zeros(shape, np.float32)
-        a_num = np.zeros(shape, np.float32)
-        a_den = np.zeros(shape, np.float32)
-        a_near = np.zeros(shape, np.float32)
-        best = np.zeros(shape, np.float32)
-        dom = np.full(shape, -1, np.int8)
-        for j, (c, a, (lx0, ly0, lx1, ly1)) in layers:
-            sl = (slice(ly0 - y0, ly1 - y0), slice(lx0 - x0, lx1 - x0))
-            if config.binary_alpha:
-                a = (a >= 0.5).astype(np.float32)
-            a = a * np.float32(cw.fade[i, j])
-            wj = a * np.float32(cw.omega[i, j] * cw.attenuation[i, j])  # eq. 9
-            num[sl] += c * wj[..., None]
-            den[sl] += wj
-            a_num[sl] += a * wj
-            a_den[sl] += a * np.float32(cw.omega[i, j])
-            if j == cw.nearest[i]:
-                a_near[sl] = a
-            better = wj > best[sl]
-            best[sl] = np.where(better, wj, best[sl])
-            dom[sl] = np.where(better, j, dom[sl])
-        colour = num / np.maximum(den, 1e-12)[..., None]  # eq. 8
-        a_v = np.where(a_near > 0, a_near, a_num / np.maximum(a_den, 1e-12))  # eq. 10
-        a_v = np.where(den > 1e-12, np.clip(a_v, 0.0, 1.0), 0.0).astype(np.float32)
         sl = (slice(y0, y1), slice(x0, x1))
         rgb[sl] = colour * a_v[..., None] + rgb[sl] * (1.0 - a_v[..., None])  # fans occlude: "over"
         alpha[sl] = a_v + alpha[sl] * (1.0 - a_v)
@@ -666,29 +807,7 @@ def composite(model: BillboardModel, camera: Camera, warper: Warper, config: Ble
         return RenderResult(rgb, alpha, top, dominant, z, z, cw, (), STATUS_ALL_BEHIND)
     # discontinuities, inside the box of what was drawn (one pixel more for the background border)
     bx0, by0, bx1, by1 = max(bx0 - 1, 0), max(by0 - 1, 0), min(bx1 + 1, w_img), min(by1 + 1, h_img)
-    box = (slice(by0, by1), slice(bx0, bx1))
-    disc = np.zeros((h_img, w_img), bool)
-    smoothed = np.zeros_like(disc)
-    # subject against background: always; between fans or where another camera takes over: only where
-    # the colour actually jumps (a visible seam), so the inside of a part stays sharp
-    t_box = top[box]
-    inner = (_edges(t_box) & (t_box > 0)) | (_edges(dominant[box]) & (t_box > 0))
-    disc[box] = _edges(t_box > 0) | (inner & (_jump(rgb[box]) > config.smoothing_min_jump))
-    # smoothing strength: 0 on a source camera (exact reproduction), -> 1 far from all of them
-    strength = float(attenuation(np.min(np.linalg.norm(model.rig.centers - camera.center, axis=1)),
-                                 config.attenuation_sigma_m))
-    if config.smoothing and strength > 0 and disc[box].any():
-        pad = config.smoothing_band_px + int(np.ceil(3 * config.smoothing_sigma_px)) + 1
-        sl = (slice(max(by0 - pad, 0), min(by1 + pad, h_img)), slice(max(bx0 - pad, 0), min(bx1 + pad, w_img)))
-        k = 2 * config.smoothing_band_px + 1
-        band = cv2.dilate(disc[sl].astype(np.uint8), np.ones((k, k), np.uint8)) > 0
-        stack = np.dstack([rgb[sl], alpha[sl]])
-        blur = cv2.GaussianBlur(stack, (0, 0), config.smoothing_sigma_px, borderType=cv2.BORDER_REPLICATE)
-        mix = (band * np.float32(strength))[..., None]
-        stack = stack + mix * (blur - stack)
-        rgb[sl] = stack[..., :3]
-        alpha[sl] = stack[..., 3]
-        smoothed[sl] = band
+    disc, smoothed = _discontinuities(rgb, alpha, top, dominant, (bx0, by0, bx1, by1), model, camera, config)
     result = RenderResult(rgb, alpha, top, dominant, disc, smoothed, cw, tuple(drawn))
     obs = as_observer(observer)
     extra = {} if frame is None else {"frame": frame}

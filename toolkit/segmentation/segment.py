@@ -298,6 +298,259 @@ def _label_posterior(feats, sil, confident, uncertain, labels, template_labels, 
     return out
 
 
+def _frame_inputs(image, silhouette, joints3d, camera: Camera, plate):
+    """Check the inputs of :func:`segment_frame`.
+
+    Parameters
+    ----------
+    image, silhouette, joints3d, camera, plate
+        As :func:`segment_frame`.
+
+    Returns
+    -------
+    img : ndarray of shape (H, W, 3), uint8
+    sil : ndarray of shape (H, W), bool
+    X : ndarray of shape (14, 3) or None
+        The joints, None when not given or all missing.
+    plate : ndarray of shape (H, W, 3), uint8, or None
+
+    Raises
+    ------
+    InputError
+        Shapes or dtypes wrong.
+    """
+    img = np.asarray(image)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise InputError("segment_frame: image", "an (H, W, 3) uint8 RGB image", f"shape {img.shape} {img.dtype}")
+    sil = np.asarray(silhouette)
+    if sil.shape != img.shape[:2]:
+        raise InputError("segment_frame: silhouette", f"shape {img.shape[:2]}", f"shape {sil.shape}")
+    sil = sil.astype(bool)
+    if plate is not None:
+        plate = np.asarray(plate)
+        if plate.shape != img.shape or plate.dtype != np.uint8:
+            raise InputError("segment_frame: plate", f"a {img.shape} uint8 RGB image",
+                             f"shape {plate.shape} {plate.dtype}")
+    if (camera.height, camera.width) != img.shape[:2]:
+        raise InputError("segment_frame: camera", f"image size {img.shape[1::-1]}", f"size {camera.size}")
+    X = None
+    if joints3d is not None:
+        X = np.asarray(joints3d, float)
+        if X.shape != (14, 3):
+            raise InputError("segment_frame: joints3d", "an array of shape (14, 3)", f"shape {X.shape}")
+        if not np.isfinite(X).any():
+            X = None
+    return img, sil, X, plate
+
+
+def _label_uncertain_pixels(feats: np.ndarray, unc_b: np.ndarray, lab_b: np.ndarray, tmpl_b: np.ndarray,
+                            models, n_parts: int, config: SegmentationConfig) -> np.ndarray:
+    """Label the uncertain pixels by colour with the rules other than ``"posterior"``.
+
+    Parameters
+    ----------
+    feats : ndarray of shape (h, w, F)
+        Colour features of the silhouette's box.
+    unc_b : ndarray of shape (h, w), bool
+        Uncertain pixels of the box (at least one).
+    lab_b : ndarray of shape (h, w), uint8
+        Labels of the box (confident pixels labelled); written in place.
+    tmpl_b : ndarray of shape (h, w), uint8
+        The template's labels of the box.
+    models : PartColourModels
+    n_parts : int
+    config : SegmentationConfig
+
+    Returns
+    -------
+    ndarray of shape (h, w), uint8
+        ``lab_b`` with the uncertain pixels labelled (part ids 1..n_parts).
+    """
+    if models.models:
+        ll = models.log_likelihood(feats[unc_b])  # -inf for parts without a model
+        dist = None
+        if config.rule == "colour_then_nearest":
+            # parts without a model stay candidates where the template puts them: colour score
+            # the best modelled part's minus the margin, distance to their template pixels
+            ll = np.where(np.isfinite(ll), ll, ll.max(1, keepdims=True) - config.colour_margin)
+            dist = np.full(ll.shape, np.inf)
+            for p in range(1, n_parts + 1):
+                own = p in models.models and config.spatial_anchor == "confident"
+                seed = (lab_b == p) if own else (tmpl_b == p)
+                if seed.any():
+                    dt = cv2.distanceTransform((~seed).astype(np.uint8), cv2.DIST_L2, 3)
+                    dist[:, p - 1] = dt[unc_b]
+        lab_b[unc_b] = (label_uncertain(ll, config.rule, config.colour_margin, dist) + 1).astype(np.uint8)
+    else:
+        near = _nearest_label(tmpl_b)
+        lab_b[unc_b] = near[unc_b] if near.any() else FALLBACK_PART
+    return lab_b
+
+
+def _close_parts(labels_b: np.ndarray, sb: np.ndarray, part_depth: np.ndarray, r_close: int) -> np.ndarray:
+    """Close each part's label mask with a disc, back to front, inside the silhouette.
+
+    Parameters
+    ----------
+    labels_b : ndarray of shape (h, w), uint8
+        Part labels of the silhouette's box.
+    sb : ndarray of shape (h, w), bool
+        The silhouette in the box.
+    part_depth : ndarray of shape (n_parts,)
+        Depth of each part, metres (non-finite: unseen).
+    r_close : int
+        Radius of the disc, pixels (> 0).
+
+    Returns
+    -------
+    ndarray of shape (h, w), uint8
+        The closed labels (nearer parts drawn over farther ones).
+    """
+    k = disc(r_close)
+    depth_rank = np.where(np.isfinite(part_depth), part_depth, np.inf)
+    order = np.argsort(-depth_rank, kind="stable")  # far first; unseen parts (inf) first of all
+    out_b = labels_b.copy()
+    cur_b = labels_b
+    for i in order:
+        p = i + 1
+        m = (cur_b == p).astype(np.uint8)
+        if not m.any():
+            continue
+        closed = cv2.morphologyEx(m, cv2.MORPH_CLOSE, k) > 0
+        out_b[closed & sb] = p
+    return out_b
+
+
+def _part_models(feats: np.ndarray, conf_b: np.ndarray, thin_b: np.ndarray, n_parts: int,
+                 config: SegmentationConfig):
+    """Colour models of the parts from their confident pixels.
+
+    Parameters
+    ----------
+    feats : ndarray of shape (h, w, F)
+        Colour features of the silhouette's box.
+    conf_b : ndarray of shape (h, w), bool
+        Confident pixels of the box.
+    thin_b : ndarray of shape (h, w), uint8
+        The thinned template's labels of the box.
+    n_parts : int
+    config : SegmentationConfig
+
+    Returns
+    -------
+    PartColourModels
+    """
+    return fit_part_models(feats[conf_b], thin_b[conf_b], n_parts, n_components=config.n_components,
+                           min_pixels=config.min_pixels, max_pixels=config.max_pixels,
+                           reg_covar=config.reg_covar, space=config.colour_space, rng=config.seed)
+
+
+def _plate_refined(sil_b: np.ndarray, feats: np.ndarray, plate_b: np.ndarray, models, thin_b: np.ndarray,
+                   config: SegmentationConfig) -> np.ndarray:
+    """The silhouette's border checked against the background plate (:mod:`toolkit.segmentation.plate`).
+
+    Parameters
+    ----------
+    sil_b : ndarray of shape (h, w), bool
+        The silhouette in its box.
+    feats : ndarray of shape (h, w, F)
+        Colour features of the image's box.
+    plate_b : ndarray of shape (h, w, 3), uint8
+        The plate's box.
+    models : PartColourModels
+    thin_b : ndarray of shape (h, w), uint8
+        The thinned template's labels of the box.
+    config : SegmentationConfig
+
+    Returns
+    -------
+    ndarray of shape (h, w), bool
+        The refined silhouette of the box.
+    """
+    return refine_silhouette(sil_b, feats, colour_features(plate_b, config.colour_space),
+                             models, config.plate_min_contrast, config.plate_ring_px,
+                             thin_b > 0 if config.plate_fill_template else None,
+                             config.plate_leave_alpha, config.plate_join_alpha)
+
+
+def _report_segmentation(obs, proj: TemplateProjection, confident: np.ndarray, uncertain: np.ndarray,
+                         labels: np.ndarray, models, extra: dict) -> None:
+    """Report the template's labels, the confident and uncertain masks, the parts and the colour models.
+
+    Parameters
+    ----------
+    obs : Observer
+    proj : TemplateProjection
+    confident, uncertain : ndarray of shape (H, W), bool
+    labels : ndarray of shape (H, W), uint8
+        The final part labels.
+    models : PartColourModels
+    extra : dict
+        Camera name and frame of the reports.
+    """
+    missing = models.parts_without_model
+    names = SKELETON_14.part_names
+    obs.report("labels", labels=proj.thin, name="segmentation/template_thin", **extra)
+    obs.report("labels", labels=proj.thick, name="segmentation/template_thick", **extra)
+    obs.report("mask", mask=confident, name="segmentation/confident", **extra)
+    obs.report("mask", mask=uncertain, name="segmentation/uncertain", **extra)
+    obs.report("labels", labels=labels, name="segmentation/parts", **extra)
+    obs.report("text", name="segmentation/models", text=models.summary(names), **extra)
+    obs.report("text", name="segmentation/parts_without_model",
+               text=", ".join(names[p - 1] for p in missing) if missing else "(none)", **extra)
+
+
+def _empty_result(shape: tuple[int, int], n_parts: int) -> SegmentationResult:
+    """All background, every part without a model: no joints and an empty silhouette.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        ``(H, W)``.
+    n_parts : int
+
+    Returns
+    -------
+    SegmentationResult
+    """
+    h, w = shape
+    return SegmentationResult(np.zeros((h, w), np.uint8), np.zeros((h, w), bool),
+                              np.full((h, w), np.nan, np.float32), tuple(range(1, n_parts + 1)),
+                              np.zeros((h, w), np.uint8), np.zeros((h, w), np.uint8), None, None)
+
+
+def _uncertain_labels(feats: np.ndarray, sil_b: np.ndarray, conf_b: np.ndarray, unc_b: np.ndarray,
+                      lab_b: np.ndarray, tmpl_b: np.ndarray, models, hpx: float, n_parts: int,
+                      config: SegmentationConfig) -> np.ndarray:
+    """The labels of the silhouette's box with its uncertain pixels labelled by ``config.rule``.
+
+    Parameters
+    ----------
+    feats : ndarray of shape (h, w, F)
+        Colour features of the box.
+    sil_b, conf_b, unc_b : ndarray of shape (h, w), bool
+        Silhouette, confident and uncertain pixels of the box.
+    lab_b : ndarray of shape (h, w), uint8
+        Labels of the box (confident pixels labelled); may be written in place.
+    tmpl_b : ndarray of shape (h, w), uint8
+        The template's labels of the box.
+    models : PartColourModels
+    hpx : float
+        The subject's height in the image, pixels.
+    n_parts : int
+    config : SegmentationConfig
+
+    Returns
+    -------
+    ndarray of shape (h, w), uint8
+    """
+    if config.rule == "posterior":
+        return _label_posterior(feats, sil_b, conf_b, unc_b, lab_b, tmpl_b, models, hpx, config)
+    if unc_b.any():
+        return _label_uncertain_pixels(feats, unc_b, lab_b, tmpl_b, models, n_parts, config)
+    return lab_b
+
+
 def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarray | None, camera: Camera,
                   template: Template, config: SegmentationConfig = SegmentationConfig(), observer=None, *,
                   joints2d: np.ndarray | None = None, database: PoseDatabase | None = None,
@@ -344,39 +597,16 @@ def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarra
         Shapes or dtypes wrong.  (No joints and an empty silhouette give an
         all-background result with every part listed as without a model.)
     """
-    img = np.asarray(image)
-    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
-        raise InputError("segment_frame: image", "an (H, W, 3) uint8 RGB image", f"shape {img.shape} {img.dtype}")
-    sil = np.asarray(silhouette)
-    if sil.shape != img.shape[:2]:
-        raise InputError("segment_frame: silhouette", f"shape {img.shape[:2]}", f"shape {sil.shape}")
-    sil = sil.astype(bool)
-    if plate is not None:
-        plate = np.asarray(plate)
-        if plate.shape != img.shape or plate.dtype != np.uint8:
-            raise InputError("segment_frame: plate", f"a {img.shape} uint8 RGB image",
-                             f"shape {plate.shape} {plate.dtype}")
-    if (camera.height, camera.width) != img.shape[:2]:
-        raise InputError("segment_frame: camera", f"image size {img.shape[1::-1]}", f"size {camera.size}")
+    img, sil, X, plate = _frame_inputs(image, silhouette, joints3d, camera, plate)
     cam = camera
-    X = None
-    if joints3d is not None:
-        X = np.asarray(joints3d, float)
-        if X.shape != (14, 3):
-            raise InputError("segment_frame: joints3d", "an array of shape (14, 3)", f"shape {X.shape}")
-        if not np.isfinite(X).any():
-            X = None
     obs = as_observer(observer)
     extra = {"camera": cam.name} | ({} if frame is None else {"frame": frame})
     n_parts = len(SKELETON_14.parts)
-    h, w = sil.shape
 
     no_joints = X is None and (joints2d is None or np.isfinite(np.asarray(joints2d, float)).all(-1).sum() < 3)
     if no_joints and not sil.any():  # nothing to fit to and nothing to label
         obs.report("text", name="segmentation/parts_without_model", text="(no joints, empty silhouette)", **extra)
-        return SegmentationResult(np.zeros((h, w), np.uint8), np.zeros((h, w), bool),
-                                  np.full((h, w), np.nan, np.float32), tuple(range(1, n_parts + 1)),
-                                  np.zeros((h, w), np.uint8), np.zeros((h, w), np.uint8), None, None)
+        return _empty_result(sil.shape, n_parts)
 
     # 1. template
     pose = fit_template_pose(cam, joints2d, X, database, subject_height=template.height, silhouette=sil,
@@ -393,17 +623,12 @@ def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarra
     by, bx = _box(sil | (proj.labels > 0), 2)
     feats = colour_features(img[by, bx], config.colour_space)
     conf_b = confident[by, bx]
-    models = fit_part_models(feats[conf_b], proj.thin[by, bx][conf_b], n_parts, n_components=config.n_components,
-                             min_pixels=config.min_pixels, max_pixels=config.max_pixels,
-                             reg_covar=config.reg_covar, space=config.colour_space, rng=config.seed)
+    models = _part_models(feats, conf_b, proj.thin[by, bx], n_parts, config)
 
     # 3b. the silhouette's border against the background plate (toolkit.segmentation.plate)
     if plate is not None and sil.any():
         sil = sil.copy()
-        sil[by, bx] = refine_silhouette(sil[by, bx], feats, colour_features(plate[by, bx], config.colour_space),
-                                        models, config.plate_min_contrast, config.plate_ring_px,
-                                        proj.thin[by, bx] > 0 if config.plate_fill_template else None,
-                                        config.plate_leave_alpha, config.plate_join_alpha)
+        sil[by, bx] = _plate_refined(sil[by, bx], feats, plate[by, bx], models, proj.thin[by, bx], config)
         confident &= sil
         uncertain = sil & ~confident
         labels[~sil] = 0
@@ -411,63 +636,18 @@ def segment_frame(image: np.ndarray, silhouette: np.ndarray, joints3d: np.ndarra
 
     # 4. uncertain pixels
     unc_b = uncertain[by, bx]
-    lab_b = labels[by, bx]
-    if config.rule == "posterior":
-        lab_b = _label_posterior(feats, sil[by, bx], conf_b, unc_b, lab_b, proj.labels[by, bx], models, hpx,
-                                 config)
-        labels[by, bx] = lab_b
-    elif unc_b.any():
-        if models.models:
-            ll = models.log_likelihood(feats[unc_b])  # -inf for parts without a model
-            dist = None
-            if config.rule == "colour_then_nearest":
-                # parts without a model stay candidates where the template puts them: colour score
-                # the best modelled part's minus the margin, distance to their template pixels
-                ll = np.where(np.isfinite(ll), ll, ll.max(1, keepdims=True) - config.colour_margin)
-                dist = np.full(ll.shape, np.inf)
-                tmpl_b = proj.labels[by, bx]
-                for p in range(1, n_parts + 1):
-                    own = p in models.models and config.spatial_anchor == "confident"
-                    seed = (lab_b == p) if own else (tmpl_b == p)
-                    if seed.any():
-                        dt = cv2.distanceTransform((~seed).astype(np.uint8), cv2.DIST_L2, 3)
-                        dist[:, p - 1] = dt[unc_b]
-            lab_b[unc_b] = (label_uncertain(ll, config.rule, config.colour_margin, dist) + 1).astype(np.uint8)
-        else:
-            near = _nearest_label(proj.labels[by, bx])
-            lab_b[unc_b] = near[unc_b] if near.any() else FALLBACK_PART
-        labels[by, bx] = lab_b
+    labels[by, bx] = _uncertain_labels(feats, sil[by, bx], conf_b, unc_b, labels[by, bx], proj.labels[by, bx],
+                                       models, hpx, n_parts, config)
     colour_labels = labels.copy()
 
     # 5. closing, back to front
     r_close = int(round(config.closing_fraction * hpx))
     if r_close > 0 and sil.any():
-        k = disc(r_close)
-        depth_rank = np.where(np.isfinite(proj.part_depth), proj.part_depth, np.inf)
-        order = np.argsort(-depth_rank, kind="stable")  # far first; unseen parts (inf) first of all
-        sb = sil[by, bx]
-        out_b = labels[by, bx].copy()
-        cur_b = labels[by, bx]
-        for i in order:
-            p = i + 1
-            m = (cur_b == p).astype(np.uint8)
-            if not m.any():
-                continue
-            closed = cv2.morphologyEx(m, cv2.MORPH_CLOSE, k) > 0
-            out_b[closed & sb] = p
-        labels[by, bx] = out_b
+        labels[by, bx] = _close_parts(labels[by, bx], sil[by, bx], proj.part_depth, r_close)
     labels[~sil] = 0
 
     missing = models.parts_without_model
-    names = SKELETON_14.part_names
-    obs.report("labels", labels=proj.thin, name="segmentation/template_thin", **extra)
-    obs.report("labels", labels=proj.thick, name="segmentation/template_thick", **extra)
-    obs.report("mask", mask=confident, name="segmentation/confident", **extra)
-    obs.report("mask", mask=uncertain, name="segmentation/uncertain", **extra)
-    obs.report("labels", labels=labels, name="segmentation/parts", **extra)
-    obs.report("text", name="segmentation/models", text=models.summary(names), **extra)
-    obs.report("text", name="segmentation/parts_without_model",
-               text=", ".join(names[p - 1] for p in missing) if missing else "(none)", **extra)
+    _report_segmentation(obs, proj, confident, uncertain, labels, models, extra)
     return SegmentationResult(labels, confident, proj.depth.astype(np.float32), missing, proj.labels,
                               colour_labels, pose, models)
 

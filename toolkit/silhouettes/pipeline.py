@@ -197,25 +197,8 @@ class SilhouettePoseEstimator:
         if flows is not None and len(flows) != self.n_views:
             raise InputError("flows", f"one flow field (or None) per camera ({self.n_views})", f"{len(flows)}")
         t_start = time.perf_counter()
-        n_views, k = self.n_views, self.config.query.k
-        states = np.zeros(n_views, np.uint8)
-        boxes = np.full((n_views, 4), np.nan)
-        cands: list[Candidates | None] = [None] * n_views
-        cand_px = np.full((n_views, k, _J, 2), np.nan)
-        pool: list[tuple[np.ndarray, np.ndarray] | None] = [None] * n_views
-        for v in range(n_views):
-            state, box, c = self._view(v, masks[v], frame, None if flows is None else flows[v])
-            states[v] = state
-            if box is not None:
-                boxes[v] = box
-            if c is not None:
-                px = c.joints_px(box)
-                pk = self.config.pool_k  # the query returned max(k, pool_k) entries
-                pool[v] = (px[:pk], np.asarray(c.errors, float)[:pk])
-                c = _first(c, k)
-                cands[v] = c
-                cand_px[v, :len(c)] = px[:k]
-                self._report_candidates(v, c, cand_px[v], frame)
+        n_views = self.n_views
+        states, boxes, cands, cand_px, pool = self._query_views(masks, frame, flows)
         t_query = time.perf_counter() - t_start
         usable = states == STATE_OK
         poses = np.full((n_views, _J, 2), np.nan)
@@ -260,12 +243,86 @@ class SilhouettePoseEstimator:
                                      + " database entries per view"
                                      + ("" if res.success else "; triangulation failed, the selection's pose kept"))
         t_multiview = time.perf_counter() - t_start - t_query - t_edits
-        # the temporal term of the next frame uses this frame's chosen database pose (not pooled) in its own
-        # box; corrected views their corrected pose
+        self._remember(poses, chosen, edited, boxes)
+        self._report_frame(poses, joints, states, fstate, frame)
+        return FrameEstimate(frame, fstate, states, boxes, tuple(cands), cand_px, poses, offsets, joints, cost,
+                             edited, tuple(added), sel,
+                             {"query": t_query, "multiview": t_multiview, "edits": t_edits})
+
+    def _query_views(self, masks, frame: int, flows):
+        """Query the database with every view's silhouette.
+
+        Parameters
+        ----------
+        masks : sequence of (ndarray of shape (H, W), bool, or None)
+        frame : int
+        flows : sequence of (ndarray of shape (H, W, 2) or None) or None
+
+        Returns
+        -------
+        states : ndarray of uint8, shape (n_views,)
+            Silhouette state per view.
+        boxes : ndarray of shape (n_views, 4)
+            Silhouette boxes, pixels (NaN none).
+        cands : list of (Candidates or None)
+            The ``k`` best database entries per view.
+        cand_px : ndarray of shape (n_views, k, 14, 2)
+            Their 2D poses, pixels.
+        pool : list of (tuple or None)
+            Per view, the ``pool_k`` best 2D poses (pool_k, 14, 2) and their errors.
+        """
+        n_views, k = self.n_views, self.config.query.k
+        states = np.zeros(n_views, np.uint8)
+        boxes = np.full((n_views, 4), np.nan)
+        cands: list[Candidates | None] = [None] * n_views
+        cand_px = np.full((n_views, k, _J, 2), np.nan)
+        pool: list[tuple[np.ndarray, np.ndarray] | None] = [None] * n_views
         for v in range(n_views):
+            state, box, c = self._view(v, masks[v], frame, None if flows is None else flows[v])
+            states[v] = state
+            if box is not None:
+                boxes[v] = box
+            if c is not None:
+                px = c.joints_px(box)
+                pk = self.config.pool_k  # the query returned max(k, pool_k) entries
+                pool[v] = (px[:pk], np.asarray(c.errors, float)[:pk])
+                c = _first(c, k)
+                cands[v] = c
+                cand_px[v, :len(c)] = px[:k]
+                self._report_candidates(v, c, cand_px[v], frame)
+        return states, boxes, cands, cand_px, pool
+
+    def _remember(self, poses: np.ndarray, chosen: np.ndarray, edited: np.ndarray, boxes: np.ndarray) -> None:
+        """Keep each view's pose for the temporal term of the next frame.
+
+        The chosen database pose (not pooled) in its own box; corrected views their corrected pose.
+
+        Parameters
+        ----------
+        poses : ndarray of shape (n_views, 14, 2)
+            The frame's 2D poses (corrections applied), pixels.
+        chosen : ndarray of shape (n_views, 14, 2)
+            The selection's database poses, pixels.
+        edited : ndarray of shape (n_views,), bool
+        boxes : ndarray of shape (n_views, 4)
+        """
+        for v in range(self.n_views):
             p = poses[v] if edited[v] else chosen[v]
             ok = np.isfinite(boxes[v]).all() and np.isfinite(p).all()
             self._previous[v] = normalise_joints(p, boxes[v]) if ok else None
+
+    def _report_frame(self, poses: np.ndarray, joints: np.ndarray, states: np.ndarray, fstate: int,
+                      frame: int) -> None:
+        """Report the frame's 2D poses, 3D joints and states.
+
+        Parameters
+        ----------
+        poses : ndarray of shape (n_views, 14, 2)
+        joints : ndarray of shape (14, 3)
+        states : ndarray of uint8, shape (n_views,)
+        fstate : int
+        frame : int
+        """
         P = REPORT_PREFIX
         for v, cam in enumerate(self.rig):
             if np.isfinite(poses[v]).any():
@@ -277,9 +334,6 @@ class SilhouettePoseEstimator:
                              text=f"frame {frame}: {FRAME_STATES[fstate]}; views: "
                                   + ", ".join(f"{c.name} {SILHOUETTE_STATES[int(s)]}" for c, s in zip(self.rig, states)),
                              level="INFO" if fstate == FRAME_OK else "WARN")
-        return FrameEstimate(frame, fstate, states, boxes, tuple(cands), cand_px, poses, offsets, joints, cost,
-                             edited, tuple(added), sel,
-                             {"query": t_query, "multiview": t_multiview, "edits": t_edits})
 
     def _pool(self, pool, boxes, poses):
         """Each view's chosen pose replaced by the weighted mean of the database entries that agree with it
@@ -402,6 +456,106 @@ def stack_estimates(estimates: Sequence[FrameEstimate | None], n_frames: int, ca
                         candidates=cand, candidate_errors=cerr, candidate_index=cidx, edited=edited)
 
 
+def _rig_and_frames(dataset, rig: Rig | None, frames) -> tuple[Rig, list[int]]:
+    """The cameras and the frames to process, checked against the dataset.
+
+    Parameters
+    ----------
+    dataset : toolkit.io.Dataset
+    rig : Rig or None
+        Default ``dataset.rig``.
+    frames : sequence of int or None
+        Default all.
+
+    Returns
+    -------
+    rig : Rig
+    todo : list of int
+        Increasing frame indices.
+
+    Raises
+    ------
+    InputError
+        A camera the dataset lacks, or frames not increasing within the dataset.
+    """
+    rig = dataset.rig if rig is None else rig
+    names = rig.names
+    unknown = [c for c in names if c not in dataset.camera_names]
+    if unknown:
+        raise InputError("rig", f"cameras of the dataset {dataset.camera_names}", f"{unknown}")
+    todo = list(range(dataset.n_frames)) if frames is None else [int(t) for t in frames]
+    if any(b <= a for a, b in zip(todo, todo[1:])) or (todo and not 0 <= todo[0] <= todo[-1] < dataset.n_frames):
+        raise InputError("frames", f"increasing frame indices in [0, {dataset.n_frames})", f"{todo[:5]}...")
+    return rig, todo
+
+
+class _CameraFeed:
+    """One camera's frames through its foreground extractor, with the state kept between frames.
+
+    Parameters
+    ----------
+    name : str
+        The camera.
+    read : callable
+        Frame index -> (H, W, 3) uint8 image; raises ``InputError`` or ``IndexError`` past the video's end.
+    extractor : ForegroundExtractor
+        Fitted to the camera's background.
+    obs : Observer
+    use_flow : bool
+        Estimate the motion since the previous frame (dense optical flow).
+    log_images : bool
+        Report each image.
+    """
+
+    def __init__(self, name: str, read, extractor, obs, use_flow: bool, log_images: bool):
+        self.name, self.read, self.extractor, self.obs = name, read, extractor, obs
+        self.use_flow, self.log_images = use_flow, log_images
+        self.ended = False
+        self.previous: tuple | None = None
+        self.last: tuple[int, np.ndarray] | None = None
+
+    def step(self, t: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """The silhouette of frame ``t`` and the motion since frame ``t - 1``.
+
+        Parameters
+        ----------
+        t : int
+            Frame index (increasing between calls).
+
+        Returns
+        -------
+        mask : ndarray of shape (H, W), bool, or None
+            None when the video has no frame ``t``.
+        flow : ndarray of shape (H, W, 2) or None
+            Pixels; None without flow or without the previous frame.
+        """
+        from toolkit.foreground import dense_flow
+
+        c, obs = self.name, self.obs
+        frame = None
+        if not self.ended:
+            try:
+                frame = self.read(t)
+            except (InputError, IndexError) as e:
+                self.ended = True
+                obs.report("text", name=f"{REPORT_PREFIX}/{c}", level="WARN", frame=t,
+                           text=f"frame {t}: {c} has no more frames ({e}); its view is left out")
+        if frame is None:
+            self.previous = None
+            return None, None
+        if self.use_flow and self.last is not None and self.last[0] == t - 1:
+            # motion since the previous frame: minus the flow from this frame back to it
+            flow = -dense_flow(frame, self.last[1])
+        else:
+            flow = None
+        self.last = (t, frame)
+        if self.log_images:
+            obs.report("image", camera=c, image=frame, frame=t)
+        sil = self.extractor.extract(frame, self.previous)
+        self.previous = (frame, sil.mask) if sil.usable else None
+        return sil.mask, flow
+
+
 def estimate_dataset(dataset, database: SilhouetteDatabase, config: Stage1Config | None = None, *,
                      foreground=None, frames: Sequence[int] | None = None, edits=None, rig: Rig | None = None,
                      backgrounds=None, observer=None, log_images: bool = True
@@ -452,18 +606,12 @@ def estimate_dataset(dataset, database: SilhouetteDatabase, config: Stage1Config
     gives ``None`` masks from then on (state "no video frame"); the other
     cameras go on.
     """
-    from toolkit.foreground import ForegroundExtractor, dense_flow
+    from toolkit.foreground import ForegroundExtractor
     from toolkit.io import VideoReader
 
     obs = as_observer(observer)
-    rig = dataset.rig if rig is None else rig
+    rig, todo = _rig_and_frames(dataset, rig, frames)
     names = rig.names
-    unknown = [c for c in names if c not in dataset.camera_names]
-    if unknown:
-        raise InputError("rig", f"cameras of the dataset {dataset.camera_names}", f"{unknown}")
-    todo = list(range(dataset.n_frames)) if frames is None else [int(t) for t in frames]
-    if any(b <= a for a, b in zip(todo, todo[1:])) or (todo and not 0 <= todo[0] <= todo[-1] < dataset.n_frames):
-        raise InputError("frames", f"increasing frame indices in [0, {dataset.n_frames})", f"{todo[:5]}...")
     estimator = SilhouettePoseEstimator(rig, database, config, observer)
     if backgrounds is None:  # the dataset's clean plates, where it has them
         plate = getattr(dataset, "background", None)  # readers without clean plates have none
@@ -478,39 +626,14 @@ def estimate_dataset(dataset, database: SilhouetteDatabase, config: Stage1Config
         extractors = {c: ForegroundExtractor(foreground).fit(backgrounds[c] if c in backgrounds else readers[c])
                       for c in names}
         setup = (time.perf_counter() - t_setup) / max(len(todo), 1)  # each frame's share of the background models
-        ended: dict[str, bool] = {c: False for c in names}
-        previous: dict[str, tuple | None] = {c: None for c in names}
-        last: dict[str, tuple[int, np.ndarray] | None] = {c: None for c in names}
         use_flow = estimator.config.query.flow_weight > 0
+        feeds = [_CameraFeed(c, (lambda t, c=c: shared(c, t)) if shared is not None else readers[c].read,
+                             extractors[c], obs, use_flow, log_images) for c in names]
         for t in todo:
             t0 = time.perf_counter()
-            masks: list = []
-            flows: list = []
-            for c in names:
-                frame = None
-                if not ended[c]:
-                    try:
-                        frame = shared(c, t) if shared is not None else readers[c].read(t)
-                    except (InputError, IndexError) as e:
-                        ended[c] = True
-                        obs.report("text", name=f"{REPORT_PREFIX}/{c}", level="WARN", frame=t,
-                                   text=f"frame {t}: {c} has no more frames ({e}); its view is left out")
-                if frame is None:
-                    masks.append(None)
-                    flows.append(None)
-                    previous[c] = None
-                    continue
-                if use_flow and last[c] is not None and last[c][0] == t - 1:
-                    # motion since the previous frame: minus the flow from this frame back to it
-                    flows.append(-dense_flow(frame, last[c][1]))
-                else:
-                    flows.append(None)
-                last[c] = (t, frame)
-                if log_images:
-                    obs.report("image", camera=c, image=frame, frame=t)
-                sil = extractors[c].extract(frame, previous[c])
-                previous[c] = (frame, sil.mask) if sil.usable else None
-                masks.append(sil.mask)
+            steps = [feed.step(t) for feed in feeds]
+            masks = [mask for mask, _ in steps]
+            flows = [flow for _, flow in steps]
             t_fg = time.perf_counter() - t0
             est = estimator.step(masks, t, None if edits is None else edits.for_frame(t), flows if use_flow else None)
             est.timings["foreground"] = t_fg

@@ -220,6 +220,96 @@ def _spacings_deg(rig: Rig, joints: np.ndarray) -> list[float]:
     return [round(float(g), 1) for g in gaps]
 
 
+def _scene_info(spec: SceneSpec, scene) -> dict:
+    """The scene's ``groundtruth/scene_info.json``: seed, layout, calibration errors, subject, outfit, spacing.
+
+    Parameters
+    ----------
+    spec : SceneSpec
+    scene : Scene
+        From :func:`build_scene`.
+
+    Returns
+    -------
+    dict
+        JSON-serialisable.
+    """
+    several = bool(scene.players)
+    info = {
+        "seed": spec.seed,
+        "layout": spec.layout,
+        "calibration_error_px_target": spec.calibration_error_px,
+        "calibration_error_px": dict(zip(scene.rig.names, map(float, scene.calibration_errors_px))),
+        "subject_height_px": dict(zip(scene.rig.names, _subject_heights_px(scene.rig, scene.joints))),
+        "stature_m": scene.proportions.height,
+        "motion": spec.motion,
+        "light_dir": scene.light_dir.tolist(),
+        "outfit": {"pattern": scene.body.shape.pattern_kind, "long_sleeves": scene.body.shape.long_sleeves,
+                   "long_trousers": scene.body.shape.long_trousers, "kind": spec.outfit,
+                   "shirt_rgb": [round(float(v), 3) for v in scene.body.shape.colours[2]],
+                   "trousers_rgb": [round(float(v), 3) for v in scene.body.shape.colours[3]]},
+        "camera_spacing_deg": _spacings_deg(scene.rig, scene.people_joints.reshape(-1, *scene.joints.shape[1:])),
+        "novel_placement": spec.novel_placement,
+    }
+    if several:
+        info.update(_players_info(scene))
+    return info
+
+
+def _render_view(writer: DatasetWriter, obs, renderer, caster: Raycaster, cam, t: int, meshes: list,
+                 ids: np.ndarray, novel: bool, several: bool, joints2d_t: np.ndarray | None) -> None:
+    """Render one camera's frame ``t``, write its image, mask, parts (depth, instances) and report them.
+
+    Parameters
+    ----------
+    writer : DatasetWriter
+    obs : Observer
+    renderer
+        The colour renderer, bodies set for frame ``t``.
+    caster : Raycaster
+        Gives the part labels, subject ids and depth.
+    cam : Camera
+    t : int
+        Frame index.
+    meshes : list of Mesh
+        The posed bodies.
+    ids : ndarray of uint8, shape (n_bodies + 1,)
+        Person id of the caster's body ``i + 1`` (0: none).
+    novel : bool
+        A novel (held-out) view: no depth and no 2D joints written or reported.
+    several : bool
+        Several people: instance masks too.
+    joints2d_t : ndarray of shape (14, 2) or None
+        The camera's ground-truth 2D joints of frame ``t``, pixels (None for a novel view).
+    """
+    rgb = renderer.render(cam)
+    labels, subject, depth = caster.cast(cam, meshes)
+    mask = subject > 0
+    if novel:
+        writer.write_novel_image(cam.name, t, rgb)
+        writer.write_novel_mask(cam.name, t, mask)
+        writer.write_novel_parts(cam.name, t, labels)
+        if several:
+            writer.write_novel_instances(cam.name, t, ids[subject])
+        root = "world/novel"
+    else:
+        writer.write_frame(cam.name, t, rgb)
+        writer.write_mask(cam.name, t, mask)
+        writer.write_parts(cam.name, t, labels)
+        writer.write_depth(cam.name, t, depth)
+        if several:
+            writer.write_instances(cam.name, t, ids[subject])
+        root = "world/cams"
+    cam_path = f"{root}/{cam.name}"
+    obs.report("image", frame=t, camera=cam_path, image=rgb)
+    obs.report("labels", frame=t, camera=cam_path, labels=labels, name="groundtruth/parts")
+    if not novel:
+        obs.report("depth", frame=t, camera=cam_path, depth=np.nan_to_num(depth),
+                   name="groundtruth/depth")
+        obs.report("joints2d", frame=t, camera=cam_path, joints=joints2d_t,
+                   name="groundtruth/joints2d", skeleton=SKELETON_14)
+
+
 def generate_scene(spec: SceneSpec, out: str | Path, observer: Observer | None = None, progress: bool = True):
     """Render ``spec`` into the dataset folder ``out``.
 
@@ -259,24 +349,7 @@ def generate_scene(spec: SceneSpec, out: str | Path, observer: Observer | None =
         several = bool(scene.players)  # a [players] table: per-person ground truth too
         if several:
             writer.write_people(scene.people_joints, SKELETON_14.joint_names)
-        info = {
-            "seed": spec.seed,
-            "layout": spec.layout,
-            "calibration_error_px_target": spec.calibration_error_px,
-            "calibration_error_px": dict(zip(scene.rig.names, map(float, scene.calibration_errors_px))),
-            "subject_height_px": dict(zip(scene.rig.names, _subject_heights_px(scene.rig, scene.joints))),
-            "stature_m": scene.proportions.height,
-            "motion": spec.motion,
-            "light_dir": scene.light_dir.tolist(),
-            "outfit": {"pattern": scene.body.shape.pattern_kind, "long_sleeves": scene.body.shape.long_sleeves,
-                       "long_trousers": scene.body.shape.long_trousers, "kind": spec.outfit,
-                       "shirt_rgb": [round(float(v), 3) for v in scene.body.shape.colours[2]],
-                       "trousers_rgb": [round(float(v), 3) for v in scene.body.shape.colours[3]]},
-            "camera_spacing_deg": _spacings_deg(scene.rig, scene.people_joints.reshape(-1, *scene.joints.shape[1:])),
-            "novel_placement": spec.novel_placement,
-        }
-        if several:
-            info.update(_players_info(scene))
+        info = _scene_info(spec, scene)
         atomic_write_text(out / "groundtruth" / "scene_info.json", json.dumps(info, indent=2))
 
         obs.report("rig", rig=scene.rig, path="world/cams")
@@ -307,32 +380,8 @@ def generate_scene(spec: SceneSpec, out: str | Path, observer: Observer | None =
                            skeleton=SKELETON_14)
             for rig, novel in ((scene.rig, False), (scene.novel, True)):
                 for cam in rig:
-                    rgb = renderer.render(cam)
-                    labels, subject, depth = caster.cast(cam, meshes)
-                    mask = subject > 0
-                    if novel:
-                        writer.write_novel_image(cam.name, t, rgb)
-                        writer.write_novel_mask(cam.name, t, mask)
-                        writer.write_novel_parts(cam.name, t, labels)
-                        if several:
-                            writer.write_novel_instances(cam.name, t, ids[subject])
-                        root = "world/novel"
-                    else:
-                        writer.write_frame(cam.name, t, rgb)
-                        writer.write_mask(cam.name, t, mask)
-                        writer.write_parts(cam.name, t, labels)
-                        writer.write_depth(cam.name, t, depth)
-                        if several:
-                            writer.write_instances(cam.name, t, ids[subject])
-                        root = "world/cams"
-                    cam_path = f"{root}/{cam.name}"
-                    obs.report("image", frame=t, camera=cam_path, image=rgb)
-                    obs.report("labels", frame=t, camera=cam_path, labels=labels, name="groundtruth/parts")
-                    if not novel:
-                        obs.report("depth", frame=t, camera=cam_path, depth=np.nan_to_num(depth),
-                                   name="groundtruth/depth")
-                        obs.report("joints2d", frame=t, camera=cam_path, joints=joints2d[cam.name][t],
-                                   name="groundtruth/joints2d", skeleton=SKELETON_14)
+                    _render_view(writer, obs, renderer, caster, cam, t, meshes, ids, novel, several,
+                                 None if novel else joints2d[cam.name][t])
         if spec.depth_camera is not None:
             dspec = DepthCameraSpec.from_table(spec.depth_camera, spec.source)
             render_depth_camera(out, dspec, scene.body, scene.joints, scene.rngs["depth"], observer=obs, fps=spec.fps)

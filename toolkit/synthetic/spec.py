@@ -320,6 +320,175 @@ def _players(d: dict, source: str, layout: str, subject_motion: str) -> PlayersS
                        height_m=heights, spread_m=spread, players=tuple(overrides))
 
 
+def _subject_table(d: dict, source: str, base_dir: Path | None) -> tuple:
+    """Parse the ``[subject]`` table.
+
+    Parameters
+    ----------
+    d : dict
+        The spec's TOML.
+    source : str
+        File name used in error messages.
+    base_dir : Path or None
+        Folder relative BVH paths are resolved against.
+
+    Returns
+    -------
+    tuple
+        ``(height_m, motion, outfit, shirt_rgb, trousers_rgb, pattern)``; ``motion`` a motion name or an
+        absolute ``.bvh`` path.
+
+    Raises
+    ------
+    InputError
+        A missing, mistyped or impossible value.
+    """
+    S = lambda k: f"{source}: {k}"  # noqa: E731
+    sub = _get(d, "subject", f"{source}: ", dict)
+    _check_keys(sub, {"height_m", "motion", "outfit", "shirt_rgb", "trousers_rgb", "pattern"}, "subject", source)
+    h = float(_get(sub, "height_m", f"{source}: subject.", (int, float)))
+    if not HEIGHT_RANGE_M[0] <= h <= HEIGHT_RANGE_M[1]:
+        raise InputError(S("subject.height_m"), f"a stature between {HEIGHT_RANGE_M[0]} and {HEIGHT_RANGE_M[1]} m",
+                         str(h))
+    motion = _get(sub, "motion", f"{source}: subject.", str)
+    if motion.lower().endswith(".bvh"):
+        p = Path(motion)
+        if not p.is_absolute() and base_dir is not None:
+            p = (base_dir / p).resolve()
+        if not p.is_file():
+            raise InputError(S("subject.motion"), "an existing .bvh file", f"{motion!r} (not found at {p})")
+        motion = str(p)
+    elif motion not in MOTIONS:
+        raise InputError(S("subject.motion"), f"one of {list(MOTIONS)} or a .bvh path", repr(motion))
+    outfit = _get(sub, "outfit", f"{source}: subject.", str, "random")
+    if outfit not in OUTFITS:
+        raise InputError(S("subject.outfit"), f"one of {list(OUTFITS)}", repr(outfit))
+    shirt_rgb = _rgb(sub, "shirt_rgb", "subject", source)
+    trousers_rgb = _rgb(sub, "trousers_rgb", "subject", source)
+    pattern = _get(sub, "pattern", f"{source}: subject.", str, None)
+    if pattern is not None and pattern not in PATTERNS:
+        raise InputError(S("subject.pattern"), f"one of {list(PATTERNS)}", repr(pattern))
+    return h, motion, outfit, shirt_rgb, trousers_rgb, pattern
+
+
+def _cameras_table(d: dict, source: str) -> tuple:
+    """Parse the ``[cameras]`` table.
+
+    Parameters
+    ----------
+    d : dict
+        The spec's TOML (a marker capture's cameras already filled in).
+    source : str
+
+    Returns
+    -------
+    tuple
+        ``(count, layout, resolution, calibration_error_px, spacing_deg, subject_px, heads, baseline_m)``.
+
+    Raises
+    ------
+    InputError
+        A missing, mistyped or impossible value.
+    """
+    S = lambda k: f"{source}: {k}"  # noqa: E731
+    cams = _get(d, "cameras", f"{source}: ", dict)
+    _check_keys(cams, {"count", "layout", "resolution", "calibration_error_px", "spacing_deg", "subject_px",
+                       "heads", "baseline_m"}, "cameras", source)
+    count = _get(cams, "count", f"{source}: cameras.", int)
+    if not 1 <= count <= MAX_CAMERAS:
+        raise InputError(S("cameras.count"), f"an integer from 1 to {MAX_CAMERAS}", str(count))
+    layout = _get(cams, "layout", f"{source}: cameras.", str)
+    if layout not in LAYOUTS:
+        raise InputError(S("cameras.layout"), f"one of {list(LAYOUTS)}", repr(layout))
+    res = _get(cams, "resolution", f"{source}: cameras.", list)
+    if (len(res) != 2 or not all(isinstance(v, int) and not isinstance(v, bool) for v in res)
+            or not all(16 <= v <= 8192 for v in res) or any(v % 2 for v in res)):
+        raise InputError(S("cameras.resolution"), "[width, height], even integers from 16 to 8192", repr(res))
+    err = float(_get(cams, "calibration_error_px", f"{source}: cameras.", (int, float), 0.0))
+    if not 0 <= err <= 100:
+        raise InputError(S("cameras.calibration_error_px"), "a value from 0 to 100 pixels", str(err))
+    spacing = _range(cams, "spacing_deg", "cameras", source, SPACING_RANGE_DEG)
+    spaced = max(count // 3, 1) if layout == "trinocular" else count  # trinocular: the heads are spaced
+    if spacing is not None and spaced > 1 and spacing[0] * (spaced - 1) > 360.0:
+        raise InputError(S("cameras.spacing_deg"), f"at most {360.0 / (spaced - 1):g} degrees for {spaced} "
+                         + ("heads" if layout == "trinocular" else "cameras"), repr(cams["spacing_deg"]))
+    subject_px = _range(cams, "subject_px", "cameras", source, SUBJECT_PX_RANGE)
+    if subject_px is not None and layout != "broadcast":
+        raise InputError(S("cameras.subject_px"), "no value for a studio (its cameras frame the whole volume)",
+                         repr(cams["subject_px"]))
+    heads, baseline = _trinocular(cams, layout, count, source)
+    return count, layout, res, err, spacing, subject_px, heads, baseline
+
+
+def _novel_table(d: dict, source: str) -> tuple[str, int]:
+    """Parse the ``[novel]`` table.
+
+    Parameters
+    ----------
+    d : dict
+        The spec's TOML.
+    source : str
+        File name used in error messages.
+
+    Returns
+    -------
+    placement : str
+    count : int
+        Number of novel views.
+
+    Raises
+    ------
+    InputError
+        A mistyped or impossible value.
+    """
+    S = lambda k: f"{source}: {k}"  # noqa: E731
+    novel = _get(d, "novel", f"{source}: ", dict, {})
+    _check_keys(novel, {"count", "placement"}, "novel", source)
+    placement = _get(novel, "placement", f"{source}: novel.", str, "between")
+    if placement not in NOVEL_PLACEMENTS:
+        raise InputError(S("novel.placement"), f"one of {list(NOVEL_PLACEMENTS)}", repr(placement))
+    ncount = _get(novel, "count", f"{source}: novel.", int, 0)
+    if not 0 <= ncount <= MAX_CAMERAS:
+        raise InputError(S("novel.count"), f"an integer from 0 to {MAX_CAMERAS}", str(ncount))
+    return placement, ncount
+
+
+def _render_table(d: dict, source: str) -> tuple[int, str, int]:
+    """Parse the ``[render]`` table.
+
+    Parameters
+    ----------
+    d : dict
+        The spec's TOML.
+    source : str
+        File name used in error messages.
+
+    Returns
+    -------
+    sample_count : int
+    engine : str
+    supersample : int
+
+    Raises
+    ------
+    InputError
+        A mistyped or impossible value.
+    """
+    S = lambda k: f"{source}: {k}"  # noqa: E731
+    render = _get(d, "render", f"{source}: ", dict, {})
+    _check_keys(render, {"sample_count", "engine", "supersample"}, "render", source)
+    sc = _get(render, "sample_count", f"{source}: render.", int, 1)
+    if sc not in (1, 2, 4, 8):
+        raise InputError(S("render.sample_count"), "1, 2, 4 or 8", str(sc))
+    engine = _get(render, "engine", f"{source}: render.", str, "raycast")
+    if engine not in ("raycast", "open3d"):
+        raise InputError(S("render.engine"), "'raycast' or 'open3d'", repr(engine))
+    ss = _get(render, "supersample", f"{source}: render.", int, 2)
+    if not 1 <= ss <= 4:
+        raise InputError(S("render.supersample"), "an integer from 1 to 4", str(ss))
+    return sc, engine, ss
+
+
 def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) -> SceneSpec:
     """Parse and validate a scene spec from TOML text.
 
@@ -353,30 +522,7 @@ def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) 
     fps = float(_get(d, "fps", f"{source}: ", (int, float)))
     if not 0 < fps <= 1000:
         raise InputError(S("fps"), "a frame rate in (0, 1000]", str(fps))
-    sub = _get(d, "subject", f"{source}: ", dict)
-    _check_keys(sub, {"height_m", "motion", "outfit", "shirt_rgb", "trousers_rgb", "pattern"}, "subject", source)
-    h = float(_get(sub, "height_m", f"{source}: subject.", (int, float)))
-    if not HEIGHT_RANGE_M[0] <= h <= HEIGHT_RANGE_M[1]:
-        raise InputError(S("subject.height_m"), f"a stature between {HEIGHT_RANGE_M[0]} and {HEIGHT_RANGE_M[1]} m",
-                         str(h))
-    motion = _get(sub, "motion", f"{source}: subject.", str)
-    if motion.lower().endswith(".bvh"):
-        p = Path(motion)
-        if not p.is_absolute() and base_dir is not None:
-            p = (base_dir / p).resolve()
-        if not p.is_file():
-            raise InputError(S("subject.motion"), "an existing .bvh file", f"{motion!r} (not found at {p})")
-        motion = str(p)
-    elif motion not in MOTIONS:
-        raise InputError(S("subject.motion"), f"one of {list(MOTIONS)} or a .bvh path", repr(motion))
-    outfit = _get(sub, "outfit", f"{source}: subject.", str, "random")
-    if outfit not in OUTFITS:
-        raise InputError(S("subject.outfit"), f"one of {list(OUTFITS)}", repr(outfit))
-    shirt_rgb = _rgb(sub, "shirt_rgb", "subject", source)
-    trousers_rgb = _rgb(sub, "trousers_rgb", "subject", source)
-    pattern = _get(sub, "pattern", f"{source}: subject.", str, None)
-    if pattern is not None and pattern not in PATTERNS:
-        raise InputError(S("subject.pattern"), f"one of {list(PATTERNS)}", repr(pattern))
+    h, motion, outfit, shirt_rgb, trousers_rgb, pattern = _subject_table(d, source, base_dir)
     markers = _get(d, "markers", f"{source}: ", dict, None)
     if markers is not None:  # a marker capture: its cameras are [markers].cameras, no videos are rendered
         if "cameras" in d:
@@ -385,51 +531,9 @@ def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) 
         m = MarkerSpec.from_table(markers, source)
         d["cameras"] = {"count": m.camera_count, "layout": "studio", "resolution": list(m.resolution),
                         "calibration_error_px": m.calibration_error_px}
-    cams = _get(d, "cameras", f"{source}: ", dict)
-    _check_keys(cams, {"count", "layout", "resolution", "calibration_error_px", "spacing_deg", "subject_px",
-                       "heads", "baseline_m"}, "cameras", source)
-    count = _get(cams, "count", f"{source}: cameras.", int)
-    if not 1 <= count <= MAX_CAMERAS:
-        raise InputError(S("cameras.count"), f"an integer from 1 to {MAX_CAMERAS}", str(count))
-    layout = _get(cams, "layout", f"{source}: cameras.", str)
-    if layout not in LAYOUTS:
-        raise InputError(S("cameras.layout"), f"one of {list(LAYOUTS)}", repr(layout))
-    res = _get(cams, "resolution", f"{source}: cameras.", list)
-    if (len(res) != 2 or not all(isinstance(v, int) and not isinstance(v, bool) for v in res)
-            or not all(16 <= v <= 8192 for v in res) or any(v % 2 for v in res)):
-        raise InputError(S("cameras.resolution"), "[width, height], even integers from 16 to 8192", repr(res))
-    err = float(_get(cams, "calibration_error_px", f"{source}: cameras.", (int, float), 0.0))
-    if not 0 <= err <= 100:
-        raise InputError(S("cameras.calibration_error_px"), "a value from 0 to 100 pixels", str(err))
-    spacing = _range(cams, "spacing_deg", "cameras", source, SPACING_RANGE_DEG)
-    spaced = max(count // 3, 1) if layout == "trinocular" else count  # trinocular: the heads are spaced
-    if spacing is not None and spaced > 1 and spacing[0] * (spaced - 1) > 360.0:
-        raise InputError(S("cameras.spacing_deg"), f"at most {360.0 / (spaced - 1):g} degrees for {spaced} "
-                         + ("heads" if layout == "trinocular" else "cameras"), repr(cams["spacing_deg"]))
-    subject_px = _range(cams, "subject_px", "cameras", source, SUBJECT_PX_RANGE)
-    if subject_px is not None and layout != "broadcast":
-        raise InputError(S("cameras.subject_px"), "no value for a studio (its cameras frame the whole volume)",
-                         repr(cams["subject_px"]))
-    heads, baseline = _trinocular(cams, layout, count, source)
-    novel = _get(d, "novel", f"{source}: ", dict, {})
-    _check_keys(novel, {"count", "placement"}, "novel", source)
-    placement = _get(novel, "placement", f"{source}: novel.", str, "between")
-    if placement not in NOVEL_PLACEMENTS:
-        raise InputError(S("novel.placement"), f"one of {list(NOVEL_PLACEMENTS)}", repr(placement))
-    ncount = _get(novel, "count", f"{source}: novel.", int, 0)
-    if not 0 <= ncount <= MAX_CAMERAS:
-        raise InputError(S("novel.count"), f"an integer from 0 to {MAX_CAMERAS}", str(ncount))
-    render = _get(d, "render", f"{source}: ", dict, {})
-    _check_keys(render, {"sample_count", "engine", "supersample"}, "render", source)
-    sc = _get(render, "sample_count", f"{source}: render.", int, 1)
-    if sc not in (1, 2, 4, 8):
-        raise InputError(S("render.sample_count"), "1, 2, 4 or 8", str(sc))
-    engine = _get(render, "engine", f"{source}: render.", str, "raycast")
-    if engine not in ("raycast", "open3d"):
-        raise InputError(S("render.engine"), "'raycast' or 'open3d'", repr(engine))
-    ss = _get(render, "supersample", f"{source}: render.", int, 2)
-    if not 1 <= ss <= 4:
-        raise InputError(S("render.supersample"), "an integer from 1 to 4", str(ss))
+    count, layout, res, err, spacing, subject_px, heads, baseline = _cameras_table(d, source)
+    placement, ncount = _novel_table(d, source)
+    sc, engine, ss = _render_table(d, source)
     depth = _get(d, "depth_camera", f"{source}: ", dict, None)
     players = _players(d, source, layout, motion)
     if players is not None and markers is not None:

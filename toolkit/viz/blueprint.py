@@ -158,6 +158,69 @@ def _overview_contents(seen: Iterable[str] | None) -> list[str]:
         + [f"+ $origin/{n}/**" for n in sorted(set(seen) - staged)]
 
 
+def _checked_names(camera_names: Iterable[str]) -> list[str]:
+    """The camera names as a list: non-empty strings, none repeated.
+
+    Parameters
+    ----------
+    camera_names : iterable of str
+
+    Returns
+    -------
+    list of str
+
+    Raises
+    ------
+    InputError
+        A name repeated, empty or not a string.
+    """
+    names = list(camera_names)
+    for n in names:
+        if not isinstance(n, str) or not n:
+            raise InputError("make_blueprint: camera_names", "non-empty str names", f"{n!r}")
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise InputError("make_blueprint: camera_names", "unique names", f"duplicates {dup}")
+    return names
+
+
+def _stage_tabs(names: list[str], overlays: Mapping[str, Iterable[str]] | None, cams_root: str, bounds,
+                controls) -> list:
+    """One tab per stage of :data:`STAGE_TABS`: the camera images with that stage's overlays only.
+
+    Parameters
+    ----------
+    names : list of str
+        Cameras, in display order.
+    overlays : mapping of str to iterable of str or None
+        Per camera, the overlay names seen so far (None: every stage with every camera).
+    cams_root : str
+        Root of the camera entities.
+    bounds : callable
+        Camera name -> initial visual bounds of its 2D views (or None).
+    controls : rerun.blueprint.EyeControls3D or None
+        The 3D view's eye.
+
+    Returns
+    -------
+    list of rerun.blueprint.Grid
+        The tabs of the stages some camera has overlays of.
+    """
+    tabs = []
+    for title, prefixes in STAGE_TABS:
+        cams = [n for n in names if overlays is None or set(prefixes) & set(overlays.get(n, ()))]
+        if not cams:
+            continue
+        contents = ["+ $origin", f"+ $origin/{SUBJECT_CROP}"] + [f"+ $origin/{p}/**" for p in prefixes]
+        views = [rrb.Spatial2DView(origin=image_path(n, cams_root), name=n, contents=contents, visual_bounds=bounds(n))
+                 for n in cams]
+        if title == STAGE_TABS[0][0]:  # the selection's rays and closest points in 3D
+            views.insert(0, rrb.Spatial3DView(origin=WORLD, name="3D: rays", eye_controls=controls,
+                                              contents=["+ $origin/**", "- $origin/optimize/**"]))
+        tabs.append(rrb.Grid(*views, name=title))
+    return tabs
+
+
 def make_blueprint(
     camera_names: Iterable[str],
     *,
@@ -217,13 +280,7 @@ def make_blueprint(
     InputError
         If a camera name is repeated or empty.
     """
-    names = list(camera_names)
-    for n in names:
-        if not isinstance(n, str) or not n:
-            raise InputError("make_blueprint: camera_names", "non-empty str names", f"{n!r}")
-    dup = sorted({n for n in names if names.count(n) > 1})
-    if dup:
-        raise InputError("make_blueprint: camera_names", "unique names", f"duplicates {dup}")
+    names = _checked_names(camera_names)
 
     def bounds(n):
         b = (subject_boxes or {}).get(n)
@@ -254,18 +311,7 @@ def make_blueprint(
         main = rrb.Horizontal(left_col, right_col, name="overview")
     else:
         main = rrb.Horizontal(left_col, name="overview")
-    tabs = [main]
-    for title, prefixes in STAGE_TABS:
-        cams = [n for n in names if overlays is None or set(prefixes) & set(overlays.get(n, ()))]
-        if not cams:
-            continue
-        contents = ["+ $origin", f"+ $origin/{SUBJECT_CROP}"] + [f"+ $origin/{p}/**" for p in prefixes]
-        views = [rrb.Spatial2DView(origin=image_path(n, cams_root), name=n, contents=contents, visual_bounds=bounds(n))
-                 for n in cams]
-        if title == STAGE_TABS[0][0]:  # the selection's rays and closest points in 3D
-            views.insert(0, rrb.Spatial3DView(origin=WORLD, name="3D: rays", eye_controls=controls,
-                                              contents=["+ $origin/**", "- $origin/optimize/**"]))
-        tabs.append(rrb.Grid(*views, name=title))
+    tabs = [main] + _stage_tabs(names, overlays, cams_root, bounds, controls)
     # the views get the room: blueprint and selection panels folded (one click opens them), the time
     # panel on the frame timeline
     panels = (rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
