@@ -38,7 +38,7 @@ prints the values, as a change to the current layout
 (``toolkit/softbody/model.py``: ``_primitives``), and the table after the
 change.  A biased layout biases the global fit's lengths: on noiseless
 points of the true mesh the global fit with the layout before 80bd066 raised the pelvis
-30-96 mm (``docs/benchmarks.md``, "The trunk's metaballs").  The
+30-96 mm (``docs/benchmarks.md``, soft-body section (the earlier runs: its git history)).  The
 outer-surface fit and the all-vertex fit disagree: the buried vertices pull
 the model in where the torso meets the thighs (fitted to every vertex, the
 band 0-0.1 m above the mid-hip stays 19 mm too thin even with a fourth

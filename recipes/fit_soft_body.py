@@ -15,7 +15,15 @@ or a dataset of trinocular stereo heads (``layout = "trinocular"``: cameras
 3k, 3k+1, 3k+2 are a head's reference, right and up cameras; the subject is
 found by the dataset's masks or its clean plates; the model is initialised from
 ``--init-joints FILE.npz`` (``joints`` (T, 14, 3) or (14, 3), metres, e.g. stage
-1's output) or from 2D joints clicked in two images, ``--clicks FILE.npz``).
+1's output), from 2D joints clicked in two images, ``--clicks FILE.npz``, or,
+with neither, from the built-in 2D detector's keypoints on each head's reference
+camera triangulated across the heads).
+
+Every tracked frame gets a confidence from its residuals, coverage and
+silhouettes; a frame it calls lost is searched for again (the depth tracker's
+skeleton, the detector's joints, poses near the last trusted one;
+``--no-recovery``: only said) and, if not found, is not written as tracked:
+its joints are NaN and the summary lists the trusted frames.
 
 Per frame the cloud is reduced to robust surface patches, the pose is tracked
 from frame to frame, then all postures, the bone lengths and the metaball
@@ -24,12 +32,15 @@ fits unrelated depth frames (e.g. the real Kinect stills) each on its own, from
 the depth tracker's skeleton of that frame.
 
 Writes ``OUT/joints.npz`` (``joints`` (T, 14, 3) metres, world; ``names``;
-``joints_tracking`` before the global fit; ``state`` per frame; ``params`` and
-``params_tracking`` (T, 47) the model's parameter vectors),
+``joints_tracking`` before the global fit; both NaN in frames not trusted; ``state``,
+``trusted``, ``recovered`` (found again after a loss) and ``confidence`` per frame;
+``params`` and ``params_tracking`` (T, 47) the model's parameter vectors, held
+poses in lost frames),
 ``OUT/body_model.json`` (stature and girth of the reference model, segment and
 bone lengths, widths, metaball centres, radii and weights), ``OUT/meshes/NNNNNN.ply`` with ``--meshes``,
-``OUT/metrics.json`` (frame states; with ground truth, MPJPE and bone-length
-error after tracking and after the global fit) and ``OUT/recording.rrd`` (the
+``OUT/metrics.json`` (frame states; ``trusted_frames``, ``lost_frames``,
+``recovered_frames``; with ground truth, MPJPE and bone-length error of the
+trusted frames after tracking and after the global fit) and ``OUT/recording.rrd`` (the
 clouds, patches, the model surface per frame, residuals coloured on the
 patches, joints, the fitted lengths over the iterations); with ``--images DIR``
 one PNG per frame, ``DIR/softbody_NNN.png``: the fitted surface with the points
@@ -74,6 +85,8 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--independent", action="store_true",
                     help="unrelated depth frames: each initialised from its own depth-tracker skeleton")
     ap.add_argument("--no-global-fit", action="store_true", help="track only (no lengths/widths fit)")
+    ap.add_argument("--no-recovery", action="store_true",
+                    help="say lost frames but do not search for the person again")
     ap.add_argument("--posture-weight", type=float, default=None,
                     help="pull of the trunk's bend and twist against the pelvis towards 0 in the initial fit, "
                          "tracking and the global fit, m/rad (default 0.2; 0 for motions that twist the trunk)")
@@ -93,6 +106,7 @@ def config_from_args(args: argparse.Namespace) -> SoftBodyRunConfig:
         config = config.with_posture_weight(args.posture_weight)
     return replace(config, meshes=config.meshes or args.meshes, independent=config.independent or args.independent,
                    global_fit=config.global_fit and not args.no_global_fit,
+                   recovery=config.recovery and not args.no_recovery,
                    recording=config.recording and not args.no_recording,
                    replace_stale=config.replace_stale or args.replace_stale, progress=config.progress and not args.quiet)
 

@@ -124,7 +124,8 @@ def test_joints_file_of_wrong_shape_units_or_values(tmp_path, capsys, dataset):
 
 def test_person_leaves_no_depth_and_tiny_cloud_are_frame_states(tmp_path, dataset):
     """Frame 1: the empty scene but six pixels of the person (a tiny cloud, the person left);
-    frame 2: no depth at all.  The global fit runs over the good frame; every frame has joints."""
+    frame 2: no depth at all.  The global fit runs over the good frame; the empty frames' poses are held
+    (``params``) but not written as tracked (joints NaN, not trusted)."""
     d, truth = dataset
 
     def edit(t, depth, bg):
@@ -139,9 +140,12 @@ def test_person_leaves_no_depth_and_tiny_cloud_are_frame_states(tmp_path, datase
     assert _run([v, "--out", tmp_path / "o", "--init-joints", truth]) == 0
     z = np.load(tmp_path / "o" / "joints.npz")
     assert list(z["state"]) == ["ok", "empty", "empty"]
-    assert np.isfinite(z["joints"]).all()
+    assert list(z["trusted"]) == [True, False, False]
+    assert np.isfinite(z["joints"][0]).all() and np.isnan(z["joints"][1:]).all()
+    assert np.isfinite(z["params"]).all()
     m = json.loads((tmp_path / "o" / "metrics.json").read_text())
     assert m["states"] == {"empty": 2, "ok": 1}
+    assert m["trusted_frames"] == [0] and m["lost_frames"] == [1, 2]
     assert _mpjpe_mm(tmp_path / "o", truth)[0] < 60
 
 
@@ -201,4 +205,5 @@ def test_second_person_overlapping_the_subject_is_crowded(tmp_path, dataset):
     z = np.load(tmp_path / "o" / "joints.npz")
     err = _mpjpe_mm(tmp_path / "o", truth)
     assert z["state"][0] == "crowded", list(z["state"])
-    assert np.all(err < 60), err
+    assert not z["trusted"][0] and np.isnan(err[0])   # crowded: not reported as tracked
+    assert z["trusted"][1:].all() and np.all(err[1:] < 60), err

@@ -34,12 +34,15 @@ from toolkit.pipeline.run import RunResult, open_run
 from toolkit.pointcloud.patches import PatchConfig
 from toolkit.pointcloud.stereo import StereoConfig
 from toolkit.softbody import GlobalFitConfig, TrackConfig
+from toolkit.softbody.confidence import ConfidenceConfig
 from toolkit.softbody.init import POSTURE_WEIGHT, RefineConfig
 
 #: Cloud sources.
 SOURCES = ("auto", "depth", "stereo")
 #: Where the initial joints come from.
-INITS = ("auto", "depth_tracker", "joints", "clicks")
+INITS = ("auto", "depth_tracker", "joints", "clicks", "detector")
+#: A re-initialisation from the detector needs at least this many of the 14 joints triangulated.
+MIN_DETECTED_JOINTS = 8
 
 
 @dataclass(frozen=True)
@@ -54,8 +57,9 @@ class SoftBodyRunConfig:
         Stereo: how the subject is found in the images (``auto``, ``masks``, ``plate``,
         ``groundtruth``; see :mod:`toolkit.pipeline.soft_body_sources`).
     init : str
-        One of :data:`INITS` (``auto``: the depth tracker for depth input, else
-        ``init_joints`` or ``clicks``, whichever is given).
+        One of :data:`INITS` (``auto``: ``init_joints`` or ``clicks``, whichever is given, else the depth
+        tracker for depth input and the built-in detector for stereo: its keypoints on each head's
+        reference camera triangulated across the heads, :func:`~toolkit.pipeline.soft_body_sources.detect_joints`).
     init_joints : Path, optional
         ``.npz`` with ``joints`` (T, 14, 3) or (14, 3), metres, world (stage 1's output,
         triangulated clicks, ...).
@@ -72,6 +76,15 @@ class SoftBodyRunConfig:
         Frame-to-frame tracking (``viewpoints`` default to the source's camera centres).
     fit : GlobalFitConfig
         The global fit (``[fit]`` table in TOML; ``viewpoints`` default to the source's camera centres).
+    confidence : ConfidenceConfig
+        Per frame, how far the tracked pose can be trusted (residuals, coverage, silhouettes:
+        :mod:`toolkit.softbody.confidence`; ``[confidence]`` table); a ``lost`` frame (and an ``empty`` or
+        ``crowded`` one) is not written as tracked (its joints NaN in ``joints.npz``).
+    recovery : bool
+        Search for the person again in a lost frame (:func:`toolkit.softbody.track_sequence`): from the
+        depth tracker's skeleton (depth input) or the built-in 2D detector's keypoints on each stereo head's
+        reference camera, triangulated across the heads (:mod:`toolkit.softbody.reinit`), and from the last
+        trusted pose moved over the cloud.
     refine : RefineConfig
         Clicks: the clicked model's pose and lengths refined on the init frame's points, silhouettes
         and the clicks as soft observations (:func:`toolkit.softbody.init.refine_initial_model`; ``[refine]``
@@ -109,6 +122,8 @@ class SoftBodyRunConfig:
     track: TrackConfig = field(default_factory=TrackConfig)
     fit: GlobalFitConfig = field(default_factory=GlobalFitConfig)
     refine: RefineConfig = field(default_factory=RefineConfig)
+    confidence: ConfidenceConfig = field(default_factory=ConfidenceConfig)
+    recovery: bool = True
     global_fit: bool = True
     independent: bool = False
     mesh_voxel_m: float = 0.015
@@ -209,6 +224,29 @@ def _tracker_joints(source, n: int, frame: int) -> np.ndarray:
                      "none")
 
 
+def _detector_start(config: SoftBodyRunConfig, source, n: int, cloud=None):
+    """The model on the joints the built-in detector finds in the init frame, triangulated across the stereo
+    heads (:func:`toolkit.pipeline.soft_body_sources.detect_joints`)."""
+    from toolkit.pipeline.soft_body_sources import detect_joints, stereo_detector
+    from toolkit.skeleton import SKELETON_14
+    from toolkit.softbody import model_from_joints
+    from toolkit.softbody.reinit import fill_hanging_limbs
+
+    f0 = min(config.init_frame, n - 1)
+    if source.kind != "stereo" or len(source.heads) < 2:
+        raise InputError("--init-joints / --clicks", "initial joints for this dataset (a joints .npz, e.g. stage "
+                         "1's, or 2D joints clicked in two images); the detector's start needs two stereo heads",
+                         f"{source.kind} input with {len(getattr(source, 'heads', ()))} heads")
+    found = detect_joints(source, stereo_detector(), f0, cloud)
+    joints = fill_hanging_limbs(found.joints)   # an arm or leg hidden behind the body: hanging, fitted later
+    if not np.isfinite(joints).all():
+        missing = [name for name, j in zip(SKELETON_14.joint_names, joints) if not np.isfinite(j).all()]
+        raise InputError("--init-joints / --clicks", f"a person the detector finds in frame {f0} of two heads' "
+                         "reference cameras with all 14 joints (else give initial joints or clicks)",
+                         f"joints missing: {', '.join(missing)}")
+    return (*model_from_joints(joints, posture_weight=config.init_posture_weight), joints)
+
+
 def initial_model(config: SoftBodyRunConfig, source, n: int, cloud=None, silhouettes=None, observer=None):
     """The model and parameters the tracking starts from, and the joints they came from (14, 3).
 
@@ -220,10 +258,9 @@ def initial_model(config: SoftBodyRunConfig, source, n: int, cloud=None, silhoue
     init = config.init
     if init == "auto":
         init = ("joints" if config.init_joints is not None else "clicks" if config.clicks is not None
-                else "depth_tracker" if source.kind == "depth" else None)
-        if init is None:
-            raise InputError("--init-joints / --clicks", "initial joints for a stereo dataset (a joints .npz, "
-                             "e.g. stage 1's, or 2D joints clicked in two images)", "neither")
+                else "depth_tracker" if source.kind == "depth" else "detector")
+    if init == "detector":
+        return _detector_start(config, source, n, cloud)
     if init == "depth_tracker":
         if source.kind != "depth":
             raise InputError("init (--init)", "'depth_tracker' only for depth input", source.kind)
@@ -302,6 +339,11 @@ class Fitted:
         The tracker's state per frame.
     global_fit : bool
         Whether ``params`` come from the global fit.
+    trusted, recovered : ndarray of shape (T,) bool, optional
+        Frames reported as tracked (confidence not ``lost``, state ``ok``); frames whose pose comes from a
+        re-initialisation.
+    confidence : ndarray of shape (T,), optional
+        :func:`toolkit.softbody.confidence.frame_confidence` per frame (NaN where not fitted).
     """
 
     models: list
@@ -311,6 +353,9 @@ class Fitted:
     joints_tracking: np.ndarray
     states: list
     global_fit: bool
+    trusted: np.ndarray | None = None
+    recovered: np.ndarray | None = None
+    confidence: np.ndarray | None = None
 
 
 def _write(out: Path, fitted: Fitted, n: int, dataset) -> dict:
@@ -320,18 +365,26 @@ def _write(out: Path, fitted: Fitted, n: int, dataset) -> dict:
     from toolkit.softbody import SoftBodyParams
 
     f = fitted
-    atomic_save_npz(out / "joints.npz", joints=f.joints, names=np.array(SKELETON_14.joint_names),
-                    joints_tracking=f.joints_tracking, state=np.array(f.states, dtype=str),
-                    params=f.params, params_tracking=f.params_tracking)
+    n_t = len(f.states)
+    trusted = np.ones(n_t, bool) if f.trusted is None else np.asarray(f.trusted, bool)
+    recovered = np.zeros(n_t, bool) if f.recovered is None else np.asarray(f.recovered, bool)
+    # a frame the confidence calls lost is no measurement of the person: its joints are not written as tracked
+    hide = lambda j: np.where(trusted[:, None, None], j, np.nan)  # noqa: E731
+    atomic_save_npz(out / "joints.npz", joints=hide(f.joints), names=np.array(SKELETON_14.joint_names),
+                    joints_tracking=hide(f.joints_tracking), state=np.array(f.states, dtype=str),
+                    params=f.params, params_tracking=f.params_tracking, trusted=trusted, recovered=recovered,
+                    confidence=np.full(n_t, np.nan) if f.confidence is None else np.asarray(f.confidence, float))
     first = next((t for t, s in enumerate(f.states) if s == "ok"), 0)
     info = body_model_json(f.models[first], SoftBodyParams(f.params[first]))
     atomic_write_text(out / "body_model.json", json.dumps(info, indent=1) + "\n")
-    metrics = {"frames": n, "states": {s: int(np.sum(np.array(f.states) == s)) for s in sorted(set(f.states))}}
+    metrics = {"frames": n, "states": {s: int(np.sum(np.array(f.states) == s)) for s in sorted(set(f.states))},
+               "trusted_frames": np.flatnonzero(trusted).tolist(), "lost_frames": np.flatnonzero(~trusted).tolist(),
+               "recovered_frames": np.flatnonzero(recovered).tolist()}
     truth = _truth(dataset, n)
-    if truth is not None:
-        metrics["tracking"] = _scores(f.joints_tracking, truth)
+    if truth is not None:   # scored on the trusted frames (the others are not reported as tracked)
+        metrics["tracking"] = _scores(hide(f.joints_tracking), truth)
         if f.global_fit:
-            metrics["global_fit"] = _scores(f.joints, truth)
+            metrics["global_fit"] = _scores(hide(f.joints), truth)
     atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
     return metrics
 
@@ -395,18 +448,26 @@ def _with_viewpoints(cfg, viewpoints):
 
 
 def fit_clouds(model, params0, clouds, config: SoftBodyRunConfig, viewpoints=None, observer=None,
-               silhouettes=None) -> Fitted:
+               silhouettes=None, reinit=None) -> Fitted:
     """Track, then (with ``config.global_fit``) fit globally (:mod:`toolkit.softbody`).
 
     ``viewpoints`` (V, 3): the cameras' centres, so that the tracker expects data only
     on the model's side facing them; ``silhouettes``: per frame, the cameras' silhouettes
-    (:func:`silhouettes_of`), or None.
+    (:func:`silhouettes_of`), or None; ``reinit``: joints to search a lost person from
+    (:func:`reinit_joints`), or None.
     """
     from toolkit.softbody import global_fit, track_sequence
     from toolkit.softbody.silhouette import report_silhouettes
 
+    from toolkit.softbody.init import fit_pose_to_joints
+
+    def starts(t, last):   # the last trusted pose fitted to the frame's re-initialisation joints
+        return [fit_pose_to_joints(model, last, j) for j in reinit(t, model.joints(last))]
+
     track = track_sequence(model, params0, clouds, config=_with_viewpoints(config.track, viewpoints),
-                           observer=observer, silhouettes=silhouettes)
+                           observer=observer, silhouettes=silhouettes, confidence=config.confidence,
+                           reinit=starts if config.recovery and reinit is not None else None,
+                           recover=config.recovery)
     final = track
     if config.global_fit:
         # the global fit sees the subject's points only (the tracker left other bodies' out)
@@ -414,8 +475,12 @@ def fit_clouds(model, params0, clouds, config: SoftBodyRunConfig, viewpoints=Non
                            observer=observer, silhouettes=silhouettes)
     for t, views in enumerate(silhouettes if observer is not None and silhouettes is not None else []):
         report_silhouettes(observer, model, _params(final.params[t]), views, t)
+    # a crowded frame is not reported as tracked either: the tracker could not tell the person's points from
+    # another body's there (alone in the scene: its own swinging limb), and the global fit leaves its points out
+    trusted = None if track.trusted is None else np.asarray(track.trusted) & (np.array(track.states) != "crowded")
     return Fitted([model] * len(clouds), np.asarray(final.params), np.asarray(track.params), final.joints,
-                  track.joints, list(track.states), config.global_fit)
+                  track.joints, list(track.states), config.global_fit, trusted, track.recovered,
+                  track.confidence)
 
 
 def fit_independent(source, clouds, config: SoftBodyRunConfig, observer=None) -> Fitted:
@@ -446,6 +511,47 @@ def fit_independent(source, clouds, config: SoftBodyRunConfig, observer=None) ->
     P = np.stack(params)
     J = np.stack([m.joints(_params(v)) for m, v in zip(models, P)])
     return Fitted(models, P, P, J, J, states, False)
+
+
+def reinit_joints(source, n: int, clouds, log=None):
+    """``reinit(t, last_joints) -> [joints (14, 3)]`` for :func:`toolkit.softbody.track_sequence`: the depth
+    tracker's skeleton of frame ``t`` (depth input), or the built-in 2D detector's keypoints on each stereo
+    head's reference camera triangulated across the heads (:func:`toolkit.softbody.reinit.triangulate_views`,
+    joints it cannot triangulate taken from ``last_joints`` moved with the others); None when neither can run
+    (no detector installed: the run says so through ``log``, and the search over the cloud still runs)."""
+    if source.kind != "depth" and len(source.heads) < 2:
+        return None   # one head: nothing to triangulate across
+    if source.kind == "depth":
+        cache = {}
+
+        def depth(t, last):
+            if "j" not in cache:
+                cache["j"] = tracker_joints(source, n)
+            j = cache["j"][t]
+            return [j] if np.isfinite(j).all() else []
+        return depth
+    detector = {}
+
+    def stereo(t, last):
+        from toolkit.pipeline.soft_body_sources import detect_joints, stereo_detector
+
+        if "d" not in detector:
+            try:
+                detector["d"] = stereo_detector()
+            except InputError as e:
+                detector["d"] = None
+                if log is not None:
+                    log(f"no detector for re-initialising lost frames ({e}); searching the cloud only")
+        if detector["d"] is None:
+            return []
+        v = detect_joints(source, detector["d"], t, clouds[t], previous=last)
+        ok = np.isfinite(v.joints).all(axis=1)
+        if ok.sum() < MIN_DETECTED_JOINTS:
+            return []
+        j = v.joints.copy()
+        j[~ok] = last[~ok] + np.mean(v.joints[ok] - last[ok], axis=0)   # the others moved with the person
+        return [j]
+    return stereo
 
 
 def wants_silhouettes(config: SoftBodyRunConfig) -> bool:
@@ -536,7 +642,8 @@ def run(config: SoftBodyRunConfig, *, dataset, out, observer=None, log=print) ->
                 obs.report("joints3d", frame=min(config.init_frame, n - 1), joints=joints0,
                            name="softbody/init_joints")
             fitted = fit_clouds(model, params0, clouds, config, source.viewpoints, observer=obs,
-                                silhouettes=silhouettes)
+                                silhouettes=silhouettes, reinit=reinit_joints(source, n, clouds, log)
+                                if config.recovery else None)
         t2 = time.perf_counter()
         metrics = _write(out, fitted, n, dataset)
         _surfaces(out, fitted, clouds, raws, config, source.forward, obs)
@@ -567,12 +674,26 @@ def _send_layout(rec, joints: np.ndarray, viewpoints: np.ndarray) -> None:
     rec.send_blueprint(softbody_blueprint(LENGTH_NAMES, eye=eye))
 
 
+def _frame_ranges(frames) -> str:
+    """Frame numbers as ranges: [0, 1, 2, 5] -> '0-2, 5'."""
+    out, frames = [], sorted(frames)
+    for f in frames:
+        if out and f == out[-1][1] + 1:
+            out[-1][1] = f
+        else:
+            out.append([f, f])
+    return ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in out)
+
+
 def summary_lines(result: RunResult) -> list:
     """What a soft-body run says when it ends (the recipe prints these)."""
     m, x = result.metrics, result.extra
     lines = [f"fitted {result.frames} frames ({x['source']}) in {result.seconds:.1f} s: "
              + ", ".join(f"{v} {k}" for k, v in m["states"].items())
              + f"; {m['patches_median']:.0f} patches per frame (median)",
+             f"  trusted:     {_frame_ranges(m['trusted_frames'])} ({len(m['trusted_frames'])} of {result.frames}); "
+             f"lost: {_frame_ranges(m['lost_frames']) or 'none'}; found again: "
+             f"{_frame_ranges(m['recovered_frames']) or 'none'}",
              f"  joints:      {x['joints']}", f"  body model:  {x['body_model']}"]
     if x["meshes"] is not None:
         lines.append(f"  meshes:      {x['meshes']}/")

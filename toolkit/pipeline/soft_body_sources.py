@@ -339,3 +339,51 @@ def read_clicks(path, rig):
         if n not in rig.names:
             raise InputError(f"{p}: camera", f"one of {rig.names}", repr(n))
     return a, b, rig[names[0]], rig[names[1]], frame
+
+
+def stereo_detector():
+    """The built-in 2D keypoint detector (:func:`toolkit.detection.make_detector`, BlazePose through MediaPipe)
+    for finding the person in the stereo heads' images; raises :class:`InputError` (naming what to install)
+    where it cannot run."""
+    from toolkit.detection import make_detector
+
+    return make_detector("mediapipe")
+
+
+def detect_joints(source: "StereoClouds", detector, t: int, cloud=None, previous=None):
+    """14 joints of frame ``t`` from the detector's keypoints on each head's reference camera, triangulated
+    across the heads (:func:`toolkit.softbody.reinit.triangulate_views`).
+
+    Parameters
+    ----------
+    source : StereoClouds
+    detector : toolkit.detection.PoseDetector
+        With the ``blazepose_33`` layout or any of :data:`toolkit.skeleton.mappings.DETECTOR_FORMATS`.
+    t : int
+        Frame.
+    cloud : ndarray of shape (N, 3), optional
+        The frame's points, metres: labellings whose joints lie off the body cost more.
+    previous : ndarray of shape (14, 3), optional
+        Joints of a nearby frame, metres: in each view the person nearest to them is taken (else the most
+        confident), and the left and right labels are told apart by them.
+
+    Returns
+    -------
+    toolkit.softbody.reinit.ViewJoints
+    """
+    from toolkit.skeleton.mappings import to_skeleton14
+    from toolkit.softbody.reinit import triangulate_views
+
+    cams = [h[0] for h in source.heads]
+    pts, conf = np.full((len(cams), 14, 2), np.nan), np.zeros((len(cams), 14))
+    for c, cam in enumerate(cams):
+        people = [to_skeleton14(p.keypoints, detector.layout, confidence=True)
+                  for p in detector.detect(source.data.frame(cam.name, t))]
+        if not people:
+            continue
+        k = people[0]
+        if previous is not None:
+            near = cam.project(np.asarray(previous, float))
+            k = min(people, key=lambda q: float(np.nanmedian(np.linalg.norm(q[:, :2] - near, axis=1))))
+        pts[c], conf[c] = k[:, :2], np.nan_to_num(k[:, 2])
+    return triangulate_views(pts, conf, cams, previous=previous, cloud=cloud)

@@ -4,7 +4,10 @@
 * :mod:`~toolkit.softbody.distance` -- point-to-surface distance and its analytic Jacobian;
 * :mod:`~toolkit.softbody.init` -- scaling and posing from 3D joints or 2D joints in two images;
 * :mod:`~toolkit.softbody.mesh` -- the surface as a triangle mesh (marching cubes), surface samples;
-* :mod:`~toolkit.softbody.track` -- frame-to-frame tracking of the pose;
+* :mod:`~toolkit.softbody.track` -- frame-to-frame tracking of the pose, lost frames searched for again;
+* :mod:`~toolkit.softbody.confidence` -- how far a tracked frame can be trusted (residuals, coverage,
+  silhouettes);
+* :mod:`~toolkit.softbody.reinit` -- 3D joints from 2D detections in calibrated views (starts and restarts);
 * :mod:`~toolkit.softbody.global_fit` -- all frames at once, with lengths and widths.
 """
 

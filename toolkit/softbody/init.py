@@ -251,7 +251,7 @@ class RefineConfig:
         Whether the run refines a clicked start (:mod:`toolkit.pipeline.soft_body`).  Off by default:
         it makes tracking better and less sensitive to the clicks, but the global fit from the refined
         start ended worse on the seen stereo seed 9300 (2 draws: MPJPE median 36.6 against 31.2 mm,
-        bones 15.4 against 11.1 mm; ``docs/benchmarks.md``, "Sensitivity to the clicks").
+        bones 15.4 against 11.1 mm; ``docs/benchmarks.md``, soft-body section (the earlier runs: its git history)).
     click_px : float
         Where the clicks' Cauchy loss turns robust, pixels (the clicks' noise, 3 px in the benchmark),
         so that one click far off (a wrong joint, a slip) pulls weakly.

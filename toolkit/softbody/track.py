@@ -157,7 +157,7 @@ class TrackConfig:
         28.5 mm (mean of 16 runs, seeds 13000 and 14000; better in 16 of
         16), and depth 13.2 -> 12.3 mm (8 runs, better in 8); on the fresh
         seeds 15000 and 16000 stereo 26.1 -> 24.1 mm (13 of 16 better) and
-        depth 14.2 -> 13.7 mm (docs/benchmarks.md, "The trunk upright over the buried pelvis").  Its price: on
+        depth 14.2 -> 13.7 mm (docs/benchmarks.md, soft-body section; the earlier runs: its git history).  Its price: on
         noiseless points of a trunk really bent 20 degrees and twisted 15,
         tracking ends at about 16 and 9 degrees (joints 4 mm off): the surface
         shows a twist against the pelvis only weakly.
@@ -236,6 +236,14 @@ class SoftBodyTrack:
         Fraction of the subject's points that another body touches.
     undecided : ndarray of shape (T,), optional
         Fraction of the subject's points further than the near margin from the start model.
+    confidence : ndarray of shape (T,), optional
+        Per frame, :func:`toolkit.softbody.confidence.frame_confidence`'s confidence in [0, 1] (with a
+        ``confidence`` config given to :func:`track_sequence`).
+    trusted : ndarray of shape (T,) bool, optional
+        Frames whose confidence does not say ``lost`` (and whose state is not ``empty`` or ``lost``); the
+        others' poses are no measurement of the person.
+    recovered : ndarray of shape (T,) bool, optional
+        Frames found again after a loss by a re-initialisation (:func:`track_sequence`, ``reinit``).
     """
 
     params: np.ndarray
@@ -247,6 +255,9 @@ class SoftBodyTrack:
     subject: tuple | None = None
     contact: np.ndarray | None = None
     undecided: np.ndarray | None = None
+    confidence: np.ndarray | None = None
+    trusted: np.ndarray | None = None
+    recovered: np.ndarray | None = None
 
     def subject_clouds(self, clouds) -> list:
         """The subject's points of each cloud (``clouds`` as tracked), list of (M_t, 3) arrays."""
@@ -445,8 +456,41 @@ def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: Trac
                     sep.undecided)
 
 
+#: A trusted frame short of full confidence is re-initialised from the frame's own joints when that fit's
+#: confidence is higher by more than this (a tracker drifting slowly stays trusted for many frames: a depth
+#: walk went from 37 to 62 mm over 13 frames at confidences of 0.68-0.85).
+DOUBT_GAIN = 0.05
+
+#: Pose entries of the left and right limbs' swing (flexion) and bend, swapped by the recovery's search:
+#: in a walk or a run the limbs swing in turn, and a tracker a step behind holds the wrong leg forward.
+_SWING_PAIRS = {"arms": ((11, 15), (14, 18)), "legs": ((19, 23), (22, 26))}
+
+
+def _swung(params: SoftBodyParams, groups) -> SoftBodyParams:
+    x = params.pose.copy()
+    for g in groups:
+        for a, b in _SWING_PAIRS[g]:
+            x[[a, b]] = x[[b, a]]
+    return params.replace(pose=x)
+
+
+def _recovery_starts(model: SoftBodyModel, last: SoftBodyParams, cloud: np.ndarray, given) -> list:
+    """Starts to find the person again from: the poses ``given`` (re-initialisations from the data); then
+    the last trusted pose moved so that its joints' centre lies over the cloud's, as it is and with the left
+    and right legs' (arms', both) swing swapped.  ``(how, SoftBodyParams)`` each."""
+    starts = [("re-initialised", p) for p in given if isinstance(p, SoftBodyParams)]
+    if len(cloud):
+        shift = np.median(cloud, axis=0) - model.joints(last).mean(axis=0)
+        shift[2] = 0.0   # the cloud's centre is biased towards the cameras' side; heights hold
+        moved = last.replace(pose=np.r_[last.pose[:3], last.pose[3:6] + shift, last.pose[6:]])
+        for groups in ((), ("legs",), ("arms",), ("arms", "legs")):
+            starts.append(("search" + "".join(f", {g} swapped" for g in groups), _swung(moved, groups)))
+    return starts
+
+
 def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, config: TrackConfig = TrackConfig(),
-                   observer: Observer | None = None, silhouettes=None) -> SoftBodyTrack:
+                   observer: Observer | None = None, silhouettes=None, confidence=None,
+                   reinit=None, recover: bool = True) -> SoftBodyTrack:
     """Track the pose through a sequence of clouds, each frame started from the previous one.
 
     Parameters
@@ -459,10 +503,27 @@ def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, con
     config : TrackConfig
     silhouettes : sequence of (list of SilhouetteView or None), optional
         Per frame, the cameras' silhouettes (:func:`toolkit.softbody.silhouette.silhouette_views`).
+    confidence : toolkit.softbody.confidence.ConfidenceConfig, optional
+        When given, every fitted frame's confidence is measured
+        (:func:`toolkit.softbody.confidence.frame_confidence`); a frame it calls ``lost`` gets the state
+        ``"lost"`` (not trusted; the global fit holds it at its tracked pose and leaves its points out),
+        after the person was searched for again: from the poses ``reinit(t, last)`` gives (e.g. the
+        last trusted pose fitted to a detector's or a depth tracker's joints of the frame), and from the
+        last trusted pose moved over the cloud (as it is, and with the left and
+        right legs' and arms' swing swapped); of the starts whose fit is trusted the most confident is kept
+        (the search stops at one with full confidence), the frame marked ``recovered``.
+    reinit : callable, optional
+        ``reinit(t, last) -> list of SoftBodyParams`` (``last``: the last trusted pose): starts for the
+        search from the frame's own data; used with ``confidence``.
+    recover : bool
+        Search for the person again in lost frames (with ``confidence``); False: lost frames are only said.
+        A trusted frame short of full confidence is also fitted from the ``reinit`` starts, and that fit
+        kept when its confidence is higher by more than :data:`DOUBT_GAIN` (marked ``recovered``: its pose
+        comes from a re-initialisation).
     observer : Observer, optional
         Receives per frame ``joints3d`` (``softbody/track/joints``) and
         ``scalar`` reports (``softbody/track/inlier_fraction``, ``.../median_distance_m``,
-        ``.../other_points``: the points taken for other bodies').
+        ``.../other_points``: the points taken for other bodies'; ``.../confidence`` with ``confidence``).
 
     Returns
     -------
@@ -474,39 +535,122 @@ def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, con
     if silhouettes is not None and len(silhouettes) != len(clouds):
         raise InputError("silhouettes", f"one entry per cloud ({len(clouds)})", f"{len(silhouettes)}")
     out = np.empty((len(clouds), params0.vector.size))
-    fits = []
+    fits, conf, trusted, recovered = [], np.full(len(clouds), np.nan), np.zeros(len(clouds), bool), \
+        np.zeros(len(clouds), bool)
     # angles kept in their principal ranges (the root's rotation vector far from |r| = 2 pi, where it is singular)
     prev, prev2, others, run = params0.replace(pose=canonical_pose(params0.pose)), None, None, 0   # run: fitted in a row
+    last = prev   # the last trusted pose (the start until a frame is trusted)
     for t, cloud in enumerate(clouds):
         start = prev
         if prev2 is not None and config.predict > 0:
             start = prev.replace(pose=pose_step(prev.pose, prev2.pose, config.predict))
         # the metaballs' motion over the last frame, known after two fitted frames (not from the start pose)
         motion = None if run < 2 else np.linalg.norm(model.state(prev).centres - model.state(prev2).centres, axis=1)
-        f = track_frame(model, start, cloud, config, anchor=prev, others=others, motion=motion,
-                        silhouettes=None if silhouettes is None else silhouettes[t])
-        others = check_points(cloud, "cloud")[f.other]
-        fitted = f.state in ("ok", "crowded")
-        p = f.params.replace(pose=canonical_pose(f.params.pose)) if fitted else prev
+        views = None if silhouettes is None else silhouettes[t]
+        f = track_frame(model, start, cloud, config, anchor=prev, others=others, motion=motion, silhouettes=views)
+        pts = check_points(cloud, "cloud")
+        fitted, said_lost = f.state in ("ok", "crowded"), False
+        if confidence is not None:
+            f, c, fitted, said_lost, again = _confident_fit(model, f, cloud, pts, views, t, last, config, confidence,
+                                                            reinit, recover, obs)
+            if again:
+                recovered[t] = True
+                prev2, run = None, 0   # no motion extrapolated across a re-initialisation
+            if c is not None:
+                conf[t] = c.confidence
+        trusted[t] = fitted
+        others = pts[f.other]
+        # a frame the confidence calls lost keeps its fit (held, not trusted), one the tracker could not fit
+        # the previous pose
+        p = f.params.replace(pose=canonical_pose(f.params.pose)) if fitted or said_lost else prev
         out[t] = p.vector
         fits.append(f)
+        if fitted:
+            last = p
         # the motion is extrapolated between two tracked frames only: the start params0 is no frame (its
         # correction by frame 0's fit, e.g. a clicked pose on another branch of the Euler angles, is no motion)
-        prev2, prev = (prev if t > 0 else None, p) if fitted else (None, p)
+        prev2, prev = (prev if t > 0 and not recovered[t] else None, p) if fitted else (None, p)
         run = run + 1 if fitted else 0
-        obs.report("joints3d", joints=model.joints(p), name="softbody/track/joints", frame=t)
-        if f.state != "empty":
-            obs.report("scalar", name="softbody/track/inlier_fraction", value=f.inlier_fraction, frame=t)
-            obs.report("scalar", name="softbody/track/median_distance_m", value=f.median_distance, frame=t)
-        obs.report("scalar", name="softbody/track/other_points", value=float(np.sum(f.other)), frame=t)
-        bend, twist = np.degrees(p.pose[TRUNK_POSTURE])  # what the posture prior holds (config.posture_weight)
-        obs.report("scalar", name="softbody/posture/trunk_bend_deg", value=float(bend), frame=t)
-        obs.report("scalar", name="softbody/posture/trunk_twist_deg", value=float(twist), frame=t)
-        if f.state != "ok":
-            obs.report("text", text=f"frame {t}: {f.state} ({f.n_points} points, another body touching "
-                       f"{100 * f.contact:.0f} % of them)", level="WARN", frame=t)
+        _report_tracked(obs, model, p, f, t)
     joints = np.stack([model.joints(SoftBodyParams(v)) for v in out]) if len(out) else np.zeros((0, 14, 3))
     return SoftBodyTrack(out, joints, tuple(f.state for f in fits), np.array([f.n_points for f in fits], int),
                          np.array([f.inlier_fraction for f in fits]), np.array([f.median_distance for f in fits]),
                          tuple(f.subject for f in fits), np.array([f.contact for f in fits]),
-                         np.array([f.undecided for f in fits]))
+                         np.array([f.undecided for f in fits]), conf if confidence is not None else None,
+                         trusted if confidence is not None else None, recovered if confidence is not None else None)
+
+
+def _confident_fit(model: SoftBodyModel, f, cloud, pts: np.ndarray, views, t: int, last: SoftBodyParams,
+                   config: TrackConfig, confidence, reinit, recover: bool, obs) -> tuple:
+    """Frame ``t``'s fit ``f`` judged by its confidence, and searched for again where doubtful or lost
+    (the steps of :func:`track_sequence` with ``confidence``).
+
+    Returns
+    -------
+    f : the fit kept (state ``"lost"`` when the confidence calls it lost)
+    c : FrameConfidence or None (no fit)
+    fitted : bool
+        The frame is trusted.
+    said_lost : bool
+        The frame was fitted but its confidence calls it lost.
+    again : bool
+        The fit kept comes from a re-initialisation (``recovered``).
+    """
+    from toolkit.softbody.confidence import frame_confidence
+
+    def judged(g):
+        return frame_confidence(model, g.params, pts[g.subject], silhouettes=views, viewpoints=config.viewpoints,
+                                config=confidence)
+
+    fitted, said_lost, again = f.state in ("ok", "crowded"), False, False
+    c = judged(f) if fitted else None
+    doubtful = c is not None and c.verdict == "trusted" and c.confidence < 1.0
+    if recover and doubtful and reinit is not None:
+        # trusted but short of full confidence (a slow drift): the frame's own joints tried too, kept
+        # when clearly more confident
+        for s0 in reinit(t, last):
+            g = track_frame(model, s0, cloud, config, anchor=s0, silhouettes=views)
+            if g.state not in ("ok", "crowded"):
+                continue
+            cg = judged(g)
+            if cg.verdict == "trusted" and cg.confidence > c.confidence + DOUBT_GAIN:
+                f, c, again = g, cg, True
+                obs.report("text", text=f"frame {t}: re-initialised (confidence {c.confidence:.2f})",
+                           level="INFO", frame=t)
+    if recover and (c is None or c.verdict == "lost") and len(pts) >= config.min_points:
+        best = None
+        given = [] if reinit is None else reinit(t, last)
+        for how, s0 in _recovery_starts(model, last, pts, given):
+            g = track_frame(model, s0, cloud, config, anchor=s0, silhouettes=views)
+            if g.state not in ("ok", "crowded"):
+                continue
+            cg = judged(g)
+            if cg.verdict == "trusted" and (best is None or cg.confidence > best[1].confidence):
+                best = (g, cg, how)
+            if best is not None and best[1].confidence >= 1.0:
+                break   # every measure at its trusted level: no start can do better
+        if best is not None:
+            f, c, how = best
+            again, fitted = True, True
+            obs.report("text", text=f"frame {t}: found again ({how}, confidence {c.confidence:.2f})",
+                       level="INFO", frame=t)
+    if c is not None:
+        obs.report("scalar", name="softbody/track/confidence", value=c.confidence, frame=t)
+    if fitted and (c is None or c.verdict == "lost"):
+        f, fitted, said_lost = f._replace(state="lost"), False, True
+    return f, c, fitted, said_lost, again
+
+
+def _report_tracked(obs, model: SoftBodyModel, p: SoftBodyParams, f, t: int) -> None:
+    """Frame ``t``'s reports of :func:`track_sequence`: joints, fit measures, posture, a warning when not ok."""
+    obs.report("joints3d", joints=model.joints(p), name="softbody/track/joints", frame=t)
+    if f.state != "empty":
+        obs.report("scalar", name="softbody/track/inlier_fraction", value=f.inlier_fraction, frame=t)
+        obs.report("scalar", name="softbody/track/median_distance_m", value=f.median_distance, frame=t)
+    obs.report("scalar", name="softbody/track/other_points", value=float(np.sum(f.other)), frame=t)
+    bend, twist = np.degrees(p.pose[TRUNK_POSTURE])  # what the posture prior holds (config.posture_weight)
+    obs.report("scalar", name="softbody/posture/trunk_bend_deg", value=float(bend), frame=t)
+    obs.report("scalar", name="softbody/posture/trunk_twist_deg", value=float(twist), frame=t)
+    if f.state != "ok":
+        obs.report("text", text=f"frame {t}: {f.state} ({f.n_points} points, another body touching "
+                   f"{100 * f.contact:.0f} % of them)", level="WARN", frame=t)
