@@ -8,7 +8,7 @@ cd "$here"
 bash scripts/setup.sh
 OUT="${OUT:-out}"
 PY=.venv/bin/python
-$PY recipes/make_scene.py datasets_synthetic/default.toml --out "$OUT/default_scene"
+$PY recipes/make_scene.py datasets_synthetic/default.toml --out "$OUT/default_scene" --overwrite
 $PY recipes/free_viewpoint.py "$OUT/default_scene" --out "$OUT/default_fvv" --replace-stale
 echo
 echo "Done. Open the recordings with:"
