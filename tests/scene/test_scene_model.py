@@ -9,6 +9,7 @@ from toolkit.cameras import Camera, Rig
 from toolkit.errors import InputError
 from toolkit.scene import SceneModel, SceneProxy, SourceBackground, estimate_background, fit_proxy, people_exclusion
 from toolkit.scene.fit import RADIUS_CANDIDATES
+from toolkit.scene.model import CARRIES_KEPT
 from toolkit.scene.proxy import SURFACE_GROUND, SURFACE_NONE, SURFACE_WALL
 
 SIZE = (160, 120)
@@ -156,3 +157,22 @@ def test_a_dataset_whose_keypoints_hold_nobody_still_gets_its_backgrounds(tmp_pa
     assert model.evidence["people_from"] == {c: "keypoints" for c in rig.names}
     err = np.abs(model.backgrounds["cam0"].image - views["cam0"]).max(-1)
     assert np.median(err) < 10.0  # the videos' compression of a fine texture only (max channel)
+
+
+def test_carrying_into_a_fixed_camera_reuses_its_maps_and_gives_the_same_image():
+    proxy = SceneProxy((0.0, 0.0), 12.0)
+    rig = _ring(4)
+    model = SceneModel(rig, _backgrounds(rig, proxy), proxy)
+    target = _ring(4, start=30.0, height=2.2)[0]
+    src = model.nearest_source(target)
+    rng = np.random.default_rng(2)
+    frames = [rng.integers(0, 256, target.size[::-1] + (3,), dtype=np.uint8) for _ in range(2)]
+    first = [model.carry(target, src, f) for f in frames]
+    assert len(model._carried) == 1  # the maps of (camera, source) made once
+    fresh = SceneModel(rig, _backgrounds(rig, proxy), proxy)
+    for f, img in zip(frames, first):
+        assert np.array_equal(img, fresh.carry(target, src, f))  # the same bits as maps made anew
+        fresh._carried.clear()
+    for k in range(6):  # other cameras push the oldest maps out: memory stays bounded
+        model.carry(_ring(6, start=10.0 * k)[0], src, frames[0])
+    assert len(model._carried) <= CARRIES_KEPT
