@@ -227,3 +227,13 @@ def test_the_recipe_and_anchor_checks_see_what_they_should():
         ("free_viewpoint", ["--out", "--max-frames"])]
     assert _recipe_calls("recipes/make_scene.py S --out D && recipes/depth_tracking.py D --out E --frames 3") == [
         ("make_scene", ["--out"]), ("depth_tracking", ["--out", "--frames"])]
+
+
+def test_every_picture_in_docs_is_shown_or_made_somewhere():
+    """A picture in ``docs/images`` that no document shows and no benchmark writes is left behind by an
+    earlier figure: remove it (git keeps it)."""
+    texts = [p.read_text(encoding="utf-8") for p in _docs()] + [p.read_text(encoding="utf-8")
+                                                                 for p in _code_files()]
+    orphans = [p.name for p in sorted((ROOT / "docs" / "images").iterdir())
+               if p.is_file() and not any(p.name in t for t in texts)]
+    assert not orphans, f"pictures nobody shows: {orphans}"
