@@ -174,3 +174,50 @@ def _standing() -> np.ndarray:
     from toolkit.anthropometry.proportions import BodyProportions
 
     return BodyProportions.from_height(1.75).rest_pose()
+
+
+def test_dataset_layout(tmp_path, make_rig):
+    """A dataset with one file damaged, removed or added: ``Dataset.open`` and every reader of it give a
+    reading or an ``InputError``, never another exception."""
+    import shutil
+
+    from toolkit.io import Dataset
+    from tests.io.test_io_dataset import make_truth, write_dataset
+
+    clean = tmp_path / "clean"
+    write_dataset(clean, make_truth(np.random.default_rng(11), make_rig)).close()
+    files = sorted(p.relative_to(clean) for p in clean.rglob("*") if p.is_file())
+    work = tmp_path / "work"
+
+    def read_all(root):
+        with Dataset.open(root) as ds:
+            for cam in ds.camera_names:
+                for i in range(ds.n_frames):
+                    ds.frame(cam, i)
+                    ds.gt_mask(cam, i)
+                    ds.gt_parts(cam, i)
+                    ds.gt_depth(cam, i)
+            ds.gt_joints3d()
+            ds.gt_joints2d()
+            assert ds.gt_rig is not None
+
+    @settings(max_examples=N_MUTATIONS, deadline=None, derandomize=True, database=None,
+              suppress_health_check=[HealthCheck.too_slow])
+    @given(st.sampled_from(files), st.sampled_from(["damaged", "removed", "stray"]), MUTATIONS)
+    def one(rel, how, m):
+        shutil.rmtree(work, ignore_errors=True)
+        shutil.copytree(clean, work)
+        target = work / rel
+        if how == "damaged":
+            target.write_bytes(mutate(target.read_bytes(), m))
+        elif how == "removed":
+            target.unlink()
+        else:
+            (target.parent / f"stray{m[4]}{target.suffix}").write_bytes(m[3])
+        try:
+            read_all(work)
+        except InputError:
+            pass
+
+    read_all(clean)
+    one()
