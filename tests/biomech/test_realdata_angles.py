@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import pytest
 
+from tests.io.conftest import realdata_root
 from toolkit.biomech.opensim_model import opensim_available
 from toolkit.biomech.validate import plugin_gait_comparison
 
@@ -17,9 +17,7 @@ KNEE_DEG, HIP_ANKLE_DEG = 5.0, 8.0
 
 
 def _file(*parts) -> Path:
-    env = os.environ.get("TOOLKIT_REALDATA")
-    root = Path(env) if env else Path(__file__).resolve().parents[3] / "shared" / "realdata"
-    path = root.joinpath(*parts)
+    path = realdata_root().joinpath(*parts)
     if not path.is_file():
         pytest.skip(f"real data not found at {path}")
     return path

@@ -545,19 +545,22 @@ def _solve(cur: list, a: int, groups: np.ndarray, gframes: np.ndarray, xy: np.nd
     """
     C = len(cur)
     gx, gs = group_observations(groups, gframes, xy, seen)
-    cur, X, residuals, res_cam = _adjust(cur, gx.reshape(C, -1, 2), gs.reshape(C, -1), a, cfg)
+    cur, X, residuals, res_cam = adjust_observations(cur, gx.reshape(C, -1, 2), gs.reshape(C, -1), a, cfg)
     for _ in range(ASSOCIATION_PASSES):
         g, gf, _ = associate_detections(np.stack([c.cam_from_world for c in cur]), xy, seen, f, cfg.match_px)
         if not len(g) or (g.shape == groups.shape and np.array_equal(g, groups) and np.array_equal(gf, gframes)):
             break
         groups, gframes = g, gf
         gx, gs = group_observations(groups, gframes, xy, seen)
-        cur, X, residuals, res_cam = _adjust(cur, gx.reshape(C, -1, 2), gs.reshape(C, -1), a, cfg)
+        cur, X, residuals, res_cam = adjust_observations(cur, gx.reshape(C, -1, 2), gs.reshape(C, -1), a, cfg)
     return cur, X, residuals, res_cam, groups, gframes
 
 
-def _adjust(cur: list, xy: np.ndarray, seen: np.ndarray, fixed: int, cfg: "PeopleConfig"):
+def adjust_observations(cur: list, xy: np.ndarray, seen: np.ndarray, fixed: int, cfg: "PeopleConfig"):
     """Two rounds of bundle adjustment of (C, N, 2) observations, the second without gross outliers.
+
+    ``xy`` are normalised (undistorted) image points per camera and point, ``seen`` (C, N) where they
+    are observed; camera ``fixed`` holds the gauge; ``cfg`` gives ``f_scale_px`` and ``outlier_px``.
 
     Returns the cameras, the points (N, 3) (NaN where not adjusted), the residuals (pixels) and their cameras.
     """

@@ -227,6 +227,7 @@ class _Stage1:
     def __init__(self, ds, rig, config: FreeViewpointRunConfig, kp_dir, masks_dir, out: Path, observer, log=None):
         self.ds, self.rig, self.config, self.kp_dir, self.masks_dir = ds, rig, config, kp_dir, masks_dir
         self.out, self.observer, self.log = out, observer, log
+        self._people = None  # (where the people stand or None, their foreground models), found once
 
     @property
     def name(self) -> str:
@@ -257,14 +258,17 @@ class _Stage1:
         db = self._database()
         s1config = Stage1Config().with_refined_cameras(refined_cameras(self.out))  # tight prior where refined
         if c.people == "all":
-            from toolkit.pipeline.people import estimate_people_silhouettes, locate_silhouette_people
+            from toolkit.pipeline.people import estimate_people_silhouettes, locate_silhouette_people, people_foreground
 
-            if not hasattr(self, "_located"):  # the same people for every part of the run
-                self._located = locate_silhouette_people(self.ds, self.rig, foreground=fg, log=self.log)
-            if self._located is not None:
+            if self._people is None:  # the same people (and foreground models) for every part of the run
+                extractors = people_foreground(self.ds, self.rig, fg)
+                self._people = (locate_silhouette_people(self.ds, self.rig, log=self.log, extractors=extractors),
+                                extractors)
+            located, extractors = self._people
+            if located is not None:
                 return ((p, None) for p in estimate_people_silhouettes(
-                    self.ds, db, self.rig, self._located, s1config, frames=frames, foreground=fg,
-                    observer=self.observer))
+                    self.ds, db, self.rig, located, s1config, frames=frames, observer=self.observer,
+                    extractors=extractors))
         return estimate_dataset(self.ds, db, s1config, foreground=fg, frames=frames, rig=self.rig,
                                 observer=self.observer)
 

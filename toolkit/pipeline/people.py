@@ -45,7 +45,7 @@ from toolkit.errors import InputError
 from toolkit.observe import as_observer
 
 __all__ = ["PeopleFrame", "triangulate_people", "estimate_people", "exclusive_masks", "PARTICIPANT_MIN_SHARE",
-           "PEOPLE_CHOICES", "locate_silhouette_people", "estimate_people_silhouettes"]
+           "PEOPLE_CHOICES", "locate_silhouette_people", "estimate_people_silhouettes", "people_foreground"]
 
 #: A person followed in at least this share of the frames is a participant (drawn); the others are passers-by.
 PARTICIPANT_MIN_SHARE = 0.25
@@ -317,7 +317,7 @@ def combined_labels(results: list, rig: Rig) -> dict:
     return out
 
 
-def _foreground_extractors(dataset, rig: Rig, foreground) -> dict:
+def people_foreground(dataset, rig: Rig, foreground=None) -> dict:
     """Per camera of ``rig`` a fitted foreground extractor that keeps every blob: on the dataset's clean
     plate where it has one (as the one-person stage does), else on the camera's video."""
     from dataclasses import replace
@@ -384,7 +384,7 @@ def _several_blobs(masks: list, share: float = 0.3, min_px: int = 50) -> bool:
 
 
 def locate_silhouette_people(dataset, rig: Rig, *, foreground=None, config=None, probe_frames: int = 8,
-                             log=None) -> tuple[np.ndarray, np.ndarray] | None:
+                             log=None, extractors: dict | None = None) -> tuple[np.ndarray, np.ndarray] | None:
     """Where every participant stands in every frame, from the cameras' foreground alone.
 
     First ``probe_frames`` frames spread over the sequence are looked at: if in none of them two
@@ -401,6 +401,9 @@ def locate_silhouette_people(dataset, rig: Rig, *, foreground=None, config=None,
     config : toolkit.silhouettes.people.PeopleSilhouettesConfig, optional
     probe_frames : int
     log : callable, optional
+    extractors : dict, optional
+        :func:`people_foreground`'s extractors (made here when not given; a run makes them once for
+        this search and :func:`estimate_people_silhouettes`).
 
     Returns
     -------
@@ -416,7 +419,7 @@ def locate_silhouette_people(dataset, rig: Rig, *, foreground=None, config=None,
 
     config = config or PeopleSilhouettesConfig()
     T = dataset.n_frames
-    extractors = _foreground_extractors(dataset, rig, foreground)
+    extractors = extractors or people_foreground(dataset, rig, foreground)
     grid = ground_grid(rig, config)
     found: dict[int, np.ndarray] = {}
 
@@ -457,7 +460,7 @@ def _mirrored(est):
 
 
 def estimate_people_silhouettes(dataset, database, rig: Rig, located, s1config=None, *, frames=None,
-                                foreground=None, config=None, observer=None) -> Iterator[PeopleFrame]:
+                                foreground=None, config=None, observer=None, extractors: dict | None = None) -> Iterator[PeopleFrame]:
     """Stage 1 of every participant from silhouettes, frame by frame.
 
     The cameras' foreground is split between the people
@@ -479,6 +482,8 @@ def estimate_people_silhouettes(dataset, database, rig: Rig, located, s1config=N
     foreground : toolkit.foreground.ForegroundConfig, optional
     config : toolkit.silhouettes.people.PeopleSilhouettesConfig, optional
     observer : Observer, optional
+    extractors : dict, optional
+        :func:`people_foreground`'s extractors (those of :func:`locate_silhouette_people`).
 
     Yields
     ------
@@ -495,7 +500,7 @@ def estimate_people_silhouettes(dataset, database, rig: Rig, located, s1config=N
     hips = (SKELETON_14.joint_names.index("l_hip"), SKELETON_14.joint_names.index("r_hip"))
     names = [f"person_{k}" for k in range(len(positions))]
     t0 = time.perf_counter()
-    extractors = _foreground_extractors(dataset, rig, foreground)
+    extractors = extractors or people_foreground(dataset, rig, foreground)
     todo = list(range(dataset.n_frames)) if frames is None else [int(t) for t in frames]
     setup = (time.perf_counter() - t0) / max(len(todo), 1)
     estimators = [SilhouettePoseEstimator(rig, database, s1config, observer if k == 0 else None)

@@ -287,8 +287,8 @@ def locate_people(masks, grid: GroundGrid, config: PeopleSilhouettesConfig = Peo
             total[v] = _box_sums(integrals[v], grid.boxes[v])
     hidden = np.zeros((V, N))  # box area covered by the boxes of people already chosen
     taken = np.zeros((V, N))   # the foreground in it
-    positions, scores = [], []
-    while len(positions) < config.max_people and possible.any():
+    chosen, scores = [], []
+    while len(chosen) < config.max_people and possible.any():
         visible = np.maximum(areas - hidden, 1.0)
         clear = seen & (hidden / areas < config.occluded_share)
         free = np.where(clear, (total - taken) / visible, 0.0)
@@ -300,7 +300,7 @@ def locate_people(masks, grid: GroundGrid, config: PeopleSilhouettesConfig = Peo
         best = int(np.argmax(score))
         if not np.isfinite(score[best]):
             break
-        positions.append(grid.xy[best])
+        chosen.append(best)
         scores.append(float(score[best]))
         possible &= np.linalg.norm(grid.xy - grid.xy[best], axis=1) >= config.min_separation_m
         for v in range(V):  # every other cell loses what the chosen person's box covers
@@ -314,9 +314,8 @@ def locate_people(masks, grid: GroundGrid, config: PeopleSilhouettesConfig = Peo
             taken[v] += _box_sums(integrals[v], inter)
         hidden = np.minimum(hidden, areas)
         taken = np.minimum(taken, total)
-    keep = _explaining(fg, grid, [int(np.flatnonzero((grid.xy == p).all(1))[0]) for p in positions], need,
-                       config)
-    return (np.array(positions, float).reshape(-1, 2)[keep], np.array(scores, float)[keep])
+    keep = _explaining(fg, grid, chosen, need, config)
+    return grid.xy[np.array(chosen, int)[keep]].reshape(-1, 2), np.array(scores, float)[keep]
 
 
 def _explaining(fg: list, grid: GroundGrid, cells: list, need: int, config: PeopleSilhouettesConfig) -> list:
