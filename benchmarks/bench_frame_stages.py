@@ -98,7 +98,8 @@ from toolkit.silhouettes import default_database_path
 dataset, out, frames, db = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
 db = Path(db) if db else default_database_path()
 c0, w0 = time.process_time(), time.perf_counter()
-res = run(FreeViewpointRunConfig(max_frames=frames, recording=False, progress=False, db=db), dataset=dataset,
+one = {"workers": 1} if "workers" in FreeViewpointRunConfig.__dataclass_fields__ else {}  # the counters: here
+res = run(FreeViewpointRunConfig(max_frames=frames, recording=False, progress=False, db=db, **one), dataset=dataset,
           out=out, log=None)
 acc.update(run_cpu=time.process_time() - c0, run_wall=time.perf_counter() - w0)
 print("SIDE-RESULT " + json.dumps({"toolkit": toolkit.__file__, "db": str(db), "processed": res.processed,
@@ -145,6 +146,9 @@ def main(argv=None) -> int:
     ap.add_argument("--dataset", type=Path, help="dataset folder (default: the default scene, generated into --cache)")
     ap.add_argument("--frames", type=int, default=3, help="frames run on each side")
     ap.add_argument("--baseline", default=BASELINE, help="commit of the baseline side")
+    ap.add_argument("--baseline-dir", type=Path, default=None,
+                    help="the baseline's code as a folder (e.g. `git archive COMMIT | tar -x -C DIR`) instead of a "
+                         "git worktree of --baseline")
     ap.add_argument("--db", type=Path, help="silhouette database of both sides (default: the baseline's default)")
     ap.add_argument("--cache", type=Path, default=ROOT / "out" / "cache")
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "bench_frame_stages")
@@ -153,23 +157,29 @@ def main(argv=None) -> int:
         ap.error("--frames must be >= 1")
     dataset = args.dataset if args.dataset is not None else default_dataset(args.cache)
     args.out.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix="bench_frame_stages_") as tmp:
-        base_root = Path(tmp) / "baseline"
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(base_root), args.baseline],
-                       check=True, capture_output=True)
-        try:
-            base = run_side("baseline", base_root, dataset, args.out / "baseline", args.frames,
-                            str(args.db or ""))
-            new = run_side("new", ROOT, dataset, args.out / "new", args.frames, base["db"])
-        finally:
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(base_root)],
-                           capture_output=True)
+    if args.baseline_dir is not None:
+        base = run_side("baseline", args.baseline_dir.resolve(), dataset, args.out / "baseline", args.frames,
+                        str(args.db or ""))
+        new = run_side("new", ROOT, dataset, args.out / "new", args.frames, base["db"])
+    else:
+        with tempfile.TemporaryDirectory(prefix="bench_frame_stages_") as tmp:
+            base_root = Path(tmp) / "baseline"
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(base_root), args.baseline],
+                           check=True, capture_output=True)
+            try:
+                base = run_side("baseline", base_root, dataset, args.out / "baseline", args.frames,
+                                str(args.db or ""))
+                new = run_side("new", ROOT, dataset, args.out / "new", args.frames, base["db"])
+            finally:
+                subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(base_root)],
+                               capture_output=True)
     cmp = compare_outputs(args.out / "baseline", args.out / "new")
     print(f"\n{'CPU seconds per frame':<24}{'baseline':>10}{'new':>10}{'speed-up':>10}")
     for label, _ in ROWS:
         a, b = base["per_frame"][label], new["per_frame"][label]
         print(f"{label:<24}{a:10.2f}{b:10.2f}" + (f"{a / b:9.2f}x" if b > 1e-9 else ""))
-    print(f"\n{args.frames} frames of {dataset}, database {base['db']}, baseline {args.baseline[:12]}")
+    print(f"\n{args.frames} frames of {dataset}, database {base['db']}, baseline "
+          f"{args.baseline_dir or args.baseline[:12]}")
     print(f"outputs: poses max difference {cmp['pose_max_diff_m']:.3g} m, {cmp['images_identical']} of "
           f"{cmp['images']} images byte-identical -> {'IDENTICAL' if cmp['identical'] else 'DIFFERENT'}")
     for d in cmp["differences"][:40]:

@@ -5,6 +5,7 @@ Usage::
 
     python benchmarks/bench_heldout.py [--realdata DIR] [--trial balancing|static|multiperson] [--frames N] [--scale S]
                                        [--cameras cam_01 ...] [--out OUT] [--pictures docs/images] [--orbit]
+                                       [--workers N]
 
 Imports the demo's trial (``recipes/import_pose2sim.py``: videos, OpenPose keypoints,
 the lab's calibration), then for each camera runs ``recipes/free_viewpoint.py DATASET
@@ -14,13 +15,13 @@ clean plate exists), and the held-out view is rendered from the other three with
 articulated billboards, standard billboards and the visual hull.  Prints per camera and
 method the PSNR over the person's region (its keypoint-seeded mask + 2 px; docs:
 ``toolkit/pipeline/views.py``), SSIM in its box and coverage, the articulated margin
-over the better baseline, and writes ``heldout.json``.  With ``--pictures`` it saves,
-per held-out camera, real frame | articulated | standard | visual hull cropped to the
-person, the whole frames (real | ours | the nearest source camera carried through the
-scene proxy), and (``--orbit``) a camera path around the scene from a run with every
-camera.  ``multiperson`` (``pose2sim_multiperson``: videos and a Qualisys calibration
-only) is detected by the built-in detector on import; every participant is drawn and
-judged in its own region.
+over the better baseline, the wall seconds per frame of each stage, and writes
+``heldout.json``.  With ``--pictures`` it saves, per held-out camera, real frame |
+articulated | standard | visual hull cropped to the person, the whole frames (real |
+ours | the nearest source camera carried through the scene proxy), and (``--orbit``) a
+camera path around the scene from a run with every camera.  ``multiperson``
+(``pose2sim_multiperson``: videos and a Qualisys calibration only) is detected by the
+built-in detector on import; every participant is drawn and judged in its own region.
 
 The demo lives in ``../shared/realdata/pose2sim_demo`` (or ``$TOOLKIT_REALDATA``);
 without it the benchmark prints a message and exits 0.
@@ -76,6 +77,21 @@ def crop_row(images: list, region: np.ndarray, margin: float = 0.15, height: int
     return np.concatenate(tiles[:-1], 1)
 
 
+#: Stages of ``metrics.json`` ``seconds_per_frame`` printed per held-out run (wall seconds per frame).
+SPEED_STAGES = ("stage1", "segmentation", "optimize", "billboards", "standard_billboards", "visual_hull", "views",
+                "paths", "other", "total")
+
+
+def print_speed(table: dict) -> None:
+    """Per held-out run the wall seconds per frame of each stage (``metrics.json`` ``seconds_per_frame``;
+    ``total`` is everything after stage 1, ``stage1`` the keypoints and seeded silhouettes)."""
+    print("\nseconds per frame (wall) per stage: " + " ".join(f"{k:>9s}" for k in SPEED_STAGES) + "  total+stage1")
+    for cam, r in table.items():
+        sp = r.get("seconds_per_frame", {})
+        whole = sp.get("total", np.nan) + sp.get("stage1", np.nan)
+        print(f"{cam:36s}" + " ".join(f"{sp.get(k, np.nan):9.2f}" for k in SPEED_STAGES) + f"  {whole:11.2f}")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -84,13 +100,17 @@ def main(argv=None) -> int:
     ap.add_argument("--trial", choices=tuple(TRIALS), default="balancing")
     ap.add_argument("--frames", type=int, default=4, help="frames per held-out run (default 4)")
     ap.add_argument("--scale", type=float, default=0.5,
-                    help="image scale of the runs (default 0.5: 540x960; the person is ~600 px tall there, and a "
-                         "full-resolution frame takes ~8 min on 2 loaded cores); 1 = the videos as they are")
+                    help="image scale of the runs (default 0.5: 540x960; the person is ~600 px tall there); 1 = the "
+                         "videos as they are (stages 2-3 still work with the person at most 300 px tall: "
+                         "toolkit/pipeline/working_scale.py)")
     ap.add_argument("--cameras", nargs="*", default=None, help="cameras to hold out (default: each in turn)")
     ap.add_argument("--out", type=Path, default=REPO / "out" / "bench_heldout")
     ap.add_argument("--pictures", type=Path, default=None, help="write the pictures into this folder")
     ap.add_argument("--orbit", action="store_true", help="also run every camera and picture the orbit path")
     ap.add_argument("--reuse-runs", action="store_true", help="keep finished runs (resume)")
+    ap.add_argument("--workers", default=None,
+                    help="free_viewpoint.py --workers of each run (default: the recipe's); 1 for seconds per frame "
+                         "on one worker")
     args = ap.parse_args(argv)
 
     trial = args.realdata / TRIALS[args.trial]
@@ -123,7 +143,7 @@ def main(argv=None) -> int:
         out = args.out / f"{args.trial}_holdout_{cam}"
         t0 = time.perf_counter()
         argv_run = [str(dataset), "--out", str(out), "--hold-out", cam, "--max-frames", str(args.frames),
-                    "--no-recording", "--quiet"]
+                    "--no-recording", "--quiet"] + ([] if args.workers is None else ["--workers", str(args.workers)])
         if not args.reuse_runs:
             argv_run.append("--replace-stale")
             if out.exists():
@@ -212,6 +232,7 @@ def main(argv=None) -> int:
     if person_margins:
         print(f"each person over the better baseline: median {np.nanmedian(person_margins):+.2f} dB, worst "
               f"{np.nanmin(person_margins):+.2f} dB (target >= +0.5 dB)")
+    print_speed(table)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / f"heldout_{args.trial}.json").write_text(json.dumps(table, indent=2, allow_nan=True))
     ds.close()

@@ -17,7 +17,8 @@ last frame, and the growth between them.
 ``OUT/fv_scene``) in a child process, whose ``VmRSS`` is sampled every 0.2 s together with the frames
 finished (``OUT/fv_run/frames/``): the memory once 10 frames, half of them and all of them are
 finished (the growth is the last against the first), and the largest sample (the final aggregates
-included).  The bound: growth under 50 MB.
+included).  The bound: growth under 50 MB.  Then the same scene's first ``--fv-short`` frames: the
+peak of each whole run (every process of it, ``--workers``), the long one within 10 % of the short.
 """
 
 from __future__ import annotations
@@ -32,6 +33,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 #: Growth allowed between frame 10 and the end, MB.
 GROWTH_LIMIT_MB = 50.0
+#: A long free-viewpoint run's peak memory may exceed a short one's of the same scene by this share.
+PEAK_RATIO_LIMIT = 0.10
 
 
 def rss_mb(pid: str | int = "self") -> float:
@@ -93,20 +96,34 @@ def depth(out: Path, n_frames: int) -> dict:
             "growth_mb": marks[n_frames] - marks[10], "seconds": time.perf_counter() - t0}
 
 
-def free_viewpoint(out: Path, n_frames: int) -> dict:
-    """``recipes/free_viewpoint.py`` on ``n_frames`` frames in a child process, its memory sampled."""
-    data = make(REPO / "datasets_synthetic" / "default.toml", out / "fv_scene",
-                {"frames": n_frames, "resolution": "[640, 360]"})
+def tree_rss_mb(pid: int) -> float:
+    """Resident memory of a process and every process under it (a run's Dask workers), summed, MB."""
+    import psutil
+
+    try:
+        root = psutil.Process(pid)
+        return sum(q.memory_info().rss for q in [root] + root.children(recursive=True)) / 2**20
+    except psutil.Error:
+        return float("nan")
+
+
+def free_viewpoint(out: Path, n_frames: int, workers: str = "1", scene_frames: int | None = None) -> dict:
+    """``recipes/free_viewpoint.py`` on ``n_frames`` frames (of a scene of ``scene_frames``, default as many) in a
+    child process with ``--workers workers``, the memory of its process tree sampled."""
+    total = scene_frames or n_frames
+    data = make(REPO / "datasets_synthetic" / "default.toml", out / f"fv_scene_{total}",
+                {"frames": total, "resolution": "[640, 360]"})
     run = out / "fv_run"
     shutil.rmtree(run, ignore_errors=True)
     t0 = time.perf_counter()
     p = subprocess.Popen([sys.executable, str(REPO / "recipes" / "free_viewpoint.py"), str(data), "--out", str(run),
-                          "--max-frames", str(n_frames), "--no-recording", "--quiet"],
+                          "--max-frames", str(n_frames), "--no-recording", "--quiet", "--workers", str(workers)],
                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     at: dict = {}
-    peak = 0.0
+    peak = whole = 0.0
     while p.poll() is None:
-        mb = rss_mb(p.pid)
+        mb = tree_rss_mb(p.pid)
+        whole = max(whole, mb) if mb == mb else whole
         done = len(list((run / "frames").glob("*.json"))) if (run / "frames").is_dir() else 0
         for mark in (10, n_frames // 2, n_frames):
             if done >= mark and mark not in at and mb == mb:
@@ -117,7 +134,7 @@ def free_viewpoint(out: Path, n_frames: int) -> dict:
     if p.returncode != 0:
         raise SystemExit(f"free_viewpoint.py failed ({p.returncode}): {p.stderr.read()[-2000:]}")
     return {"frames": n_frames, "rss_at_10_mb": at.get(10), "rss_middle_mb": at.get(n_frames // 2),
-            "rss_last_frame_mb": at.get(n_frames), "rss_end_mb": peak,
+            "rss_last_frame_mb": at.get(n_frames), "rss_end_mb": peak, "peak_mb": whole,
             "growth_mb": at.get(n_frames, peak) - (at.get(10) or 0.0), "seconds": time.perf_counter() - t0}
 
 
@@ -127,6 +144,10 @@ def main(argv=None) -> int:
     ap.add_argument("--parts", default="depth,free_viewpoint")
     ap.add_argument("--depth-frames", type=int, default=10_000)
     ap.add_argument("--fv-frames", type=int, default=200)
+    ap.add_argument("--fv-short", type=int, default=20,
+                    help="the same scene's first N frames too: the peak of the whole run against the long one's "
+                         "(target: within 10 %%; 0: not run)")
+    ap.add_argument("--workers", default="1", help="free_viewpoint.py --workers (default 1; memory of all processes)")
     ap.add_argument("--out", type=Path, default=REPO / "out" / "bench_memory")
     args = ap.parse_args(argv)
     parts = {p.strip() for p in args.parts.split(",")}
@@ -134,7 +155,7 @@ def main(argv=None) -> int:
     for name, fn, n in (("depth", depth, args.depth_frames), ("free_viewpoint", free_viewpoint, args.fv_frames)):
         if name not in parts:
             continue
-        r = fn(args.out, n)
+        r = fn(args.out, n) if name == "depth" else fn(args.out, n, args.workers)
         ok &= r["growth_mb"] < GROWTH_LIMIT_MB
         more = (f", half way {r['rss_middle_mb']:.0f} MB, once the last frame is finished "
                 f"{r['rss_last_frame_mb']:.0f} MB, largest (the final aggregates included)"
@@ -142,6 +163,13 @@ def main(argv=None) -> int:
         print(f"{name}: {r['frames']} frames in {r['seconds']:.0f} s; resident memory after frame 10 "
               f"{r['rss_at_10_mb']:.0f} MB{more} {r['rss_end_mb']:.0f} MB: growth over the frames "
               f"{r['growth_mb']:+.1f} MB (limit {GROWTH_LIMIT_MB:.0f})", flush=True)
+        if name == "free_viewpoint" and args.fv_short:
+            short = fn(args.out, args.fv_short, args.workers, scene_frames=n)
+            ratio = r["peak_mb"] / short["peak_mb"]
+            ok &= ratio <= 1.0 + PEAK_RATIO_LIMIT
+            print(f"free_viewpoint peak of the whole run (all processes, --workers {args.workers}): "
+                  f"{n} frames {r['peak_mb']:.0f} MB, {args.fv_short} frames {short['peak_mb']:.0f} MB: "
+                  f"{100 * (ratio - 1):+.1f} % (limit {100 * PEAK_RATIO_LIMIT:.0f} %)", flush=True)
     return 0 if ok else 1
 
 

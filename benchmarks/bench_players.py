@@ -20,10 +20,13 @@ Per scene, on the novel cameras against the rendered truth:
 * ``people``: per true person, PSNR over its region (+ 2 px) of the articulated rendering and
   of the better of standard billboards / visual hull; the margin;
 * ``miou``: per true person, the part mIoU of the run's labels on the source cameras inside
-  that person's true pixels (grown by 3 px, the other people's left out).
+  that person's true pixels (grown by 3 px, the other people's left out);
+* ``mpjpe_cm``: per true person, the mean joint error of the estimated person matched to it
+  (minimum-cost assignment on the hip centres over the frames run; NaN when nobody was matched
+  within 1 m), so that a poor label is told apart from a poor pose.
 
 Prints each scene and then the median and worst decile over the scenes; writes
-``players.json``.  With ``--pictures`` the two worst scenes' novel views (truth | ours |
+``players.json``.  ``--rescore`` scores the runs already in ``--out`` again without running them.  With ``--pictures`` the two worst scenes' novel views (truth | ours |
 nearest source) are written as ``players_worst_<k>.jpg``.
 """
 
@@ -97,20 +100,61 @@ def people_miou(ds, run: Path, frames: int) -> list:
     return [float(np.mean(vals[k])) if k in vals else float("nan") for k in range(ds.people_count)]
 
 
-def run_scene(spec, cache: Path, out: Path, frames: int, stage1: str = "silhouettes") -> dict:
-    from recipes import free_viewpoint
+#: An estimated person is matched to a true one when their hip centres are within this (m).
+MATCH_RADIUS_M = 1.0
+
+
+def people_mpjpe(truth: np.ndarray, estimated: np.ndarray) -> list:
+    """Per true person, the mean joint error (cm) of the estimated person matched to it.
+
+    Parameters
+    ----------
+    truth : ndarray of shape (P, T, 14, 3)
+        The true people's joints in metres (``groundtruth/people.npz``).
+    estimated : ndarray of shape (Q, T', 14, 3)
+        The run's people (``people3d.npz``, or ``poses3d.npz`` as one person), NaN where missing;
+        only the first ``min(T, T')`` frames are compared.
+
+    Returns
+    -------
+    list of float
+        ``P`` errors in centimetres, NaN for a true person nobody was matched to (hip centres
+        more than :data:`MATCH_RADIUS_M` apart on average, or no estimate).
+    """
+    from scipy.optimize import linear_sum_assignment
+
+    from toolkit.skeleton import SKELETON_14
+
+    hips = [SKELETON_14.joint_names.index("l_hip"), SKELETON_14.joint_names.index("r_hip")]
+    n = min(truth.shape[1], estimated.shape[1])
+    g, e = truth[:, :n], estimated[:, :n]
+    gh, eh = g[:, :, hips].mean(2), e[:, :, hips].mean(2)
+    with np.errstate(invalid="ignore"):
+        d = np.array([[np.nanmean(np.linalg.norm(eh[i] - gh[j], axis=-1)) if np.isfinite(eh[i]).any() else np.inf
+                       for j in range(len(g))] for i in range(len(e))]).reshape(len(e), len(g))
+    out = [float("nan")] * len(g)
+    if d.size:
+        rows, cols = linear_sum_assignment(np.where(np.isfinite(d), d, 1e6))
+        for i, j in zip(rows, cols):
+            if d[i, j] <= MATCH_RADIUS_M:
+                out[j] = 100.0 * float(np.nanmean(np.linalg.norm(e[i] - g[j], axis=-1)))
+    return out
+
+
+def run_pose_error(dataset: Path, run: Path) -> list:
+    """:func:`people_mpjpe` of a run's people against its dataset's true people."""
+    truth = np.load(dataset / "groundtruth" / "people.npz")["joints"]
+    if (run / "people3d.npz").exists():
+        est = np.load(run / "people3d.npz")["joints"]
+    else:
+        est = np.load(run / "poses3d.npz")["joints"][None]
+    return people_mpjpe(truth, est)
+
+
+def score_run(dataset: Path, run: Path, frames: int, name: str, seconds: float) -> dict:
+    """One scene's figures (see the module docstring) from a finished run of it."""
     from toolkit.io import Dataset
 
-    name = spec.source.rsplit("/", 1)[-1].removesuffix(".toml")
-    t0 = time.perf_counter()
-    dataset = make_dataset(spec, cache / name, stage1 == "detector")
-    run = out / name
-    shutil.rmtree(run, ignore_errors=True)
-    how = ["--keypoint-format", "blazepose_33"] if stage1 == "detector" else ["--no-keypoints"]
-    rc = free_viewpoint.main([str(dataset), "--out", str(run), "--max-frames", str(frames), "--no-recording",
-                              "--quiet", *how])
-    if rc != 0:
-        raise RuntimeError(f"free_viewpoint.py on {dataset} returned {rc}")
     m = json.loads((run / "metrics.json").read_text())
     with Dataset.open(dataset) as ds:
         miou = people_miou(ds, run, frames)
@@ -126,7 +170,29 @@ def run_scene(spec, cache: Path, out: Path, frames: int, stage1: str = "silhouet
         "psnr_frame_nearest": m["methods"].get("nearest_source", {}).get("psnr_frame", np.nan),
         "psnr_people": each, "psnr_people_best_baseline": best,
         "people_margin": [e - b for e, b in zip(each, best)], "miou": miou,
-        "seconds": time.perf_counter() - t0}
+        "mpjpe_cm": run_pose_error(dataset, run), "seconds": seconds}
+
+
+def scene_name(spec) -> str:
+    """The folder name of a zoo scene."""
+    return spec.source.rsplit("/", 1)[-1].removesuffix(".toml")
+
+
+def run_scene(spec, cache: Path, out: Path, frames: int, stage1: str = "silhouettes") -> dict:
+    """Render one zoo scene (cached), run ``free_viewpoint.py`` on it with default options and score it."""
+    from recipes import free_viewpoint
+
+    name = scene_name(spec)
+    t0 = time.perf_counter()
+    dataset = make_dataset(spec, cache / name, stage1 == "detector")
+    run = out / name
+    shutil.rmtree(run, ignore_errors=True)
+    how = ["--keypoint-format", "blazepose_33"] if stage1 == "detector" else ["--no-keypoints"]
+    rc = free_viewpoint.main([str(dataset), "--out", str(run), "--max-frames", str(frames), "--no-recording",
+                              "--quiet", *how])
+    if rc != 0:
+        raise RuntimeError(f"free_viewpoint.py on {dataset} returned {rc}")
+    return score_run(dataset, run, frames, name, time.perf_counter() - t0)
 
 
 def picture(rows: list, out: Path, runs: Path, cache: Path, pictures: Path, k: int = 2) -> None:
@@ -149,6 +215,24 @@ def picture(rows: list, out: Path, runs: Path, cache: Path, pictures: Path, k: i
                     [cv2.IMWRITE_JPEG_QUALITY, 85])
 
 
+#: A pose this close to the truth (mean joint error, cm) counts as right when the labels are judged apart.
+POSE_RIGHT_CM = 10.0
+
+
+def summarise_poses(rows: list) -> None:
+    """Print the people's pose errors and the part mIoU of the people whose pose is right."""
+    pairs = [(e, v) for r in rows for e, v in zip(r["mpjpe_cm"], r["miou"])]
+    errors = [e for e, _ in pairs if np.isfinite(e)]
+    right = [v for e, v in pairs if np.isfinite(e) and e <= POSE_RIGHT_CM and np.isfinite(v)]
+    wrong = [v for e, v in pairs if not (np.isfinite(e) and e <= POSE_RIGHT_CM) and np.isfinite(v)]
+    print(f"per-person pose error: {len(errors)} of {len(pairs)} players matched, median {np.median(errors):.1f} cm, "
+          f"worst decile {worst_decile(errors, higher_is_better=False):.1f}; within {POSE_RIGHT_CM:.0f} cm: "
+          f"{len(right)}")
+    if right:
+        print(f"part mIoU of the players within {POSE_RIGHT_CM:.0f} cm: median {np.median(right):.3f}, worst decile "
+              f"{worst_decile(right):.3f}; of the others: median {np.median(wrong) if wrong else float('nan'):.3f}")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -159,6 +243,8 @@ def main(argv=None) -> int:
     ap.add_argument("--pictures", type=Path, default=None)
     ap.add_argument("--stage1", choices=("silhouettes", "detector"), default="silhouettes",
                     help="people from the cameras' foreground (default) or from the built-in detector")
+    ap.add_argument("--rescore", action="store_true",
+                    help="score the runs already in --out again (same --scenes, --zoo-seed, --frames) without running")
     args = ap.parse_args(argv)
 
     from toolkit.synthetic.players import players_zoo
@@ -168,7 +254,11 @@ def main(argv=None) -> int:
     rows = []
     for spec in specs:
         try:
-            r = run_scene(spec, cache, runs, args.frames, args.stage1)
+            if args.rescore:
+                name = scene_name(spec)
+                r = score_run(cache / name, runs / name, args.frames, name, float("nan"))
+            else:
+                r = run_scene(spec, cache, runs, args.frames, args.stage1)
         except Exception as e:  # one scene's failure is reported, the others go on
             print(f"[{spec.source}] failed: {type(e).__name__}: {e}")
             continue
@@ -176,7 +266,9 @@ def main(argv=None) -> int:
         print(f"[{r['scene']}] {r['layout']}, {r['people']} players ({r['followed']} followed), {r['cameras']} cameras: "
               f"whole frame {r['psnr_frame']:.2f} dB (nearest source {r['psnr_frame_nearest']:.2f}); per person "
               + ", ".join(f"{e:.1f} ({d:+.1f})" for e, d in zip(r["psnr_people"], r["people_margin"]))
-              + " dB; mIoU " + ", ".join(f"{v:.2f}" for v in r["miou"]) + f"  ({r['seconds']:.0f} s)", flush=True)
+              + " dB; mIoU " + ", ".join(f"{v:.2f}" for v in r["miou"])
+              + "; pose error " + ", ".join(f"{v:.0f}" for v in r["mpjpe_cm"]) + f" cm  ({r['seconds']:.0f} s)",
+              flush=True)
         (args.out / "players.json").write_text(json.dumps(rows, indent=2, allow_nan=True))
     if not rows:
         return 1
@@ -195,6 +287,7 @@ def main(argv=None) -> int:
           f"{np.mean([s == 1.0 for s in scene_ok]):.0%} (target {TARGET_PEOPLE_SHARE:.0%})")
     print(f"per-person part mIoU: median {np.median(mious):.3f} (target {TARGET_MIOU_MEDIAN}), worst decile "
           f"{worst_decile(mious):.3f} (target {TARGET_MIOU_WORST})")
+    summarise_poses(rows)
     if args.pictures is not None:
         picture(rows, args.out, runs, cache, args.pictures)
     return 0

@@ -27,9 +27,18 @@ pixel difference).
 is (sequential); the outputs must still be identical.
 
 Writes ``OUT/speed.json`` (both sides' timings, ratios, the comparison).
+
+``--stages`` measures the working tree alone instead: seconds per frame per
+stage (``metrics.json`` ``seconds_per_frame``), the frames' wall time per frame,
+the CPU time and the peak resident memory of the whole process tree (the
+workers' included), on the default scene, the first zoo scene of
+``--zoo-seed`` and the real balancing trial at full resolution with a camera
+held out, each with ``--workers 1`` and ``--workers auto``; writes
+``OUT/stages.json``.
 Usage::
 
     python -m benchmarks.bench_speed --frames 4
+    python -m benchmarks.bench_speed --stages --frames 8
     python -m benchmarks.bench_speed --dataset /path/to/default_scene --frames 4 --out out/bench_speed
 """
 
@@ -75,7 +84,7 @@ from toolkit.pipeline.free_viewpoint import FreeViewpointRunConfig, run
 
 dataset, out, frames, workers = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
 kw = dict(max_frames=frames, recording=False, progress=False)
-if workers > 1:
+if workers > 1 or "workers" in FreeViewpointRunConfig.__dataclass_fields__:  # explicit: the default is "auto"
     kw["workers"] = workers
 t0 = time.perf_counter()
 res = run(FreeViewpointRunConfig(**kw), dataset=dataset, out=out, log=None)
@@ -183,6 +192,56 @@ def print_table(sides: list, ratios: dict) -> None:
     print(f"{'run wall / frame':<22}" + "".join(f"{v:12.2f}" for v in walls) + f"{walls[0] / walls[1]:9.2f}x")
 
 
+#: The real trial of ``--stages`` (docs/real_footage.md): the Pose2Sim demo's balancing trial, at full resolution.
+REAL_TRIAL = Path("/work/shared/realdata/pose2sim_demo/S00_P00_SingleParticipant/S00_P00_T01_BalancingTrial")
+#: Stages of ``--stages``' table (``metrics.json`` ``seconds_per_frame``; ``total`` is the frame after stage 1).
+STAGE_COLUMNS = ("stage1", "segmentation", "optimize", "billboards", "visual_hull", "views", "paths", "other", "total")
+
+
+def stage_scenes(args) -> list:
+    """``(label, dataset or trial folder, extra flags)`` of ``--stages``: the default scene, one zoo scene, the
+    real trial with a camera held out (each left out when missing)."""
+    from benchmarks.bench_zoo import draw_specs, scene
+
+    scenes = [("default", args.dataset if args.dataset is not None else default_dataset(args.cache), ())]
+    name, text = draw_specs(1, args.zoo_seed, args.frames)[0]
+    scenes.append((f"zoo {name}", scene(args.cache / "zoo", name, text), ()))
+    if args.real is not None and Path(args.real).is_dir():
+        scenes.append(("real balancing", Path(args.real), ("--hold-out", args.hold_out)))
+    else:
+        print(f"no real trial at {args.real}: left out", flush=True)
+    return scenes
+
+
+def stage_table(args) -> dict:
+    """Seconds per frame per stage, run wall per frame, CPU and peak memory of the process tree, for every scene
+    of :func:`stage_scenes` on one worker and on ``auto`` (every core), each run a fresh process."""
+    from benchmarks.bench_parallel import timed_run
+
+    rows = []
+    for label, data, extra in stage_scenes(args):
+        for workers in (1, "auto"):
+            out = args.out / "stages" / f"{label.split()[0]}_{workers}"
+            print(f"{label}, workers {workers} ...", flush=True)
+            r = timed_run(data, out, args.frames, workers, recording=False, extra=extra)
+            results = out / "results" if (out / "results" / "metrics.json").exists() else out
+            spf = json.loads((results / "metrics.json").read_text()).get("seconds_per_frame", {}) \
+                if (results / "metrics.json").exists() else {}
+            rows.append({"scene": label, "dataset": str(data), **r, "seconds_per_frame": spf})
+    head = f"{'scene':<22}{'workers':>8}{'run/frame':>10}" + "".join(f"{k[:9]:>10}" for k in STAGE_COLUMNS)
+    print("\nseconds per frame (stages: mean per frame inside a worker; run/frame: the frames' wall / frames)")
+    print(head + f"{'CPU/frame':>10}{'peak MB':>9}")
+    for r in rows:
+        n = max(r["processed"], 1)
+        print(f"{r['scene'][:21]:<22}{str(r['workers']):>8}{r['run_s'] / n:10.2f}"
+              + "".join(f"{r['seconds_per_frame'].get(k, float('nan')):10.2f}" for k in STAGE_COLUMNS)
+              + f"{r['cpu_s'] / n:10.2f}{r['peak_rss_mb']:9.0f}")
+    report = {"frames": args.frames, "rows": rows}
+    atomic_write_text(args.out / "stages.json", json.dumps(report, indent=2, allow_nan=True))
+    print(f"\nwrote {args.out / 'stages.json'}")
+    return report
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--dataset", type=Path, help="dataset folder (default: the default scene, generated into --cache)")
@@ -192,9 +251,19 @@ def main(argv=None) -> int:
                     help="Dask workers of the working tree's side (1: sequential, like the baseline)")
     ap.add_argument("--cache", type=Path, default=ROOT / "out" / "cache")
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "bench_speed")
+    ap.add_argument("--stages", action="store_true",
+                    help="instead of the comparison: seconds per frame per stage and peak memory of the default "
+                         "scene, a zoo scene and the real trial, on one worker and on all (--workers auto)")
+    ap.add_argument("--zoo-seed", type=int, default=71, help="--stages: the zoo scene (the first of this seed)")
+    ap.add_argument("--real", type=Path, default=REAL_TRIAL, help="--stages: the real trial (a Pose2Sim trial)")
+    ap.add_argument("--hold-out", default="cam01", help="--stages: the real trial's held-out camera")
     args = ap.parse_args(argv)
     if args.frames < 1 or args.workers < 1:
         ap.error("--frames and --workers must be >= 1")
+    if args.stages:
+        args.out.mkdir(parents=True, exist_ok=True)
+        stage_table(args)
+        return 0
     dataset = args.dataset if args.dataset is not None else default_dataset(args.cache)
     if not (Path(dataset) / "scene.toml").exists() and not (Path(dataset) / "calibration.toml").exists():
         ap.error(f"--dataset {dataset}: not a dataset folder (no calibration.toml)")

@@ -22,7 +22,8 @@ INPUT is either
 
 Writes ``OUT/skeleton.npz`` (``joints`` (T, 13, 3) metres in world coordinates
 when the camera pose is known, else camera coordinates; ``names`` (13,);
-``state`` (T,) 0 lost / 1 recovering / 2 tracking; ``state_names``; ``observed``
+``state`` (T,) 0 lost (NaN joints: no depth, no person, a flat surface such as a wall; the summary counts
+them) / 1 recovering / 2 tracking; ``state_names``; ``observed``
 (T, 13); ``explained`` and ``supported`` (T,); ``reason`` (T,); ``frames`` (T,)
 file names; ``coordinates``; ``status``; ``unreadable``), ``OUT/recording.rrd`` (the depth frames, point
 cloud, ORUS grid, normals, curvature centres and osculating spheres, radial

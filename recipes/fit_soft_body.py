@@ -46,6 +46,13 @@ patches, joints, the fitted lengths over the iterations); with ``--images DIR``
 one PNG per frame, ``DIR/softbody_NNN.png``: the fitted surface with the points
 over it (coloured by their distance to it), from the camera and from the side.
 
+Tracking carries its state from frame to frame, so a run always fits the
+whole sequence and writes its results together at the end: Ctrl-C or SIGTERM
+stops it with exit code 130, a full disk with an error naming the file (exit
+code 2), and both leave the results and recording of an earlier complete run
+in OUT as they were; the same command then fits them again.  A run killed
+outright leaves its recording's finished parts (``OUT/recording.parts/``).
+
 Options may also come from a TOML file (--config; the keys of
 toolkit.pipeline.soft_body.SoftBodyRunConfig, nested [stereo], [patches],
 [track] and [fit] tables; flags given on the command line win).
@@ -119,7 +126,7 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     print("\n".join(summary_lines(result)))
-    return 0
+    return 130 if result.stopped else 0
 
 
 if __name__ == "__main__":

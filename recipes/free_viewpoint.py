@@ -54,9 +54,11 @@ Writes into OUT:
   run.json               the dataset fingerprint and options of this run: results of another dataset or
                          other options are never resumed (refused, or moved aside with --replace-stale)
 
+A run in which no frame has a 3D pose ends with exit code 2 and a one-line
+error naming each frame status (the summary says which frames have none).
 Stop it at any time (Ctrl-C, or even a kill) and run the same command again:
 finished frames are kept.  --workers N runs the frames on N processes of this
-machine, --scheduler tcp://HOST:PORT on a Dask cluster (docs/parallel.md);
+machine (default auto: every core), --scheduler tcp://HOST:PORT on a Dask cluster (docs/parallel.md);
 stage 1 keeps its frame order in this process, the outputs are the same.  Options may also come from a TOML file (--config; the keys of
 toolkit.pipeline.free_viewpoint.FreeViewpointRunConfig, the per-frame chain in
 a [frame] table; flags given on the command line win).  See docs/stage4_rendering.md.
@@ -71,10 +73,21 @@ from pathlib import Path
 
 from toolkit.errors import InputError
 from toolkit.pipeline.free_viewpoint import (BACKGROUNDS, FOREGROUNDS, KEYPOINT_FORMATS, RENDERERS, SILHOUETTES,
-                                             FreeViewpointRunConfig, run, summary_lines)
+                                             FreeViewpointRunConfig, run, run_failure,
+                                             summary_lines)
+from toolkit.pipeline.parallel import AUTO, resolve_workers
 from toolkit.pipeline.people import PEOPLE_CHOICES
 from toolkit.pipeline.run import load_config
 from toolkit.pipeline.trial_input import prepare_run_input
+
+
+def workers_arg(text: str):
+    """``--workers``: ``auto`` or a number of worker processes >= 1."""
+    try:
+        resolve_workers(text)
+    except InputError:
+        raise argparse.ArgumentTypeError(f"expected a number >= 1 or {AUTO!r}, found {text!r}") from None
+    return AUTO if text.strip().lower() == AUTO else int(text)
 
 
 def parser() -> argparse.ArgumentParser:
@@ -119,9 +132,10 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--hold-out", default=None, metavar="CAM",
                     help="leave camera CAM out: run without its images and keypoints, render its view into "
                          "OUT/heldout/CAM/ and compare with what it filmed (metrics.json 'heldout')")
-    ap.add_argument("--workers", type=int, default=None,
-                    help="frames in parallel on a local Dask cluster of N worker processes (default 1: in this "
-                         "process); outputs identical to one worker (docs/parallel.md)")
+    ap.add_argument("--workers", type=workers_arg, default=None, metavar="N|auto",
+                    help="frames in parallel on a local Dask cluster of N worker processes (default auto: one per "
+                         "available core, no more than the frames to do; 1: in this process); outputs identical "
+                         "to one worker (docs/parallel.md)")
     ap.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                     help="frames on a running Dask cluster (dask scheduler / dask worker; the dataset and OUT on a "
                          "file system every worker sees: docs/parallel.md)")
@@ -169,6 +183,10 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     print("\n".join(summary_lines(result)))
+    failure = run_failure(result)  # e.g. a calibration in the wrong convention: every frame behind the cameras
+    if failure:
+        print(f"error: {failure}", file=sys.stderr)
+        return 2
     return 1 if result.stopped else 0
 
 

@@ -10,7 +10,9 @@ Usage::
 RUN is a run folder of any system (``poses3d.npz`` of keypoints or free
 viewpoint, ``joint_centres.npz`` of markers, with their labelled markers in
 ``trajectories.npz``, ``skeleton.npz`` of depth, ``joints.npz`` of soft body)
-or one of those files.
+or one of those files.  A free-viewpoint run with several people also has
+``people3d.npz``: ``--person NAME`` takes one of them, ``--person all`` each
+into ``OUT/<person>/``; an unknown name is refused with the list of people.
 
 Writes ``OUT/angles.csv`` (``time`` in seconds, then one column per angle in
 degrees, ``<side>_<joint>_<motion>``: ``l_hip_flexion``, ``r_knee_flexion``,
@@ -30,7 +32,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from toolkit.biomech.run import ENGINES, JointAnglesConfig, run, summary_lines
+from toolkit.biomech.run import ENGINES, JointAnglesConfig, run, run_every_person, summary_lines
 from toolkit.errors import InputError
 
 
@@ -47,19 +49,27 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--bvh", action="store_true", help="also write OUT/motion.bvh")
     ap.add_argument("--gltf", action="store_true", help="also write OUT/motion.glb (animated skeleton)")
     ap.add_argument("--no-recording", action="store_true", help="do not write recording.rrd")
+    ap.add_argument("--person", default=None,
+                    help="one person of a free-viewpoint run's people3d.npz, or 'all' (each into OUT/<person>/); "
+                         "default: the run's poses3d.npz (the main person)")
     return ap
 
 
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
+    every = args.person == "all"
     config = JointAnglesConfig(engine=args.engine, fps=args.fps, static=args.static, bvh=args.bvh,
-                               gltf=args.gltf, recording=not args.no_recording)
+                               gltf=args.gltf, recording=not args.no_recording, person=None if every else args.person)
     try:
-        result = run(config, source=args.run, out=args.out)
+        if every:
+            results = list(run_every_person(config, source=args.run, out=args.out).values())
+        else:
+            results = [run(config, source=args.run, out=args.out)]
     except InputError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    print("\n".join(summary_lines(result)))
+    for result in results:
+        print("\n".join(summary_lines(result)))
     return 0
 
 

@@ -34,6 +34,11 @@ markers), ``OUT/metrics.json`` and ``OUT/recording.rrd`` (cameras, 2D blobs,
 reconstructed and labelled markers, tracks, the rigid subsets in colours,
 fitted spheres and axes, the centres and the skeleton).
 
+The outputs are written together at the end: Ctrl-C or SIGTERM stops a run
+with exit code 130, a full disk with an error naming the file (exit code 2),
+and both leave the outputs and recording of an earlier complete run in OUT as
+they were.
+
 Options may also come from a TOML file (--config; the keys of
 toolkit.pipeline.joint_centres.JointCentresRunConfig, the centres' in a
 [centres] table, the labelling's in [label]; flags given here win).
@@ -90,7 +95,7 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     print("\n".join(summary_lines(result)))
-    return 0
+    return 130 if result.stopped else 0
 
 
 if __name__ == "__main__":

@@ -22,9 +22,14 @@ offsets.  Writes into OUT:
                       (or moved aside with --replace-stale)
 
 Frames without an estimate are NaN and their ``state`` says why (see
-docs/stage1_silhouettes.md).  Results are written even when the run stops
-early; a run always starts from the first frame (the temporal term links the
-frames).  Without --db, a default silhouette database is built once (about
+docs/stage1_silhouettes.md).  A run always starts from the first frame (the
+temporal term links the frames).  Ctrl-C or SIGTERM stops it with exit code
+130 and writes the frames estimated so far (the others "not processed"),
+but never over the complete results of an earlier run of the same options,
+which stay with their recording; a run killed outright leaves the finished
+frames' recording in ``OUT/recording.parts/`` (the next run merges it).  A
+rerun of fewer frames (``--max-frames``) than complete results hold is
+refused.  Without --db, a default silhouette database is built once (about
 30 s) into ~/.cache/billboard-toolkit (or $TOOLKIT_CACHE) and reused.
 Options may also come from a TOML file (--config; the keys of
 toolkit.pipeline.pose_from_silhouettes.PoseFromSilhouettesConfig, the

@@ -83,3 +83,32 @@ def test_frames_without_markers_are_left_out_and_said(tmp_path):
     assert np.abs(np.delete(knee - truth["l_knee_flexion"], 3)).max() < ANGLE_DEG
     assert any(n.startswith("frame 3:") for n in res.notes)
     assert np.isnan(res.residuals_m["l_wrist"][5])
+
+
+def test_orientation_targets_only_for_segments_that_markers_frame():
+    # pure numpy: no OpenSim needed
+    from toolkit.biomech.opensim_model import body_orientations
+
+    rng = np.random.default_rng(14)
+    truth = {k: v for k, v in smooth_motion(6, rng).items() if k.endswith("flexion")}
+    assert body_orientations(posed_points(truth, 6)) == {}           # joint centres alone: no target
+    pts = posed_points(truth, 6, lateral_markers=True)
+    targets = body_orientations(pts)
+    assert set(targets) == {"l_femur", "r_femur", "l_tibia", "r_tibia", "l_foot", "r_foot"}
+    for R in targets.values():                                        # rotations in OpenSim's ground
+        np.testing.assert_allclose(np.einsum("tji,tjk->tik", R, R), np.broadcast_to(np.eye(3), R.shape),
+                                   atol=1e-9)
+        np.testing.assert_allclose(np.linalg.det(R), 1.0, atol=1e-9)
+
+
+@needs_opensim
+def test_orientation_targets_are_met_on_exact_data_and_reported(tmp_path):
+    import json
+
+    rng = np.random.default_rng(15)
+    truth = {k: v for k, v in smooth_motion(10, rng).items() if not k.startswith(("l_sh", "r_sh", "l_el", "r_el"))}
+    pts = posed_points(truth, 10, body=random_rotation(rng), lateral_markers=True)
+    res = opensim_angles(pts, 30.0, tmp_path)
+    summary = json.loads(res.files["residuals"].read_text())
+    assert set(summary["orientations_deg"]) == {"l_femur", "r_femur", "l_tibia", "r_tibia", "l_foot", "r_foot"}
+    assert max(v["max"] for v in summary["orientations_deg"].values()) < ANGLE_DEG

@@ -23,7 +23,7 @@ import pytest
 from toolkit.errors import InputError
 from toolkit.observe import RecordingObserver
 from toolkit.pipeline.free_viewpoint import PLATE_STORE, FreeViewpointRunConfig, run
-from toolkit.pipeline.parallel import ParallelConfig, map_scenes, map_tasks
+from toolkit.pipeline.parallel import AUTO, ParallelConfig, available_cores, map_scenes, map_tasks, resolve_workers
 from toolkit.pipeline.run import compare_runs
 from toolkit.rendering.freeviewpoint import FreeViewpointConfig
 from toolkit.synthetic import generate_scene, parse_spec
@@ -32,7 +32,7 @@ REPO = Path(__file__).resolve().parents[2]
 BIN = Path(sys.executable).parent
 N_FRAMES = 4
 #: The whole chain less the baselines (half the time of a tiny frame, and nothing a frame's order could change).
-CONFIG = FreeViewpointRunConfig(frame=FreeViewpointConfig(baselines=False), progress=False)
+CONFIG = FreeViewpointRunConfig(frame=FreeViewpointConfig(baselines=False), progress=False, workers=1)
 
 
 @pytest.fixture(scope="module")
@@ -71,6 +71,22 @@ def test_tasks_in_order_errors_in_the_main_process():
     assert map_scenes(_square, [3, 1, 2]) == [9, 1, 4]
 
 
+def test_auto_workers_are_the_cores_this_process_may_use():
+    import os
+
+    assert FreeViewpointRunConfig().workers == AUTO  # the recipe's default
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    assert 1 <= available_cores() <= cores
+    assert resolve_workers(AUTO) == available_cores()
+    assert resolve_workers(AUTO, tasks=1) == 1  # one frame to do: no cluster
+    assert resolve_workers("3") == 3 and resolve_workers(2) == 2
+    for bad in (0, -1, "two", 1.5, True, None):
+        with pytest.raises(InputError, match="--workers"):
+            resolve_workers(bad)
+    with pytest.raises(InputError, match="--workers"):
+        FreeViewpointRunConfig(workers="many")
+
+
 def test_two_workers_give_the_outputs_of_one(tiny, tmp_path):
     dataset, one = tiny
     obs = RecordingObserver()
@@ -87,6 +103,9 @@ def test_two_workers_give_the_outputs_of_one(tiny, tmp_path):
 
 def _start_cluster(tmp_path: Path):
     """``dask scheduler`` and two ``dask worker`` processes (no nanny: a killed worker stays dead)."""
+    pytest.importorskip("distributed", reason="dask.distributed is not installed")
+    if not (BIN / "dask").exists():
+        pytest.skip("no dask command beside this Python")
     sched_file = tmp_path / "scheduler.json"
     procs = [subprocess.Popen([str(BIN / "dask"), "scheduler", "--port", "0", "--no-dashboard",
                                "--scheduler-file", str(sched_file)], stdout=subprocess.DEVNULL,
@@ -135,13 +154,32 @@ def test_cluster_from_the_command_line_and_a_worker_killed_mid_run(tiny, tmp_pat
 
 
 @pytest.mark.timeout(300)
+def test_the_recipe_on_a_scheduler_and_two_dask_workers_gives_the_outputs_of_one(tiny, tmp_path):
+    """``free_viewpoint.py --scheduler ADDRESS`` with ``dask scheduler`` + two ``dask worker`` processes
+    started from the command line: the same outputs as one worker in this process."""
+    from recipes import free_viewpoint as recipe
+
+    dataset, one = tiny
+    address, procs = _start_cluster(tmp_path)
+    out = tmp_path / "cli"
+    try:
+        rc = recipe.main([str(dataset), "--out", str(out), "--scheduler", address, "--no-baselines", "--quiet"])
+    finally:
+        for p in procs:
+            p.kill()
+            p.wait()
+    assert rc == 0
+    assert compare_runs(one, out) == []
+
+
+@pytest.mark.timeout(300)
 def test_a_killed_run_leaves_a_recording_that_verifies_and_resumes(tiny, tmp_path):
     dataset, one = tiny
     out = tmp_path / "killed"
     log = tmp_path / "killed.log"
     with open(log, "w") as err:
         p = subprocess.Popen([sys.executable, str(REPO / "recipes" / "free_viewpoint.py"), str(dataset), "--out",
-                              str(out), "--quiet", "--no-baselines"], stdout=err, stderr=err)
+                              str(out), "--quiet", "--no-baselines", "--workers", "1"], stdout=err, stderr=err)
     try:
         while p.poll() is None and not (any((out / "frames").glob("*.json"))
                                         and any((out / "recording.parts").glob("*.rrd"))):

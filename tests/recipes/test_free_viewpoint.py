@@ -105,7 +105,8 @@ def test_free_viewpoint_end_to_end_and_resume(dataset, tmp_path, capsys):
     # the truth is the body over black: judged over the "plates" background (black without a scene.toml)
     conf = tmp_path / "plates.toml"
     conf.write_text('background = "plates"\n')
-    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",
+    rc = recipe.main([str(root), "--out", str(out), "--workers", "1",
+                      "--db", str(db_path), "--foreground", "chroma", "--quiet",
                       "--config", str(conf)])
     assert rc == 0
     z = np.load(out / "poses3d.npz")
@@ -155,7 +156,8 @@ def test_free_viewpoint_end_to_end_and_resume(dataset, tmp_path, capsys):
     before = novel0.stat().st_mtime_ns
     first_rec = (out / "recording.rrd").stat()
     (out / "frames" / "000001.json").unlink()
-    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",
+    rc = recipe.main([str(root), "--out", str(out), "--workers", "1",
+                      "--db", str(db_path), "--foreground", "chroma", "--quiet",
                       "--config", str(conf)])
     assert rc == 0
     printed = capsys.readouterr().out
@@ -175,20 +177,23 @@ def test_free_viewpoint_end_to_end_and_resume(dataset, tmp_path, capsys):
         ids.append(re.search(r'"free_viewpoint",\s*"([0-9a-f-]+)"', p.stdout).group(1))
     assert ids[0] == ids[1]
     # nothing left to do: no new recording part
-    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",
+    rc = recipe.main([str(root), "--out", str(out), "--workers", "1",
+                      "--db", str(db_path), "--foreground", "chroma", "--quiet",
                       "--config", str(conf)])
     assert rc == 0 and "already finished" in capsys.readouterr().out
     assert not (out / "recording.resume-2.rrd").exists()
 
     # other options (or another dataset): the finished frames are not resumed ...
-    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",
+    rc = recipe.main([str(root), "--out", str(out), "--workers", "1",
+                      "--db", str(db_path), "--foreground", "chroma", "--quiet",
                       "--config", str(conf), "--no-recording", "--no-baselines", "--no-optimize", "--max-frames", "1"])
     assert rc == 2
     err = capsys.readouterr().err
     assert str(out) in err and "optimize" in err and "--replace-stale" in err
     assert (out / "frames" / "000001.json").exists()
     # ... unless asked: then they are moved aside, not deleted
-    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--foreground", "chroma", "--quiet",
+    rc = recipe.main([str(root), "--out", str(out), "--workers", "1",
+                      "--db", str(db_path), "--foreground", "chroma", "--quiet",
                       "--config", str(conf), "--no-recording", "--no-baselines", "--no-optimize", "--max-frames", "1", "--replace-stale"])
     assert rc == 0
     assert (tmp_path / (out.name + ".stale-1") / "frames" / "000001.json").exists()
@@ -197,11 +202,11 @@ def test_free_viewpoint_end_to_end_and_resume(dataset, tmp_path, capsys):
 
 def test_bad_dataset_is_a_clear_error(tmp_path, capsys):
     recipe = _load_recipe()
-    rc = recipe.main([str(tmp_path / "missing"), "--out", str(tmp_path / "o"), "--quiet"])
+    rc = recipe.main([str(tmp_path / "missing"), "--out", str(tmp_path / "o"), "--workers", "1", "--quiet"])
     assert rc == 2
     assert "error:" in capsys.readouterr().err
     with pytest.raises(SystemExit) as e:
-        recipe.main([str(tmp_path / "missing"), "--out", str(tmp_path / "o"), "--jpeg-quality", "0"])
+        recipe.main([str(tmp_path / "missing"), "--out", str(tmp_path / "o"), "--workers", "1", "--jpeg-quality", "0"])
     assert e.value.code == 2 and "--jpeg-quality" in capsys.readouterr().err
 
 
@@ -224,7 +229,8 @@ def test_each_frame_is_decoded_once(dataset, tmp_path, monkeypatch):
     # the search for several people (people "all": up to 8 frames per camera): both left out here
     conf = tmp_path / "plates.toml"
     conf.write_text('background = "plates"\n')
-    rc = _load_recipe().main([str(root), "--out", str(tmp_path / "o"), "--db", str(db_path), "--foreground",
+    rc = _load_recipe().main([str(root), "--out", str(tmp_path / "o"), "--workers", "1",
+                              "--db", str(db_path), "--foreground",
                               "chroma", "--quiet", "--no-recording", "--no-optimize", "--no-baselines",
                               "--config", str(conf), "--people", "main"])
     assert rc == 0

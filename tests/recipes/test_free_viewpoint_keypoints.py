@@ -104,7 +104,8 @@ def studio(tmp_path_factory):
 def test_hold_out_a_camera_with_keypoints_and_no_plates(studio, tmp_path, capsys):
     """Keypoints, no clean plate, no masks: silhouettes seeded by the keypoints; cam_1's view from the others."""
     out = tmp_path / "run"
-    rc = _load_recipe().main([str(studio), "--out", str(out), "--hold-out", HELD, "--keypoint-format", "body_25",
+    rc = _load_recipe().main([str(studio), "--out", str(out), "--workers", "1",
+                              "--hold-out", HELD, "--keypoint-format", "body_25",
                               "--no-recording", "--quiet"])
     cap = capsys.readouterr()
     text = cap.out
@@ -136,7 +137,8 @@ def test_hold_out_a_camera_with_keypoints_and_no_plates(studio, tmp_path, capsys
 def test_masks_given_are_the_silhouettes(studio, tmp_path, capsys):
     """--masks DIR: the given masks are used as they are (here the true ones) and judge the held-out view."""
     out = tmp_path / "run"
-    rc = _load_recipe().main([str(studio), "--out", str(out), "--hold-out", HELD, "--keypoint-format", "body_25",
+    rc = _load_recipe().main([str(studio), "--out", str(out), "--workers", "1",
+                              "--hold-out", HELD, "--keypoint-format", "body_25",
                               "--masks", str(studio / "groundtruth" / "masks"), "--max-frames", "1",
                               "--no-optimize", "--no-baselines", "--no-recording", "--quiet"])
     cap = capsys.readouterr()
@@ -166,7 +168,8 @@ def test_held_out_whole_frame_uses_no_pixel_of_the_held_out_camera(studio, tmp_p
     outs = []
     for data in (studio, painted):
         out = tmp_path / f"run_{data.name}"
-        rc = _load_recipe().main([str(data), "--out", str(out), "--hold-out", HELD, "--keypoint-format", "body_25",
+        rc = _load_recipe().main([str(data), "--out", str(out), "--workers", "1",
+                                  "--hold-out", HELD, "--keypoint-format", "body_25",
                                   "--max-frames", "1", "--no-optimize", "--no-recording", "--quiet"])
         assert rc == 0, capsys.readouterr()
         outs.append(out)
@@ -183,7 +186,8 @@ def test_held_out_whole_frame_uses_no_pixel_of_the_held_out_camera(studio, tmp_p
 
 
 def test_hold_out_unknown_camera_is_a_clear_error(studio, tmp_path, capsys):
-    rc = _load_recipe().main([str(studio), "--out", str(tmp_path / "r"), "--hold-out", "cam_9", "--no-recording"])
+    rc = _load_recipe().main([str(studio), "--out", str(tmp_path / "r"), "--workers", "1",
+                              "--hold-out", "cam_9", "--no-recording"])
     assert rc == 2
     err = capsys.readouterr().err
     assert "--hold-out" in err and "cam_9" in err and "cam_0" in err

@@ -110,7 +110,8 @@ def test_two_people_crossing_keep_their_own_textures(crossing, tmp_path, capsys)
     assert any(hidden)
     out = tmp_path / "run"
     recipe = importlib.import_module("recipes.free_viewpoint")
-    rc = recipe.main([str(root), "--out", str(out), "--hold-out", HELD, "--keypoint-format", "body_25",
+    rc = recipe.main([str(root), "--out", str(out), "--workers", "1",
+                      "--hold-out", HELD, "--keypoint-format", "body_25",
                       "--no-optimize", "--no-recording", "--quiet"])
     cap = capsys.readouterr()
     assert rc == 0, cap.out + cap.err

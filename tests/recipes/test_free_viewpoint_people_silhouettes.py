@@ -100,7 +100,8 @@ def test_three_people_from_silhouettes(three_people, tmp_path, capsys):
     root, db_path, paths, instances = three_people
     out = tmp_path / "run"
     recipe = importlib.import_module("recipes.free_viewpoint")
-    rc = recipe.main([str(root), "--out", str(out), "--db", str(db_path), "--no-optimize", "--no-baselines",
+    rc = recipe.main([str(root), "--out", str(out), "--workers", "1",
+                      "--db", str(db_path), "--no-optimize", "--no-baselines",
                       "--no-recording", "--quiet"])
     cap = capsys.readouterr()
     assert rc == 0, cap.out + cap.err

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from toolkit.cameras import Camera, Rig
-from toolkit.cameras.validate import MAX_DISTORTION_SCALE, check_camera, check_rig
+from toolkit.cameras.validate import MAX_DISTORTION_SCALE, cameras_behind, check_camera, check_rig
 from toolkit.errors import InputError
 from toolkit.io.calibration import read_calibration, write_calibration
 
@@ -99,6 +99,22 @@ def test_parallel_rig_is_not_judged():
                  for i, x in enumerate((0.0, 0.3)))
     check_rig(Rig(cams))
     check_rig(with_pose(Rig(cams), flipped_translation))
+
+
+def test_points_behind_the_cameras_that_see_them():
+    # a level ring written as world_from_cam passes check_rig (its axes become parallel); its joints do not
+    rig = ring_rig()
+    joints = np.array([[0.0, 0.0, 1.0], [0.2, 0.1, 1.6], [np.nan, 0.0, 1.0]])   # (J, 3) metres; NaN: missing
+    seen = np.ones((len(rig), len(joints)), bool)
+    assert cameras_behind(rig, joints, seen) == []
+    mirrored = 2 * rig[0].center - joints                                        # behind cam0, seen by all
+    assert cameras_behind(rig, mirrored, seen)[0] == "cam0"
+    seen[0] = False                                                               # cam0 does not see them
+    assert "cam0" not in cameras_behind(rig, mirrored, seen)
+    with pytest.raises(InputError, match="seen"):
+        cameras_behind(rig, joints, seen[:, :2])
+    with pytest.raises(InputError, match="points"):
+        cameras_behind(rig, joints[:, :2], seen)
 
 
 @pytest.mark.parametrize("suffix", [".toml", ".yml"])

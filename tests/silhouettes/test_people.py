@@ -156,3 +156,52 @@ def test_a_person_moving_backwards_is_its_mirror_image():
     pos = np.stack([np.linspace(0, 1, 5), np.zeros(5)], 1)[None]
     assert np.allclose(ground_velocities(pos, 25.0)[0, :, 0], 25.0 / 4)
     assert np.allclose(ground_velocities(pos[:, :1], 25.0), 0.0)
+
+
+
+def test_one_camera_is_enough_only_for_a_person_hidden_in_the_others():
+    """The rule that admits a person on one agreeing camera (``_hidden_but_one``), cell by cell."""
+    from toolkit.silhouettes.people import _hidden_but_one
+
+    cfg = PeopleSilhouettesConfig()
+    # cameras x cells: 0 admitted; 1 a clear camera disagrees; 2 the hidden camera shows no foreground
+    # over the box; 3 two cameras agree (the ordinary rule, not this one); 4 not standing there
+    good = np.array([[1, 1, 1, 1, 1], [0, 0, 0, 1, 0]], bool)
+    bad = np.array([[0, 0, 0, 0, 0], [0, 1, 0, 0, 0]], bool)
+    occluded = np.array([[0, 0, 0, 0, 0], [1, 0, 1, 0, 1]], bool)
+    fill = np.array([[0.6] * 5, [0.7, 0.1, 0.1, 0.6, 0.7]])
+    contact = np.array([[1, 1, 1, 1, 0], [0, 0, 0, 0, 0]], bool)
+    assert _hidden_but_one(good, bad, occluded, fill, contact, 2, cfg).tolist() == [True, False, False, False,
+                                                                                   False]
+    assert not _hidden_but_one(good, bad, occluded, fill, contact, 1, cfg).any()  # a one-camera rig
+
+
+def test_ground_contact_tells_where_along_the_ray_a_person_stands():
+    """A box ending at the feet touches the ground; one further along the ray ends above them (legs
+    below it), one nearer ends below them (no feet in its band)."""
+    import cv2
+
+    from toolkit.silhouettes.people import _contact
+
+    mask = np.zeros((200, 100), np.uint8)
+    mask[40:160, 40:60] = 1  # a person from row 40 to its feet at row 159
+    integral = cv2.integral(mask)
+    boxes = np.array([[38, 40, 62, 160], [42, 60, 58, 130], [36, 30, 64, 185]])  # at, further, nearer
+    assert _contact(integral, boxes).tolist() == [True, False, False]
+
+
+def test_a_person_usable_in_one_camera_stands_where_its_feet_are():
+    """Refined with one camera: the ray under the silhouette's feet meets the ground where it stands,
+    whatever the position it started from along that camera's ray."""
+    from toolkit.silhouettes.people import refine_positions
+
+    rng = np.random.default_rng(5)
+    rig = _rig(n=2)
+    meshes, truth = _people(np.array([[0.2, -0.1]]), rng)
+    ids = _render(rig, meshes)
+    masks = [ids[0] > 0, None]  # the second camera has no frame
+    cam = rig[0]
+    along = truth[0] + 0.35 * (truth[0] - cam.center[:2]) / np.linalg.norm(truth[0] - cam.center[:2])
+    refined = refine_positions(masks, rig, along[None])
+    assert np.linalg.norm(refined[0] - truth[0]) < 0.5 * np.linalg.norm(along - truth[0]), (refined, truth)
+    assert np.linalg.norm(refined[0] - truth[0]) < POSITION_M

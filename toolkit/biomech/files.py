@@ -1,8 +1,9 @@
 """Reading a run's 3D output and writing joint angles (``angles.csv``, ``summary.json``).
 
 The 3D outputs of the toolkit's systems (:mod:`toolkit.biomech.mapping`):
-``poses3d.npz`` (keypoints, free viewpoint), ``joint_centres.npz`` with
-``trajectories.npz`` (markers), ``skeleton.npz`` (depth), ``joints.npz``
+``poses3d.npz`` (keypoints, free viewpoint), ``people3d.npz`` (free
+viewpoint with several people: one person at a time), ``joint_centres.npz``
+with ``trajectories.npz`` (markers), ``skeleton.npz`` (depth), ``joints.npz``
 (soft body).  Every write is atomic (:mod:`toolkit.io.atomic`).
 """
 
@@ -24,6 +25,8 @@ from toolkit.io.atomic import atomic_write_text
 #: Result files of the systems, in the order they are looked for in a run folder, with the system's name.
 RUN_FILES = (("poses3d.npz", "keypoints / free viewpoint"), ("joint_centres.npz", "markers"),
              ("skeleton.npz", "depth"), ("joints.npz", "soft body"))
+#: The free-viewpoint recipe's file of several people: ``joints`` (P, T, 14, 3), ``people`` (P,), ``names``.
+PEOPLE_FILE = "people3d.npz"
 
 
 @dataclass(frozen=True)
@@ -41,6 +44,10 @@ class RunPoints:
     system : str
     source : str
         The file read.
+    person : str or None
+        The person taken from a ``people3d.npz``; None for a single-person file.
+    people : tuple of str
+        Every person of the run's ``people3d.npz`` (empty without one).
     """
 
     points: dict
@@ -48,6 +55,8 @@ class RunPoints:
     fps: float | None
     system: str
     source: str
+    person: str | None = None
+    people: tuple = ()
 
     @property
     def n_frames(self) -> int:
@@ -68,13 +77,56 @@ def _fps(data, folder: Path) -> float | None:
     return None
 
 
-def load_run(path: str | os.PathLike) -> RunPoints:
+def run_people(path: str | os.PathLike) -> tuple:
+    """The people of a run's ``people3d.npz`` (a run folder or the file); empty without one.
+
+    Raises
+    ------
+    InputError
+        A ``people3d.npz`` without ``people``.
+    """
+    path = Path(path)
+    file = path / PEOPLE_FILE if path.is_dir() else path
+    if file.name != PEOPLE_FILE or not file.is_file():
+        return ()
+    with np.load(file, allow_pickle=False) as data:
+        if "people" not in data.files:
+            raise InputError(f"{file}: people", "the people's names (P,)", f"keys {data.files}")
+        return tuple(str(n) for n in data["people"])
+
+
+def _load_person(file: Path, person: str | None) -> RunPoints:
+    """One person of a ``people3d.npz`` as landmarks."""
+    people = run_people(file)
+    if person is None or person not in people:
+        raise InputError(f"{file}: people", f"a person among {list(people)} (--person NAME, or --person all)",
+                         "no --person" if person is None else repr(person))
+    with np.load(file, allow_pickle=False) as data:
+        for key in ("joints", "names"):
+            if key not in data.files:
+                raise InputError(f"{file}: {key}", "the people's 3D joints (P, T, J, 3) and their names",
+                                 f"keys {data.files}")
+        joints = np.asarray(data["joints"], float)
+        if joints.ndim != 4 or len(joints) != len(people):
+            raise InputError(f"{file}: joints", f"an array of shape ({len(people)}, T, J, 3)", f"shape {joints.shape}")
+        names = [str(n) for n in data["names"]]
+        fps = _fps(data, file.parent)
+    points = joints_to_points(joints[people.index(person)], names)
+    return RunPoints(points=points, joint_names=tuple(points), fps=fps, system="free viewpoint (several people)",
+                     source=str(file), person=person, people=people)
+
+
+def load_run(path: str | os.PathLike, person: str | None = None) -> RunPoints:
     """The 3D output of a run folder (or one of its ``.npz`` files).
 
     Parameters
     ----------
     path : path
-        A run folder holding one of :data:`RUN_FILES`, or such a file.
+        A run folder holding one of :data:`RUN_FILES` (or :data:`PEOPLE_FILE`), or such a file.
+    person : str, optional
+        One person of the run's :data:`PEOPLE_FILE` (the free-viewpoint recipe with several people).
+        Without it a folder gives its single-person file (``poses3d.npz``: the main person) and
+        :attr:`RunPoints.people` lists the others.
 
     Returns
     -------
@@ -83,11 +135,20 @@ def load_run(path: str | os.PathLike) -> RunPoints:
     Raises
     ------
     InputError
-        No result file; a file without ``joints`` and ``names``.
+        No result file; a file without ``joints`` and ``names``; a ``people3d.npz`` without ``person``,
+        or a person it does not hold (the message lists the people).
     """
     path = Path(path)
+    if person is not None or path.name == PEOPLE_FILE:
+        file = path / PEOPLE_FILE if path.is_dir() else path
+        if not file.is_file():
+            raise InputError(str(file), f"a run with several people ({PEOPLE_FILE}) for --person {person}",
+                             "no such file")
+        return _load_person(file, person)
     if path.is_dir():
         found = [(path / f, s) for f, s in RUN_FILES if (path / f).exists()]
+        if not found and (path / PEOPLE_FILE).is_file():
+            return _load_person(path / PEOPLE_FILE, None)       # refused with the list of people
         if not found:
             raise InputError(str(path), f"a run folder with one of {[f for f, _ in RUN_FILES]}", "none of them")
         file, system = found[0]
@@ -111,7 +172,8 @@ def load_run(path: str | os.PathLike) -> RunPoints:
                 for k, v in marker_points(t["labels"], t["positions"]).items():
                     if len(v) == len(joints):
                         points.setdefault(k, v)
-    return RunPoints(points=points, joint_names=joint_names, fps=fps, system=system, source=str(file))
+    return RunPoints(points=points, joint_names=joint_names, fps=fps, system=system, source=str(file),
+                     people=run_people(file.parent))
 
 
 def angles_csv_text(angles: JointAngles) -> str:

@@ -32,7 +32,13 @@ placed on their body at their median position in that body's frame (what
 the Scale tool's marker placer does with a static pose).  Inverse kinematics:
 OpenSim's ``InverseKinematicsSolver`` on every frame (all markers weighted
 1), started from the first frame's pelvis pose; the residual of every marker
-in every frame is kept.
+in every frame is kept.  Where markers off the joint axes frame a segment (a
+lateral knee marker for the thigh, and through it the shank and foot; ASIS and
+PSIS for the pelvis; C7, T10, CLAV, STRN for the thorax), the segment's frame of
+:mod:`toolkit.biomech.segments` is also an orientation target of its body
+(OpenSim's ``OrientationsReference``, as OpenSense uses for IMUs; weight
+:data:`ORIENTATION_WEIGHT`): joint centres fix a segment's long axis, these
+frames its rotation about it, as a marker model defines it.
 
 Axes: OpenSim's ground is Y up; the toolkit's world is Z up.  Points go in as
 ``(x, z, -y)`` (a proper rotation).
@@ -279,6 +285,39 @@ _PLACED = {
 #: Landmarks the OpenSim engine does not use (see :data:`_PLACED`).
 UNUSED_LANDMARKS = ("l_ankle_lateral", "r_ankle_lateral")
 
+#: Segment of :func:`toolkit.biomech.segments.segment_frames` -> (model body whose orientation it sets,
+#: the landmark sets, any one of which makes its frame a marker frame).  Joint centres fix a segment's
+#: long axis but hardly its rotation about it (a straight limb; the noisy plane of hip, knee and ankle),
+#: which a marker model takes from markers off the axis (Plug-in Gait's knee axis: knee centre to
+#: ``KNE``).  A segment whose frame comes from such markers (directly, or through the proximal
+#: segment's lateral axis: the shank and the foot) gets its frame as an orientation target; a frame
+#: built from the joint centres alone adds nothing the joint-centre markers do not carry, except the
+#: blend of :mod:`toolkit.biomech.segments` for a straight limb, and gets none.  The torso's target is
+#: the trunk's frame of :func:`_placement_frames`, which its markers are placed in.
+ORIENTED_SEGMENTS = {
+    "pelvis": ("pelvis", (("l_asis", "r_asis", "l_psis", "r_psis"),)),
+    "thorax": ("torso", (("c7", "t10", "clav", "strn"),)),
+    **{f"{s}_thigh": (f"{s}_femur", ((f"{s}_knee_lateral",),)) for s in "lr"},
+    **{f"{s}_shank": (f"{s}_tibia", ((f"{s}_knee_lateral",),)) for s in "lr"},
+    **{f"{s}_foot": (f"{s}_foot", ((f"{s}_knee_lateral",),)) for s in "lr"},
+}
+#: Weight of every body's orientation target in the inverse kinematics, as of every marker.  OpenSim's
+#: solver (as in OpenSense) sums two goals: the markers' weighted mean squared distance (m^2) and the
+#: orientations' weighted mean squared angle (rad^2), so with all weights 1 a segment turned by 1 degree
+#: costs about as much as every marker 17 mm off (x sqrt(markers / bodies)): the segments' directions
+#: lead and the joint centres place them (see docs/joint_angles.md for weaker orientation weights).
+ORIENTATION_WEIGHT = 1.0
+
+
+def _placement_frames(points: dict, foot_offsets: dict | None) -> dict:
+    """The segment frames the model's bodies are taken to have: the own engine's, and the torso's."""
+    frames = segment_frames(points, foot_offsets=foot_offsets)
+    p = points
+    frames["torso"] = frame_from_axes(p["neck"] - 0.5 * (p["l_hip"] + p["r_hip"]),
+                                      p["r_shoulder"] - p["l_shoulder"] if "r_shoulder" in p and "l_shoulder" in p
+                                      else p["r_hip"] - p["l_hip"])
+    return frames
+
 
 def placed_markers(points: dict, foot_offsets: dict | None = None) -> dict:
     """Markers placed from the data: at their median position in their body's frame.
@@ -294,11 +333,8 @@ def placed_markers(points: dict, foot_offsets: dict | None = None) -> dict:
     dict of str to (body name, (3,) ndarray)
         Metres, in the body frame of :func:`build_generic_model` (ISB axes at the body's proximal joint).
     """
-    frames = segment_frames(points, foot_offsets=foot_offsets)
+    frames = _placement_frames(points, foot_offsets)
     p = points
-    frames["torso"] = frame_from_axes(p["neck"] - 0.5 * (p["l_hip"] + p["r_hip"]),
-                                      p["r_shoulder"] - p["l_shoulder"] if "r_shoulder" in p and "l_shoulder" in p
-                                      else p["r_hip"] - p["l_hip"])
     out = {}
     for name, v in points.items():
         side, _, kind = name.partition("_")
@@ -332,6 +368,57 @@ def _marker_table(osim, points: dict, names, fps: float):
         table.appendRow(t / fps, row)
     table.addTableMetaDataString("DataRate", f"{fps:g}")
     table.addTableMetaDataString("Units", "m")
+    return table
+
+
+def body_orientations(points: dict, foot_offsets: dict | None = None) -> dict:
+    """Per model body whose frame markers define (:data:`ORIENTED_SEGMENTS`), its segment's frame in
+    OpenSim's ground: the orientation targets of the IK.
+
+    Parameters
+    ----------
+    points : dict of str to ndarray of shape (T, 3)
+        Landmarks (metres, world z up, NaN = missing), as the model's markers are placed from.
+    foot_offsets : dict, optional
+        The feet's pitch offsets of a static trial (:func:`foot_pitch_offsets`).
+
+    Returns
+    -------
+    dict of str to ndarray of shape (T, 3, 3)
+        Model body name -> rotation whose columns are the body's axes in the ground (Y up); NaN
+        where the frame is not defined; empty for joint centres alone.  The frames are those markers are placed in
+        (:func:`placed_markers`): the own engine's segment frames, and for the torso the trunk
+        (mid-hip to neck) with the shoulder line.
+    """
+    frames = _placement_frames(points, foot_offsets)
+    out = {}
+    for seg, (body, marker_sets) in ORIENTED_SEGMENTS.items():
+        key = "torso" if body == "torso" else seg
+        if key in frames and any(all(m in points for m in ms) for ms in marker_sets):
+            out[body] = np.einsum("ij,tjk->tik", WORLD_TO_OPENSIM, frames[key])
+    return out
+
+
+def _orientation_table(osim, orientations: dict, fps: float):
+    """OpenSim table of rotations (one column per body) for an ``OrientationsReference``."""
+    names = list(orientations)
+    T = len(orientations[names[0]])
+    table = osim.TimeSeriesTableRotation()
+    labels = osim.StdVectorString()
+    for n in names:
+        labels.append(n)
+    table.setColumnLabels(labels)
+    for t in range(T):
+        row = osim.RowVectorRotation(len(names))
+        for k, n in enumerate(names):
+            R = orientations[n][t]
+            r = row.updElt(0, k)            # the bindings' row vectors have no item assignment
+            if np.all(np.isfinite(R)):
+                r.setRotationFromApproximateMat33(osim.Mat33(*(float(x) for x in R.ravel())))
+            else:
+                r.setRotationToNaN()
+        table.appendRow(t / fps, row)
+    table.addTableMetaDataString("DataRate", f"{fps:g}")
     return table
 
 
@@ -396,7 +483,26 @@ def _scaled_model(osim, points: dict, foot_offsets: dict | None, pelvis_markers:
     return model, factors
 
 
-def _inverse_kinematics(osim, model, points: dict, fps: float):
+def _ik_solver(osim, model, points: dict, names: list, fps: float, orientations: dict):
+    """OpenSim's ``InverseKinematicsSolver`` for the markers ``names`` and the bodies' orientation targets.
+
+    Every marker weighs 1, every orientation :data:`ORIENTATION_WEIGHT`; ``orientations`` maps a model
+    body to its rotation per frame (T, 3, 3) in the ground, empty for markers only.
+    """
+    weights = osim.SetMarkerWeights()
+    for n in names:
+        weights.cloneAndAppend(osim.MarkerWeight(n, 1.0))
+    mref = osim.MarkersReference(_marker_table(osim, points, names, fps), weights)
+    if not orientations:
+        return osim.InverseKinematicsSolver(model, mref, osim.SimTKArrayCoordinateReference(), math.inf)
+    oweights = osim.OrientationWeightSet()
+    for n in orientations:
+        oweights.cloneAndAppend(osim.OrientationWeight(n, ORIENTATION_WEIGHT))
+    oref = osim.OrientationsReference(_orientation_table(osim, orientations, fps), oweights)
+    return osim.InverseKinematicsSolver(model, mref, oref, osim.SimTKArrayCoordinateReference(), math.inf)
+
+
+def _inverse_kinematics(osim, model, points: dict, fps: float, orientations: dict | None = None):
     """Track every frame from the first with both hips and the neck seen.
 
     Parameters
@@ -409,6 +515,8 @@ def _inverse_kinematics(osim, model, points: dict, fps: float):
         Landmarks (metres, world z up, NaN = missing).
     fps : float
         Frames per second.
+    orientations : dict of str to ndarray of shape (T, 3, 3), optional
+        Model body -> its orientation target per frame, in the ground (:func:`body_orientations`).
 
     Returns
     -------
@@ -422,6 +530,8 @@ def _inverse_kinematics(osim, model, points: dict, fps: float):
         Per frame, each marker's distance to its landmark (metres); NaN where not solved or not seen.
     notes : list of str
         The frames left out, and why.
+    angle_errors : dict of str to ndarray of shape (T,)
+        Per oriented body, the angle between its model and its target orientation, degrees.
 
     Raises
     ------
@@ -431,12 +541,7 @@ def _inverse_kinematics(osim, model, points: dict, fps: float):
     state = model.initSystem()
     mset = model.getMarkerSet()
     names = [mset.get(i).getName() for i in range(mset.getSize())]
-    table = _marker_table(osim, points, names, fps)
-    weights = osim.SetMarkerWeights()
-    for n in names:
-        weights.cloneAndAppend(osim.MarkerWeight(n, 1.0))
-    mref = osim.MarkersReference(table, weights)
-    solver = osim.InverseKinematicsSolver(model, mref, osim.SimTKArrayCoordinateReference(), math.inf)
+    solver = _ik_solver(osim, model, points, names, fps, orientations or {})
     solver.setAccuracy(IK_ACCURACY)
     cset = model.getCoordinateSet()
     coords = [cset.get(i).getName() for i in range(cset.getSize())]
@@ -449,6 +554,7 @@ def _inverse_kinematics(osim, model, points: dict, fps: float):
         cset.get(c).setValue(state, float(v))
     values = np.full((T, len(coords)), np.nan)
     residuals = np.full((T, len(names)), np.nan)
+    angle_errors = {n: np.full(T, np.nan) for n in (orientations or {})}
     notes = []
     state.setTime(first / fps)
     solver.assemble(state)
@@ -471,9 +577,13 @@ def _inverse_kinematics(osim, model, points: dict, fps: float):
         solver.computeCurrentMarkerErrors(errs)
         for i in range(solver.getNumMarkersInUse()):
             residuals[t, names.index(solver.getMarkerNameForIndex(i))] = errs.getElt(i)
+        if angle_errors:
+            solver.computeCurrentOrientationErrors(errs)
+            for i in range(solver.getNumOrientationSensorsInUse()):
+                angle_errors[solver.getOrientationSensorNameForIndex(i)][t] = math.degrees(errs.getElt(i))
     for k, n in enumerate(names):       # OpenSim reports 0 for a marker missing from a frame
         residuals[~np.isfinite(points[n]).all(-1), k] = np.nan
-    return names, coords, values, residuals, notes
+    return names, coords, values, residuals, notes, angle_errors
 
 
 def _write_mot(osim, coords: list[str], values: np.ndarray, fps: float, path: Path) -> None:
@@ -570,11 +680,13 @@ def opensim_angles_in_process(points: dict, fps: float, out: str | os.PathLike, 
     if need:
         raise InputError("points", "hips, knees, ankles and the neck", f"no {need}")
     out = Path(out)
-    points = {k: v for k, v in points.items() if k not in UNUSED_LANDMARKS}
     foot_offsets = foot_pitch_offsets(static) if static is not None else None
+    points = {k: v for k, v in points.items() if k not in UNUSED_LANDMARKS}
     pelvis_markers = all(f"{s}_{k}" in points for s in "lr" for k in ("asis", "psis"))
     model, factors = _scaled_model(osim, points, foot_offsets, pelvis_markers, out)
-    names, coords, values, residuals, notes = _inverse_kinematics(osim, model, points, fps)
+    bodies = {model.getBodySet().get(i).getName() for i in range(model.getBodySet().getSize())}
+    orient = {b: R for b, R in body_orientations(points, foot_offsets).items() if b in bodies}
+    names, coords, values, residuals, notes, angle_errors = _inverse_kinematics(osim, model, points, fps, orient)
     T = len(points["neck"])
     joint_cols = [k for k, c in enumerate(coords) if not c.startswith(("pelvis_", "lumbar_"))]
     angles = JointAngles(time=np.arange(T) / float(fps), names=tuple(coords[k] for k in joint_cols),
@@ -585,6 +697,10 @@ def opensim_angles_in_process(points: dict, fps: float, out: str | os.PathLike, 
                                "max_mm": float(np.nanmax(r) * 1e3) if np.isfinite(r).any() else None}
                            for n, r in res.items()},
                "all_rms_mm": float(np.sqrt(np.nanmean(residuals ** 2)) * 1e3),
+               "orientations_deg": {b: {"rms": float(np.sqrt(np.nanmean(e ** 2))) if np.isfinite(e).any() else None,
+                                        "max": float(np.nanmax(e)) if np.isfinite(e).any() else None}
+                                    for b, e in angle_errors.items()},
+               "orientation_weight": ORIENTATION_WEIGHT,
                "frames_solved": int(np.isfinite(values[:, 0]).sum()), "frames": T,
                "scale_factors": {k: list(v) for k, v in factors.items()}, "lumbar_free": pelvis_markers}
     files = {"model_generic": out / "model_generic.osim", "model_scaled": out / "model_scaled.osim",

@@ -41,6 +41,8 @@ class JointAnglesConfig:
         Also write ``OUT/motion.bvh`` / ``OUT/motion.glb``.
     recording : bool
         Write ``OUT/recording.rrd`` (angles plotted per joint, the joints in 3D).
+    person : str or None
+        One person of a free-viewpoint run's ``people3d.npz`` (:func:`run_every_person` takes them all).
     """
 
     engine: str = "own"
@@ -49,6 +51,7 @@ class JointAnglesConfig:
     bvh: bool = False
     gltf: bool = False
     recording: bool = True
+    person: str | None = None
 
 
 @dataclass(frozen=True)
@@ -60,6 +63,7 @@ class JointAnglesResult:
     system: str
     seconds: float
     notes: tuple = field(default_factory=tuple)
+    person: str | None = None
 
 
 def report_angles(observer, angles: JointAngles, joints14: np.ndarray | None = None) -> None:
@@ -106,7 +110,7 @@ def run(config: JointAnglesConfig, *, source, out, observer=None, log=print) -> 
     config : JointAnglesConfig
     source : path
         A run folder (``poses3d.npz``, ``joint_centres.npz``, ``skeleton.npz``
-        or ``joints.npz``) or one of those files.
+        or ``joints.npz``; ``people3d.npz`` with ``config.person``) or one of those files.
     out : path
         Output folder (created).
     observer : Observer, optional
@@ -128,7 +132,7 @@ def run(config: JointAnglesConfig, *, source, out, observer=None, log=print) -> 
     if config.engine not in ENGINES:
         raise InputError("engine", f"one of {ENGINES}", repr(config.engine))
     t0 = time.perf_counter()
-    data = load_run(source)
+    data = load_run(source, config.person)
     fps = config.fps or data.fps
     if fps is None:
         raise InputError(f"{data.source}: frame rate", "a frame rate in the file or --fps", "none")
@@ -136,6 +140,10 @@ def run(config: JointAnglesConfig, *, source, out, observer=None, log=print) -> 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     angles, files, notes = _angles(config, data.points, float(fps), out, static, log)
+    if data.people and data.person is None:
+        notes = (f"the run holds {len(data.people)} people ({', '.join(data.people)}) in people3d.npz; these are "
+                 f"the angles of {Path(data.source).name} (the main person): --person NAME or --person all for "
+                 "the others",) + tuple(notes)
     files = {"angles": write_angles_csv(out / "angles.csv", angles), **files}
     joints14 = skeleton14_from_points(data.points)
     if config.bvh or config.gltf:
@@ -159,21 +167,56 @@ def run(config: JointAnglesConfig, *, source, out, observer=None, log=print) -> 
     finally:
         if rec is not None:
             rec.close()
-    summary = {"source": data.source, "system": data.system, "engine": angles.engine, "fps": float(fps),
+    summary = {"source": data.source, "system": data.system, "person": data.person, "people": list(data.people),
+               "engine": angles.engine, "fps": float(fps),
                "frames": int(len(angles.time)), "static": str(config.static) if config.static else None,
                "landmarks": sorted(data.points), "angles": list(angles.names),
                "range_deg": {n: [float(np.nanmin(angles[n])), float(np.nanmax(angles[n]))]
                              for n in angles.names if np.isfinite(angles[n]).any()},
                "notes": list(notes), "files": {k: str(v) for k, v in files.items()}}
     files["summary"] = write_json(out / "summary.json", summary)
-    return JointAnglesResult(angles, files, data.system, time.perf_counter() - t0, tuple(notes))
+    return JointAnglesResult(angles, files, data.system, time.perf_counter() - t0, tuple(notes), data.person)
+
+
+def run_every_person(config: JointAnglesConfig, *, source, out, log=print) -> dict:
+    """:func:`run` for every person of a free-viewpoint run's ``people3d.npz``, each into ``OUT/<person>/``.
+
+    Parameters
+    ----------
+    config : JointAnglesConfig
+        ``person`` is ignored.
+    source : path
+        The run folder or its ``people3d.npz``.
+    out : path
+        Output folder; one subfolder per person.
+    log : callable or None
+
+    Returns
+    -------
+    dict of str to JointAnglesResult
+        Person -> their result.
+
+    Raises
+    ------
+    InputError
+        The run has no ``people3d.npz``; as :func:`run`.
+    """
+    from dataclasses import replace
+
+    from toolkit.biomech.files import PEOPLE_FILE, run_people
+
+    people = run_people(source)
+    if not people:
+        raise InputError(str(source), f"a run with several people ({PEOPLE_FILE}) for --person all", "none")
+    return {p: run(replace(config, person=p), source=source, out=Path(out) / p, log=log) for p in people}
 
 
 def summary_lines(result: JointAnglesResult) -> list[str]:
     """A few lines for the terminal."""
     a = result.angles
-    lines = [f"joint angles ({a.engine}) of a {result.system} run: {len(a.time)} frames, {len(a.names)} angles "
-             f"in {result.seconds:.1f} s"]
+    who = f" ({result.person})" if result.person else ""
+    lines = [f"joint angles ({a.engine}) of a {result.system} run{who}: {len(a.time)} frames, {len(a.names)} "
+             f"angles in {result.seconds:.1f} s"]
     for n in a.names:
         v = a[n]
         if np.isfinite(v).any():

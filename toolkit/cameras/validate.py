@@ -33,6 +33,13 @@ The checks, and why each bound:
   its image: a pose in the wrong convention or a flipped translation puts it
   behind them or out of their pictures.  (A rig whose axes are nearly
   parallel is not checked this way: it says nothing of where the scene is.)
+
+A pose in the wrong convention is not always visible in the calibration alone
+(the cameras of a level ring written as ``world_from_cam`` all look the same
+way, as some real rigs do); the results then show it: :func:`cameras_behind`
+names the cameras that see a reconstructed point lying behind them, which no
+camera can, so the systems that reconstruct 3D joints refuse such a frame or
+calibration instead of reporting it as a success.
 """
 
 from __future__ import annotations
@@ -43,8 +50,8 @@ import numpy as np
 from toolkit.cameras.camera import Camera, Rig
 from toolkit.errors import InputError
 
-__all__ = ["MAX_IMAGE_SIDE", "MIN_FOV_DEG", "MAX_DISTORTION_SCALE", "CONVERGING_SPREAD_DEG", "check_camera",
-           "check_rig"]
+__all__ = ["MAX_IMAGE_SIDE", "MIN_FOV_DEG", "MAX_DISTORTION_SCALE", "CONVERGING_SPREAD_DEG", "cameras_behind",
+           "check_camera", "check_rig"]
 
 #: Largest image side accepted, pixels (16K video is 15360 wide).
 MAX_IMAGE_SIDE = 32768
@@ -192,3 +199,52 @@ def check_rig(rig: Rig, where: str = "rig") -> Rig:
                          f"that point {np.round(p, 3).tolist()} {found} (a world_from_cam pose, or a "
                          "translation of the other sign?)")
     return rig
+
+
+def cameras_behind(rig: Rig, points: np.ndarray, seen: np.ndarray) -> list[str]:
+    """The cameras of ``rig`` that see one of ``points`` lying behind them (or on their centre plane).
+
+    No camera sees a point behind it, so a reconstruction that puts a point
+    there from that camera's observation comes from a wrong calibration (a
+    ``world_from_cam`` pose, a flipped translation), however well its rays meet.
+
+    Parameters
+    ----------
+    rig : Rig
+        ``C`` cameras.
+    points : ndarray of shape (J, 3)
+        Reconstructed points (e.g. 3D joints), metres, world; NaN = missing (never behind).
+    seen : ndarray of shape (C, J), bool
+        Whether camera ``c`` observed point ``j`` (a finite 2D keypoint or joint in its image).
+
+    Returns
+    -------
+    list of str
+        Names of those cameras, rig order (empty: every point lies in front of the cameras that see it).
+
+    Raises
+    ------
+    InputError
+        ``points`` or ``seen`` of another shape.
+
+    Examples
+    --------
+    >>> cameras_behind(rig, joints3d, np.isfinite(poses2d).all(axis=-1))  # doctest: +SKIP
+    []
+    """
+    pts = np.asarray(points, float)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise InputError("cameras_behind: points", "an array of shape (J, 3), metres", f"shape {pts.shape}")
+    vis = np.asarray(seen, bool)
+    if vis.shape != (len(rig), len(pts)):
+        raise InputError("cameras_behind: seen", f"an array of shape (C, J) = ({len(rig)}, {len(pts)})",
+                         f"shape {vis.shape}")
+    finite = np.isfinite(pts).all(axis=1)
+    out = []
+    for c, cam in enumerate(rig):
+        if not (vis[c] & finite).any():
+            continue
+        z = cam.depth_of(pts[vis[c] & finite])
+        if (z <= 0).any():
+            out.append(cam.name)
+    return out

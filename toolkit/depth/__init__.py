@@ -56,6 +56,7 @@ from toolkit.io.depth_readers import (
 from toolkit.depth.stabilise import Stabiliser, StabiliserConfig
 from toolkit.depth.tracker import (
     LOST,
+    NO_PERSON_FLAT,
     RECOVERING,
     STATE_NAMES,
     TRACKING,
@@ -71,6 +72,7 @@ __all__ = [
     "CONVEX",
     "KINECT_V1_FOCAL_PX",
     "LOST",
+    "NO_PERSON_FLAT",
     "ORUS_BIN_SIZE_M",
     "PLANAR",
     "RECOVERING",

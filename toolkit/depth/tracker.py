@@ -9,7 +9,8 @@ output in world (camera pose known) or camera coordinates.
 Per-frame **states**:
 
 ``lost`` (0)
-    no user in the frame (empty or all-invalid depth, mask too small) or no
+    no user in the frame (empty or all-invalid depth, mask too small, a flat
+    surface such as a wall: :attr:`TrackerConfig.max_planar_share`) or no
     initial pose could be found; joints are NaN;
 ``recovering`` (1)
     a skeleton was (re)initialised and has not yet fitted well for
@@ -59,13 +60,15 @@ from toolkit.pointcloud.normals import normal_map
 from toolkit.depth.orus import build_orus
 from toolkit.depth.radial import radial_profile
 from toolkit.depth.stabilise import Stabiliser
-from toolkit.depth.tracker_state import LOST, RECOVERING, STATE_NAMES, TRACKING, FrameResult, TrackerConfig
+from toolkit.depth.tracker_state import (LOST, NO_PERSON_FLAT, RECOVERING, STATE_NAMES, TRACKING, FrameResult,
+                                         TrackerConfig)
 from toolkit.errors import InputError
 from toolkit.observe import as_observer
 from toolkit.skeleton import SKELETON_13
 
 __all__ = [
     "LOST",
+    "NO_PERSON_FLAT",
     "RECOVERING",
     "STATE_NAMES",
     "TRACKING",
@@ -252,6 +255,8 @@ class DepthTracker:
         grid, curv, data, first, reason = self._user_grid(grid, cloud, predicted)
         if grid is None:
             return self._lost("no user", cloud.n_points, timings)
+        if np.mean(curv.label[grid.filled] == PLANAR) > cfg.max_planar_share:  # a wall: nobody to fit
+            return self._lost(NO_PERSON_FLAT, cloud.n_points, timings)
         centroid = grid.mean[grid.filled].mean(0)
         # the radial profile serves the initial pose, the global moves and the recording only
         need_profile = self.X is None or self.observer is not None or self._moves_due()

@@ -18,10 +18,12 @@ from toolkit.depth.radial import RadialConfig
 from toolkit.depth.stabilise import StabiliserConfig
 from toolkit.errors import InputError
 
-__all__ = ["LOST", "RECOVERING", "STATE_NAMES", "TRACKING", "FrameResult", "TrackerConfig"]
+__all__ = ["LOST", "NO_PERSON_FLAT", "RECOVERING", "STATE_NAMES", "TRACKING", "FrameResult", "TrackerConfig"]
 
 LOST, RECOVERING, TRACKING = 0, 1, 2
 STATE_NAMES = ("lost", "recovering", "tracking")
+#: The reason of a lost frame whose depth is a flat surface (a wall), no person (``TrackerConfig.max_planar_share``).
+NO_PERSON_FLAT = "no person: a flat surface"
 
 
 @dataclass(frozen=True)
@@ -37,6 +39,13 @@ class TrackerConfig:
         when the camera pose is unknown).
     min_bins : int
         Fewer filled grid bins than this: no user.
+    max_planar_share : float
+        A user's grid whose filled bins are more than this share planar
+        (:data:`toolkit.depth.curvature.PLANAR`) is a flat surface, such as a
+        wall with nobody in front of it, not a person: the frame is lost
+        (:data:`NO_PERSON_FLAT`).  Measured: a wall 0.93-1.0 (flat, tilted,
+        with 1 cm noise), a person 0.1-0.5 (synthetic sequences with floor
+        or studio walls in the grid, real Kinect frames).
     confirm_frames : int
         Good frames before ``recovering`` becomes ``tracking``.
     reinit_after : int
@@ -88,6 +97,7 @@ class TrackerConfig:
     fps: float = 30.0
     output: str = "world"
     min_bins: int = 25
+    max_planar_share: float = 0.8
     confirm_frames: int = 3
     reinit_after: int = 8
     good_explained: float = 0.9
@@ -133,8 +143,8 @@ class FrameResult:
         Fraction of the skeleton's samples seen by the camera that the data support.
     energy : float
     reason : str
-        Why the state is what it is (``"ok"``, ``"no depth"``, ``"no user"``, ``"init"``,
-        ``"poor fit"``, ``"touching"``, ...).
+        Why the state is what it is (``"ok"``, ``"no depth"``, ``"no user"``,
+        :data:`NO_PERSON_FLAT`, ``"init"``, ``"poor fit"``, ``"touching"``, ...).
     n_points : int
         User points.
     timings : dict

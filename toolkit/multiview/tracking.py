@@ -8,7 +8,8 @@ match is allowed when that distance is at most
 seen), so a person who walks stays the same person and one who is hidden for a
 few frames is found again.  A person nobody matches starts a track (someone
 entering); a track unseen for ``max_gap_s`` ends (someone leaving).  Tracks
-seen in fewer than ``min_frames`` frames are dropped: a chance meeting of rays
+seen in fewer than ``min_frames`` frames (or than the frames in which anyone
+is seen, when those are fewer) are dropped: a chance meeting of rays
 of two different people (a "ghost") rarely lasts; so are tracks that cameras
 with them in sight do not show (``FrameAssociation.unexplained``) in more than
 :data:`MAX_UNEXPLAINED_SHARE` of their frames: a ghost that lasts (two
@@ -65,7 +66,8 @@ class TrackingConfig:
     gate_m, max_speed_m_s, max_gap_s : float
         The matching gate and the longest gap (see the module docstring).
     min_frames : int
-        Shortest track kept, frames (a sequence shorter than that keeps the tracks seen in all its frames).
+        Shortest track kept, frames (a sequence in which fewer frames than that hold anyone seen by two
+        cameras keeps the tracks seen in all of those frames).
     max_unexplained_share : float
         Tracks unexplained by a camera in sight in more than this share of their frames
         are dropped (:data:`MAX_UNEXPLAINED_SHARE`).
@@ -236,7 +238,9 @@ def track_people(detections, rig: Rig, config: TrackingConfig = TrackingConfig()
                 [", ".join(f"{rig[v].name}#{i}" for v, i in enumerate(g) if i >= 0) + f" ({1000 * c:.0f} mm)"
                  for g, c in zip(fa.groups, fa.cost)]
                 + [f"one view only: {rig[v].name}#{i}" for v, i in fa.unassigned]))
-    shortest = min(config.min_frames, T)  # a sequence shorter than that keeps the people seen all along it
+    # a sequence in which people are seen in fewer frames than that keeps those seen in all of them (frames
+    # where nobody is seen by two cameras cannot hold a track: counting them dropped everyone)
+    shortest = min(config.min_frames, max(sum(fa.n_people > 0 for fa in per_frame), 1))
     kept = [tr for tr in tracks if len(tr["rows"]) >= shortest
             and np.mean([per_frame[t].unexplained[p] > 0 for t, p in tr["rows"].items()])
             <= config.max_unexplained_share]

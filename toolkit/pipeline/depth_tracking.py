@@ -15,7 +15,8 @@ options is refused (or moved aside with ``replace_stale``); it is not resumed
 frame by frame: the tracker carries its state from frame to frame, so a run
 always tracks from the first frame and replaces the earlier results.  Ctrl-C
 keeps the frames tracked so far (``skeleton.npz`` with ``status``
-"interrupted"), but never in place of a complete run's results; an unreadable
+"interrupted"), but never in place of a complete run's results (nor its
+recording: :func:`~toolkit.pipeline.run.close_run_recording`); an unreadable
 frame is tracked as a frame without depth and named (``unreadable``); a rerun
 of fewer frames (``max_frames``) than a complete ``skeleton.npz`` holds is
 refused.
@@ -34,7 +35,7 @@ import numpy as np
 from toolkit.depth.tracker_state import TrackerConfig
 from toolkit.errors import InputError
 from toolkit.pipeline.parallel import ParallelConfig, map_tasks
-from toolkit.pipeline.run import (STOPPED_INTERRUPTED, RunResult, check_frames_held, open_run,
+from toolkit.pipeline.run import (STOPPED_INTERRUPTED, RunResult, check_frames_held, close_run_recording, open_run,
                                   terminate_as_interrupt)
 
 #: Depth file readers (``"auto"``: by suffix).
@@ -271,6 +272,12 @@ def _write(out: Path, tracked: _Tracked, inp) -> dict | None:
     return metrics
 
 
+def _earlier_recording(out: Path, kept: bool) -> Path | None:
+    """The recording of the complete results an interrupted run kept (None: none, or results replaced)."""
+    path = out / "recording.rrd"
+    return path if kept and path.is_file() else None
+
+
 def _recording(out: Path, recording_id: str):
     from toolkit.viz import RerunObserver
 
@@ -321,11 +328,13 @@ def run(config: DepthTrackingRunConfig, *, dataset, out, observer=None, log=prin
     own = observer is None and config.recording
     obs = _recording(out, run_recording(out, False)[1]) if own else observer
     t0 = time.perf_counter()
+    tracked = recording = None
     try:
         tracked = _track(config, inp, n, obs, log)
     finally:
-        if own:
-            obs.close()
+        if own:  # the recording replaces the earlier one only together with the results it shows
+            recording = close_run_recording(obs, out, keep=held_status != "complete" or (
+                tracked is not None and not tracked.interrupted))
     wall = time.perf_counter() - t0
     res, done = tracked.result, len(tracked.result.frames)
     keep = tracked.interrupted and held_status == "complete"  # never replace complete results by partial ones
@@ -334,12 +343,31 @@ def run(config: DepthTrackingRunConfig, *, dataset, out, observer=None, log=prin
     scores = None if keep else _write(out, tracked, inp)
     metrics = {"states": {name: int((res.states == k).sum()) for k, name in enumerate(STATE_NAMES)},
                "cpu_ms_median": float(np.nanmedian(res.timings("total")) * 1000) if done else float("nan"),
+               "lost_reasons": _lost_reasons(res),
                "unreadable_frames": [inp.frames[i].name for i in tracked.unreadable], **(scores or {})}
     return RunResult(out, n, done, done, 0, STOPPED_INTERRUPTED if tracked.interrupted else "", wall, metrics,
-                     out / "recording.rrd" if own else None,
+                     recording if recording is not None else _earlier_recording(out, keep),
                      {"input": str(dataset), "kind": inp.kind, "size": tuple(inp.camera.size),
                       "coordinates": res.coordinates, "skeleton": out / "skeleton.npz", "images": config.images,
                       "has_groundtruth": scores is not None})
+
+
+def _lost_reasons(res) -> dict:
+    """Frames without joints (lost) per reason, most frequent first (``"no person: a flat surface"``: 8)."""
+    from collections import Counter
+
+    from toolkit.depth import LOST
+
+    return dict(Counter(r for r, s in zip(res.reasons.tolist(), res.states.tolist()) if s == LOST).most_common())
+
+
+def _lost_line(reasons: dict) -> str | None:
+    """The summary's line on the frames without joints, or None when there are none."""
+    if not reasons:
+        return None
+    said = [f"{k} frames without a person ({r.removeprefix('no person: ')})" if r.startswith("no person: ")
+            else f"{k} frames lost ({r})" for r, k in reasons.items()]
+    return f"  no joints written for {sum(reasons.values())} frames: " + ", ".join(said)
 
 
 def _one_sequence(config: DepthTrackingRunConfig, dataset: Path, out: Path) -> RunResult:
@@ -407,6 +435,8 @@ def summary_lines(result: RunResult) -> list:
              + ", ".join(f"{v} {k}" for k, v in m["states"].items())
              + f"; median {m['cpu_ms_median']:.1f} ms CPU per frame",
              f"  skeleton ({x['coordinates']} coordinates): {x['skeleton']}"]
+    if _lost_line(m.get("lost_reasons", {})):
+        lines.append(_lost_line(m["lost_reasons"]))
     if result.stopped:
         lines.append(f"  {result.stopped}: {result.processed} of {result.frames} frames tracked (Ctrl-C)")
     if m.get("unreadable_frames"):

@@ -13,6 +13,9 @@ estimates and the silhouettes, and runs the rest:
 
 A frame where stage 1 found no 3D pose, or a camera without a silhouette, is
 not an error: the result says which views were used and why a frame is empty.
+A stage-1 pose behind a camera that sees it (a calibration in the wrong
+convention: :func:`toolkit.cameras.validate.cameras_behind`) is no pose either:
+its frame is :data:`STATUS_BEHIND`, not drawn, and the run's summary counts it.
 The frame's config and result types (:class:`~toolkit.rendering.freeviewpoint.FreeViewpointConfig`,
 :class:`~toolkit.rendering.freeviewpoint.FrameResult`) stay with the renderer
 that draws them.
@@ -21,6 +24,7 @@ that draws them.
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -29,6 +33,9 @@ from toolkit.observe import Observer, as_observer
 from toolkit.rendering.freeviewpoint import (STATUS_NO_POSE, STATUS_NO_VIEWS, STATUS_OK, FrameResult,
                                              FreeViewpointConfig)
 from toolkit.skeleton import SKELETON_14
+
+#: Status of a frame whose stage-1 joints lie behind a source camera that sees them (no camera can).
+STATUS_BEHIND = "3D pose behind a camera that sees it (calibration in the wrong convention?)"
 
 
 class FrameProcessor:
@@ -58,6 +65,10 @@ class FrameProcessor:
     def process(self, frame: int, images: dict, masks: list, estimate, plates: dict | None = None) -> FrameResult:
         """Process one frame.
 
+        Stages 2-3 and the billboards run on each camera's images resized so that the person is at
+        most ``config.work_height_px`` tall (:mod:`toolkit.pipeline.working_scale`); the result is at
+        the cameras' own resolution either way.
+
         Parameters
         ----------
         frame : int
@@ -78,10 +89,9 @@ class FrameProcessor:
         FrameResult
             ``timings["segmentation"]`` includes the seams.
         """
+        from toolkit.cameras.validate import cameras_behind
         from toolkit.multiview import corrected_rig
-        from toolkit.pipeline.stage3 import optimize_frame
-        from toolkit.rendering.baselines import standard_billboards, visual_hull
-        from toolkit.segmentation import segment_frame
+        from toolkit.pipeline.working_scale import WorkingFrame, working_scales
 
         obs = self.observer
         names = self.rig.names
@@ -92,6 +102,42 @@ class FrameProcessor:
         if not estimate.ok or not np.isfinite(J1).all():
             obs.report("text", name="free_viewpoint/status", text=f"frame {frame}: {STATUS_NO_POSE}", frame=frame)
             return FrameResult(frame, STATUS_NO_POSE, J1, np.full_like(J1, np.nan), rig, empty, timings=timings)
+        behind = cameras_behind(self.rig, J1, np.isfinite(np.asarray(estimate.poses2d, float)).all(axis=-1))
+        if behind:
+            obs.report("text", name="free_viewpoint/status", level="WARN", frame=frame,
+                       text=f"frame {frame}: {STATUS_BEHIND}: the joints lie behind {', '.join(behind)}")
+            return FrameResult(frame, STATUS_BEHIND, J1, np.full_like(J1, np.nan), rig, empty, timings=timings)
+        # stages 2-3 on images where the person is at most work_height_px tall (toolkit.pipeline.working_scale)
+        work = WorkingFrame.of(self.rig, working_scales(self.rig, J1, self.config.work_height_px))
+        if not work.scaled:
+            return self._stages(frame, images, masks, J1, estimate.poses2d, rig, plates, obs)
+        wrig = corrected_rig(work.rig, work.offsets(estimate.offsets))
+        res = self._stages(frame, work.images(images), work.masks(masks), J1, work.points(estimate.poses2d), wrig,
+                           work.images(plates), work.observer(obs),
+                           supersample=work.supersample(self.config.supersample), with_hull=False)
+        res = work.full_result(res, rig, masks)
+        if self.config.baselines and res.ok:  # voxels cost the same at any size: carved by the full silhouettes
+            from toolkit.rendering.baselines import visual_hull
+
+            t0 = time.perf_counter()
+            hull = visual_hull({c: images.get(c, np.zeros(rig[c].size[::-1] + (3,), np.uint8)) for c in names},
+                               {c: res.labels[c] > 0 for c in names}, res.joints, rig)
+            res.timings["visual_hull"] = time.perf_counter() - t0
+            res = replace(res, hull=hull)
+        return res
+
+    def _stages(self, frame: int, images: dict, masks: list, J1: np.ndarray, poses2d: np.ndarray, rig: Rig,
+                plates: dict | None, obs, supersample: int | None = None, with_hull: bool = True) -> FrameResult:
+        """Stages 2-3, the billboards and the baselines of a frame with a 3D pose (see :meth:`process`);
+        ``rig`` the corrected cameras the images, masks and ``poses2d`` (n_cams, 14, 2) are in;
+        ``supersample`` the billboards' (default the config's); ``with_hull`` False leaves the visual hull out."""
+        from toolkit.pipeline.stage3 import optimize_frame
+        from toolkit.rendering.baselines import standard_billboards, visual_hull
+        from toolkit.segmentation import segment_frame
+
+        names = rig.names
+        timings: dict = {}
+        empty = {c: np.zeros(rig[c].size[::-1], np.uint8) for c in names}
         t0 = time.perf_counter()
         labels, depths = {}, {}
         for ci, cam in enumerate(rig):
@@ -101,7 +147,7 @@ class FrameProcessor:
                 obs.report("text", name=f"free_viewpoint/{cam.name}", frame=frame,
                            text=f"frame {frame}: {cam.name} has no silhouette; left out")
                 continue
-            pose2d = np.asarray(estimate.poses2d[ci], float)  # image pixels (stage 1's offsets are in ``cam``)
+            pose2d = np.asarray(poses2d[ci], float)  # image pixels (stage 1's offsets are in ``cam``)
             per_view = self.config.template_pose == "per_view" and np.isfinite(pose2d).all()
             plate = (plates or {}).get(cam.name) if self.config.use_plates else None
             seg = segment_frame(images[cam.name], m, J1, cam, self.template, joints2d=pose2d if per_view else None, observer=obs, frame=frame, plate=plate)
@@ -109,10 +155,11 @@ class FrameProcessor:
         timings["segmentation"] = time.perf_counter() - t0
         if not depths:
             return FrameResult(frame, STATUS_NO_VIEWS, J1, np.full_like(J1, np.nan), rig, labels, timings=timings)
-        imgs = {c: images.get(c, np.zeros(self.rig[c].size[::-1] + (3,), np.uint8)) for c in names}
+        imgs = {c: images.get(c, np.zeros(rig[c].size[::-1] + (3,), np.uint8)) for c in names}
         s3 = optimize_frame(imgs, labels, rig, J1, depths=depths, constraints=self.constraints,
                             config=self.config.optimize_config, optimize=self.config.optimize and len(depths) >= 2,
-                            billboards=self.config.supersample, observer=obs, frame=frame)
+                            billboards=self.config.supersample if supersample is None else supersample,
+                            observer=obs, frame=frame)
         timings["segmentation"] += s3.timings["seams"]
         timings.update({k: v for k, v in s3.timings.items() if k != "seams"})
         J = s3.joints
@@ -122,8 +169,9 @@ class FrameProcessor:
             sil = {c: labels[c] > 0 for c in names}
             standard = standard_billboards(imgs, sil, J, rig, frame)
             timings["standard_billboards"] = time.perf_counter() - t0
-            t0 = time.perf_counter()
-            hull = visual_hull(imgs, sil, J, rig)
-            timings["visual_hull"] = time.perf_counter() - t0
+            if with_hull:
+                t0 = time.perf_counter()
+                hull = visual_hull(imgs, sil, J, rig)
+                timings["visual_hull"] = time.perf_counter() - t0
         obs.report("joints3d", joints=J, name="free_viewpoint/joints", skeleton=SKELETON_14, frame=frame)
         return FrameResult(frame, STATUS_OK, J1, J, rig, labels, s3.model, standard, hull, timings, s3.outcome)

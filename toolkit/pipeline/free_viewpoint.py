@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from toolkit.errors import InputError
-from toolkit.pipeline.parallel import Cluster, ParallelConfig, drop_cached, worker_cache
+from toolkit.pipeline.parallel import AUTO, Cluster, ParallelConfig, drop_cached, resolve_workers, worker_cache
 from toolkit.pipeline.people import PEOPLE_CHOICES
 from toolkit.pipeline.run import FrameRecords, RunResult, open_run, run_frames
 from toolkit.rendering.freeviewpoint import FreeViewpointConfig
@@ -98,9 +98,11 @@ class FreeViewpointRunConfig:
         (:func:`toolkit.pipeline.people.locate_silhouette_people`), ``"main"`` one person.
     progress : bool
         Show a progress bar.
-    workers : int
+    workers : int or "auto"
         Frames in parallel on a local Dask cluster of this many worker
-        processes (1: in this process; ``docs/parallel.md``).
+        processes (1: in this process; ``docs/parallel.md``); ``"auto"`` (the
+        default): one per available core (:func:`toolkit.pipeline.parallel.available_cores`),
+        no more than the frames to do, so one core or one frame runs in this process.
     scheduler : str, optional
         Frames on a running Dask cluster, ``tcp://HOST:PORT`` (the dataset and
         the output folder on a file system every worker sees).
@@ -124,7 +126,7 @@ class FreeViewpointRunConfig:
     background: str = "scene"
     people: str = "all"
     progress: bool = True
-    workers: int = 1
+    workers: int | str = AUTO
     scheduler: str | None = None
 
     #: Fields that do not change the results (left out of the run identity).
@@ -142,7 +144,7 @@ class FreeViewpointRunConfig:
             raise InputError("FreeViewpointRunConfig.jpeg_quality", "an integer in 1..100", repr(self.jpeg_quality))
         if self.max_frames is not None and int(self.max_frames) < 1:
             raise InputError("FreeViewpointRunConfig.max_frames", "a positive number of frames", repr(self.max_frames))
-        ParallelConfig(self.workers, self.scheduler)  # checked
+        ParallelConfig(resolve_workers(self.workers), self.scheduler)  # checked
 
 
 def _inputs(ds, config: FreeViewpointRunConfig) -> tuple:
@@ -362,6 +364,14 @@ class _Frames:
         if self.plates is not None:
             self.plates.share(self.novel + [self.paths["birds_eye"][0]])
 
+    def prepare_views(self) -> None:
+        """The scene model's views of the fixed cameras (novel, held-out, bird's-eye) and their nearest
+        source's maps, drawn ahead of the first frame (:meth:`toolkit.scene.SceneModel.prepare`): a Dask
+        worker does it while it warms up; with one worker the first frame draws them."""
+        if self.scene is not None:
+            self.scene.prepare(self.novel + ([self.held] if self.held is not None else []))
+            self.scene.prepare([self.paths["birds_eye"][0]], carry=False)
+
     def _background(self, cam, scale: float = 1.0) -> np.ndarray:
         """What the people are drawn over in view ``cam``: the scene model's view (drawn at ``scale`` of
         the size), the synthetic scene's true surroundings (``background="plates"``), or black."""
@@ -477,6 +487,10 @@ class _FrameTask:
         """This process's frame context of the run (built on first use; a warm-up task)."""
         return worker_cache(self.token, lambda: _Frames(self))
 
+    def warm_up(self) -> None:
+        """A worker's warm-up task: its frame context, with the fixed cameras' views drawn."""
+        self.warm().prepare_views()
+
 
 #: What a worker imports for a frame (preloaded by the local cluster's fork server, :class:`Cluster`).
 _FRAME_MODULES = ("toolkit.pipeline.free_viewpoint", "toolkit.pipeline.frame", "toolkit.pipeline.stage3",
@@ -508,35 +522,81 @@ def _match_people(estimated: np.ndarray, truth: np.ndarray) -> list:
     return [(hit.get(i), E) for i, E in enumerate(estimated)]
 
 
-def _write_people(out: Path, records: list, n: int) -> dict:
+class _PeopleJoints:
+    """Every followed person's joints over a run, gathered one frame record at a time (``people3d.npz``)."""
+
+    def __init__(self, n: int):
+        self.n = n
+        self.joints: dict = {}  # name -> (n, 14, 3) metres, in the order the people first appear
+        self.drawn: dict = {}
+
+    def add(self, record: dict) -> None:
+        for p in record.get("people", []):
+            if p["name"] not in self.joints:
+                self.joints[p["name"]] = np.full((self.n, 14, 3), np.nan)
+                self.drawn[p["name"]] = 0
+            self.joints[p["name"]][record["frame"]] = p["joints"]
+            self.drawn[p["name"]] += p["status"] == "ok"
+
+    def write(self, out: Path) -> dict:
+        """``people3d.npz`` with two people or more; per person the frames drawn (empty otherwise)."""
+        import io
+
+        from toolkit.io import atomic_write_bytes
+        from toolkit.skeleton import SKELETON_14
+
+        names = list(self.joints)
+        if len(names) < 2:
+            return {}
+        buf = io.BytesIO()
+        np.savez(buf, joints=np.stack([self.joints[k] for k in names]), people=np.array(names),
+                 names=np.array(SKELETON_14.joint_names))
+        atomic_write_bytes(out / "people3d.npz", buf.getvalue())
+        return {"names": names, "frames_drawn": dict(self.drawn)}
+
+
+def _write_people(out: Path, records, n: int) -> dict:
     """``people3d.npz`` (``joints`` (P, T, 14, 3) metres, ``people`` (P,) names, ``names`` (14,) joint names)
     when the run followed several people; returns per person the frames drawn (empty otherwise)."""
-    import io
-
-    from toolkit.io import atomic_write_bytes
-    from toolkit.skeleton import SKELETON_14
-
-    names: list = []
+    people = _PeopleJoints(n)
     for r in records:
-        for p in r.get("people", []):
-            if p["name"] not in names:
-                names.append(p["name"])
-    if len(names) < 2:
-        return {}
-    J = np.full((len(names), n, 14, 3), np.nan)
-    drawn = dict.fromkeys(names, 0)
-    for r in records:
-        for p in r.get("people", []):
-            J[names.index(p["name"]), r["frame"]] = p["joints"]
-            drawn[p["name"]] += p["status"] == "ok"
-    buf = io.BytesIO()
-    np.savez(buf, joints=J, people=np.array(names), names=np.array(SKELETON_14.joint_names))
-    atomic_write_bytes(out / "people3d.npz", buf.getvalue())
-    return {"names": names, "frames_drawn": drawn}
+        people.add(r)
+    return people.write(out)
 
 
-def _finish(ds, out: Path, records: list, n: int, novel: list, held, stage1: str) -> dict:
-    """``poses3d.npz``, the paths' videos (when every frame is done) and the metrics (``metrics.json``)."""
+class _Tally:
+    """What the end of a run needs of its frames' records, gathered one record at a time, so that a long run's
+    end never holds every record (a few numbers and the scores per frame)."""
+
+    def __init__(self, n: int):
+        self.joints = np.full((n, 14, 3), np.nan)
+        self.stage1 = np.full((n, 14, 3), np.nan)
+        self.status = ["not processed"] * n  # a list: an array of the first string's width would cut longer ones
+        self.finished = 0
+        self.statuses, self.optimize, self.regions = Counter(), Counter(), Counter()
+        self.timings: dict = {k: [] for k in TIMED}
+        self.scores, self.heldout, self.offsets = [], [], []
+        self.people = _PeopleJoints(n)
+
+    def add(self, r: dict) -> None:
+        t = r["frame"]
+        self.joints[t], self.stage1[t], self.status[t] = r["joints"], r["joints_stage1"], r["status"]
+        self.finished += 1
+        self.statuses[r["status"]] += 1
+        self.optimize = self.optimize + Counter(r.get("optimize", {}))  # as a sum of Counters (drops zeros)
+        for k in TIMED:
+            self.timings[k].append(r["timings"].get(k, np.nan))
+        self.scores.append(r["scores"])
+        self.heldout.append(r.get("heldout", {}))
+        self.regions[r.get("heldout_region", "")] += 1
+        if "heldout_offset" in r:
+            self.offsets.append(r["heldout_offset"])
+        self.people.add(r)
+
+
+def _finish(ds, out: Path, records, n: int, novel: list, held, stage1: str) -> dict:
+    """``poses3d.npz``, the paths' videos (when every frame is done) and the metrics (``metrics.json``), from
+    the frames' ``records`` (an iterable, read once: :meth:`FrameRecords.each`)."""
     from toolkit.io import atomic_write_text, write_video
     from toolkit.io.frames import frame_filename, read_png
     from toolkit.io.stage_outputs import FreeViewpointPoses, write_free_viewpoint_poses
@@ -544,23 +604,24 @@ def _finish(ds, out: Path, records: list, n: int, novel: list, held, stage1: str
     from toolkit.rendering.evaluation import summarise
     from toolkit.skeleton import SKELETON_14, pose_errors
 
-    joints = np.full((n, 14, 3), np.nan)
-    stage1_joints = np.full((n, 14, 3), np.nan)
-    status = np.array(["not processed"] * n)
+    tally = _Tally(n)
     for r in records:
-        joints[r["frame"]], stage1_joints[r["frame"]], status[r["frame"]] = r["joints"], r["joints_stage1"], r["status"]
-    write_free_viewpoint_poses(out, FreeViewpointPoses(joints, stage1_joints, status, SKELETON_14.joint_names))
-    people = _write_people(out, records, n)
-    if len(records) == n:
+        tally.add(r)
+    joints, stage1_joints = tally.joints, tally.stage1
+    write_free_viewpoint_poses(out, FreeViewpointPoses(joints, stage1_joints, np.array(tally.status),
+                                                       SKELETON_14.joint_names))
+    people = tally.people.write(out)
+    if tally.finished == n:
         shutil.rmtree(out / PLATE_STORE, ignore_errors=True)
         for p in PATHS:
             write_video(out / "paths" / f"{p}.mp4", (read_png(out / "paths" / p / frame_filename(t))
                                                      for t in range(n)), ds.fps)
-    metrics = {"frames": n, "finished": len(records), **({"people": people} if people else {}),
-               "optimize": dict(sum((Counter(r.get("optimize", {})) for r in records), Counter())),
+    metrics = {"frames": n, "finished": tally.finished, **({"people": people} if people else {}),
+               "status": dict(tally.statuses), "failed_frames": _failed_frames(tally.status, tally.statuses),
+               "optimize": dict(tally.optimize),
                "stage1": stage1,
-               "seconds_per_frame": {k: float(np.mean([r["timings"].get(k, np.nan) for r in records]))
-                                     for k in TIMED} if records else {}}
+               "seconds_per_frame": {k: float(np.mean(v)) for k, v in tally.timings.items()} if tally.finished
+               else {}}
     if ds.has_groundtruth:
         gt = ds.gt_joints3d()[:n]
         if people and getattr(ds, "people_count", 1) > 1:  # the main person is judged against its true person
@@ -571,13 +632,13 @@ def _finish(ds, out: Path, records: list, n: int, novel: list, held, stage1: str
                               for name, (k, J) in zip(people["names"], matched)]
             if matched[0][0] is not None:
                 gt = truth[matched[0][0]]
-        metrics.update({"methods": summarise([r["scores"] for r in records]),
+        metrics.update({"methods": summarise(tally.scores),
                         "pose": pose_errors(joints, gt), "pose_stage1": pose_errors(stage1_joints, gt),
                         "novel_cameras": [c.name for c in novel]})
     if held is not None:
-        offs = [r["heldout_offset"] for r in records if "heldout_offset" in r]
-        metrics["heldout"] = {"camera": held.name, "methods": summarise([r.get("heldout", {}) for r in records]),
-                              "region": dict(Counter(r.get("heldout_region", "") for r in records)),
+        offs = tally.offsets
+        metrics["heldout"] = {"camera": held.name, "methods": summarise(tally.heldout),
+                              "region": dict(tally.regions),
                               "region_definition": HELDOUT_REGION_DOC,
                               "offset_px_median": np.median(offs, axis=0).tolist() if offs else None}
     if ds.has_groundtruth or held is not None:
@@ -627,8 +688,10 @@ def run(config: FreeViewpointRunConfig, *, dataset, out, observer=None, log=prin
                           replace_stale=config.replace_stale, recording=config.recording and observer is None,
                           log=log)
         # the workers start (and import) while this process calibrates and loads stage 1
-        cluster = stack.enter_context(Cluster(ParallelConfig(config.workers, config.scheduler)
-                                              if folder.records.todo() else ParallelConfig(), _FRAME_MODULES))
+        todo = folder.records.todo()
+        cluster = stack.enter_context(Cluster(ParallelConfig(resolve_workers(config.workers, len(todo)),
+                                                             config.scheduler) if todo else ParallelConfig(),
+                                              _FRAME_MODULES))
         cluster.warm(_warm_imports)
         novel = list(ds.novel_rig) if ds.has_groundtruth and (ds.root / "groundtruth/novel/calibration.toml").exists() \
             else []
@@ -653,7 +716,7 @@ def run(config: FreeViewpointRunConfig, *, dataset, out, observer=None, log=prin
         todo = list(range(todo[-1] + 1)) if todo else []
         task = _FrameTask(uuid.uuid4().hex, ds.root, out, config, rig, tuple(novel), held, n, kp_dir, masks_dir)
         if wanted:
-            cluster.warm(task.warm)
+            cluster.warm(task.warm_up)
 
         def frames():  # stage 1 in frame order (its temporal term, tracking), here, ahead of the workers
             for est, masks in stage1.estimates(todo):
@@ -669,17 +732,46 @@ def run(config: FreeViewpointRunConfig, *, dataset, out, observer=None, log=prin
             cluster.close()
             if own and obs is not None:
                 obs.close()
-        records = folder.records.read_all()
-        metrics = _finish(ds, out, records, n, novel, held, stage1.name)
-        return RunResult(out, n, len(records), processed, len(earlier), stopped, seconds,
-                         metrics, folder.recording if own else None,
+        metrics = _finish(ds, out, folder.records.each(), n, novel, held, stage1.name)
+        return RunResult(out, n, metrics["finished"], processed, len(earlier), stopped, seconds,  # a finished file only
+                         metrics, obs.saved if own and obs is not None else None,
                          {"stage1": stage1.name, "held_out": None if held is None else held.name,
                           "has_groundtruth": bool(ds.has_groundtruth)})
 
 
+def _failed_frames(status: list, finished: Counter) -> dict:
+    """The frames of each status other than "ok" among those finished: ``{status: [t, ...]}``."""
+    from toolkit.rendering.freeviewpoint import STATUS_OK
+
+    return {k: [t for t, s in enumerate(status) if s == k] for k in finished if k != STATUS_OK}
+
+
+def _ranges(frames: list) -> str:
+    """Frame numbers as ranges: [0, 1, 2, 5] -> '0-2, 5'."""
+    runs: list = []
+    for f in sorted(frames):
+        if runs and f == runs[-1][1] + 1:
+            runs[-1][1] = f
+        else:
+            runs.append([f, f])
+    return ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in runs)
+
+
+def run_failure(result: RunResult) -> str | None:
+    """Why a run that went through is a failure: no finished frame has a 3D pose (None: some have, or it
+    stopped early); one line, for the recipe's error."""
+    from toolkit.rendering.freeviewpoint import STATUS_OK
+
+    status = result.metrics.get("status") or {}
+    if result.stopped or not result.finished or status.get(STATUS_OK, 0):
+        return None
+    return (f"no frame has a 3D pose ({result.finished} of {result.frames} frames finished): "
+            + "; ".join(f"{v} {k}" for k, v in status.items()) + f" (status in {result.out / 'poses3d.npz'})")
+
+
 def summary_lines(result: RunResult) -> list:
     """What a free-viewpoint run says when it ends (the recipe prints these)."""
-    from toolkit.rendering.freeviewpoint import METHODS
+    from toolkit.rendering.freeviewpoint import METHODS, STATUS_OK
 
     m = result.metrics
     shown = METHODS + ("nearest_source",)
@@ -714,6 +806,11 @@ def summary_lines(result: RunResult) -> list:
                 lines.append(f"  {meth:14s} whole frame {s['psnr_frame']:.2f} dB  on the person "
                              f"{s['psnr_subject']:.2f} dB{each}  box PSNR {s['psnr']:.2f} dB  SSIM {s['ssim']:.3f}  "
                              f"coverage {s['coverage']:.3f}  ({s['n']} frames)")
+    failed = {k: v for k, v in (m.get("status") or {}).items() if k != STATUS_OK}
+    if failed:  # e.g. a calibration in the wrong convention: joints behind the cameras, frames not drawn
+        lines.append("  frames without a result: " + "; ".join(f"{v} {k}" for k, v in failed.items())
+                     + " (poses3d.npz status)")
+        lines += [f"    frames {_ranges(f)} ({k})" for k, f in (m.get("failed_frames") or {}).items()]
     outcome = m.get("optimize") or {}
     if outcome:  # e.g. two cameras far apart: every joint "few_views", stage 3 changed nothing
         total = sum(outcome.values())
@@ -721,11 +818,13 @@ def summary_lines(result: RunResult) -> list:
                                                       sorted(outcome.items(), key=lambda kv: -kv[1]))
                      + " (docs/stage3_billboards.md: what each means)")
     out = result.out
-    if result.recording is None:
+    if result.recording is None:  # none written, or not finalised: only the finished files are offered
         earlier = any(out.glob("recording*.rrd"))
-        lines.append(f"outputs in {out}" + (f"; every frame was already finished; earlier recordings: "
-                                            f"rerun {out}/recording*.rrd" if earlier and not result.processed
+        lines.append(f"outputs in {out}" + ((f"; every frame was already finished" if not result.processed else "")
+                                            + f"; earlier recordings: rerun {out}/recording*.rrd" if earlier
                                             else ""))
+        for parts in sorted(out.glob("recording*.parts")):  # a merge that failed: each finished part opens
+            lines.append(f"  recording not merged (a warning said why): rerun {parts}/[0-9]*.rrd")
     elif result.recording.name == "recording.rrd":
         lines.append(f"outputs in {out}; recording: rerun {result.recording}"
                      + (f" (frames of this run only: {result.earlier} earlier ones were made without one)"

@@ -14,7 +14,11 @@ outputs).  The dataset is either
 Then :func:`toolkit.markers.functional.joint_centres` finds the rigid subsets,
 the centres of rotation and the scaled skeleton.  One run is one trial; the
 run folder is identified like every run (``OUT/run.json``: the input by
-content and the options that change the results) and written anew each time.
+content and the options that change the results) and written anew each time
+(:func:`toolkit.pipeline.run.whole_run`): the outputs are written together
+at the end, so Ctrl-C or SIGTERM (ending the run quietly, ``RunResult.stopped``)
+or a full disk (an error naming the file) leave those of an earlier complete
+run, and its recording, as they were.
 """
 
 from __future__ import annotations
@@ -30,7 +34,7 @@ import numpy as np
 from toolkit.errors import InputError
 from toolkit.markers.functional import JointCentresConfig, JointCentresResult
 from toolkit.markers.label import LabelConfig
-from toolkit.pipeline.run import RunResult, open_run
+from toolkit.pipeline.run import RunResult, open_run, whole_run
 
 #: Frames logged to the recording at most (longer trials are logged every k-th frame).
 RECORD_MAX_FRAMES = 1500
@@ -296,7 +300,6 @@ def run(config: JointCentresRunConfig, *, dataset, out, observer=None, log=print
     InputError
         Bad input or options, or an output folder of another run.
     """
-    from toolkit.io import atomic_write_text
     from toolkit.io.runs import run_recording
     from toolkit.markers.functional import joint_centres
     from toolkit.observe import MultiObserver, as_observer
@@ -304,52 +307,74 @@ def run(config: JointCentresRunConfig, *, dataset, out, observer=None, log=print
     dataset, out = Path(dataset), Path(out)
     if not dataset.exists():
         raise InputError(str(dataset), "a marker capture folder or a .c3d file", "nothing at that path")
-    open_run(out, "joint_centres", dataset if dataset.is_dir() else dataset.parent, config, 1,
-             exclude=JointCentresRunConfig.RUNTIME, extra={"input": input_identity(dataset)},
-             replace_stale=config.replace_stale, recording=False, log=log)
+    folder = open_run(out, "joint_centres", dataset if dataset.is_dir() else dataset.parent, config, 1,
+                      exclude=JointCentresRunConfig.RUNTIME, extra={"input": input_identity(dataset)},
+                      replace_stale=config.replace_stale, recording=False, log=log)
+    earlier = folder.resumed and (out / "metrics.json").is_file()   # written last: the results are complete
     own = observer is None and config.recording
     rec = None
     if own:
         from toolkit.viz import RerunObserver
 
+        # in parts: a run killed outright leaves its finished parts complete; a dropped one leaves the file as it was
         rec = RerunObserver(application_id="joint_centres", path=out / "recording.rrd",
-                            recording_id=run_recording(out, False)[1])
+                            recording_id=run_recording(out, False)[1], parts=True)
         if dataset.suffix.lower() == ".c3d":  # no cameras: the 3D view (the viewer frames it) over the log
             from toolkit.viz.blueprint import make_blueprint
 
             rec.send_blueprint(make_blueprint([], include_metrics=False))
     obs = as_observer(MultiObserver(rec, observer) if (rec or observer) else None)
     t0 = time.perf_counter()
-    try:
+    done = None
+    with whole_run(out, rec, own=own, earlier=earlier) as state:
         traj, _capture = _open_input(config, dataset, obs)
+        state.checkpoint()
         t1 = time.perf_counter()
         res = joint_centres(traj, config=_centres_config(config, dataset), observer=obs)
         t2 = time.perf_counter()
         report_centres(obs, traj, res, max_frames=config.record_max_frames)
-    finally:
-        if rec is not None:
-            rec.close()
-    files = _write(out, traj, res, traj.fps)
-    scores = score_against_truth(dataset, traj, res)
-    n = traj.n_frames
-    metrics = {"frames": n, "methods": dict(zip(res.names, res.method)),
-               "seconds_per_frame": {"labelling": (t1 - t0) / n if _capture is not None else 0.0,
-                                     "centres": (t2 - t1) / n},
-               "joints": res.summary(), **(scores or {})}
-    atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
+        state.checkpoint()
+        with state.writing():
+            done = _write_all(out, dataset, traj, res, _capture is not None, (t0, t1, t2))
+    if done is None:   # stopped before its results were written: those of an earlier complete run stay
+        return RunResult(out, 0, 0, 0, 0, state.stopped, time.perf_counter() - t0, {}, state.recording,
+                         {"input": str(dataset), "earlier": earlier})
+    files, metrics, scores = done
     if log is not None:
         for m in res.messages:
             log(f"note: {m}")
-    return RunResult(out, n, n, n, 0, "", time.perf_counter() - t0, metrics, out / "recording.rrd" if own else None,
+    n = traj.n_frames
+    return RunResult(out, n, n, n, 0, state.stopped, time.perf_counter() - t0, metrics, state.recording,
                      {"input": str(dataset), **files, "metrics": out / "metrics.json", "messages": res.messages,
                       "marker_set": res.marker_set, "labelled": res.labelled, "height_m": res.height_m,
                       "has_groundtruth": scores is not None})
 
 
+def _write_all(out: Path, dataset: Path, traj, res: JointCentresResult, labelled_capture: bool, times) -> tuple:
+    """Every output file (:func:`_write`, then ``metrics.json`` last); the files, the metrics and the scores."""
+    from toolkit.io import atomic_write_text
+
+    t0, t1, t2 = times
+    files = _write(out, traj, res, traj.fps)
+    scores = score_against_truth(dataset, traj, res)
+    n = traj.n_frames
+    metrics = {"frames": n, "methods": dict(zip(res.names, res.method)),
+               "seconds_per_frame": {"labelling": (t1 - t0) / n if labelled_capture else 0.0,
+                                     "centres": (t2 - t1) / n},
+               "joints": res.summary(), **(scores or {})}
+    atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
+    return files, metrics, scores
+
+
 def summary_lines(result: RunResult) -> list:
     """What a joint-centres run says when it ends (the recipe prints these)."""
     m, x = result.metrics, result.extra
-    lines = [f"joint centres of {x['input']} ({result.frames} frames, marker set {x['marker_set']}) "
+    if not m:   # stopped before the results were written
+        kept = "the earlier complete results (and recording) are kept" if x.get("earlier") else "no results written"
+        return [f"{result.stopped}: stopped after {result.seconds:.1f} s, before the joint centres of {x['input']} "
+                f"were written; {kept}; run the same command again to compute them"]
+    lines = [] if not result.stopped else [f"{result.stopped}: stopped after the results were written"]
+    lines += [f"joint centres of {x['input']} ({result.frames} frames, marker set {x['marker_set']}) "
              f"in {result.seconds:.1f} s"]
     if x["labelled"]:
         lines.append(f"  stature {x['height_m']:.3f} m; " + ", ".join(f"{k} {v}" for k, v in m["methods"].items()))

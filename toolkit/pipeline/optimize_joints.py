@@ -283,8 +283,9 @@ def run(config: OptimizeJointsConfig, *, dataset, out, observer=None, log=print)
             from toolkit.skeleton import SKELETON_14
             from toolkit.viz import RerunObserver
 
+            # in parts, one per frame: a run killed outright leaves the finished frames' recording complete
             obs = RerunObserver(application_id="optimize_joints", path=folder.recording,
-                                recording_id=folder.recording_id, camera_names=ds.camera_names)
+                                recording_id=folder.recording_id, camera_names=ds.camera_names, parts=True)
             obs.report("rig", rig=start.rig)
             obs.report("skeleton", skeleton=SKELETON_14)
         todo = folder.records.todo()
@@ -305,7 +306,7 @@ def run(config: OptimizeJointsConfig, *, dataset, out, observer=None, log=print)
         records = folder.records.read_all()
         metrics = _finish(out, records, n, start, gt, config)
     return RunResult(out, n, len(records), processed, n - len(todo), stopped, seconds, metrics,
-                     folder.recording if own else None, {"start": start.source})
+                     obs.saved if own and obs is not None else None, {"start": start.source})
 
 
 def summary_lines(result: RunResult) -> list:

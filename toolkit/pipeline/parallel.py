@@ -50,6 +50,8 @@ AHEAD_PER_WORKER = 2
 #: Worker-side objects kept per process (:func:`worker_cache`): a few runs' contexts.
 CACHE_SIZE = 2
 _SCHEDULER = re.compile(r"^(tcp|tls|inproc|ucx|ws|wss)://\S+$")
+#: ``workers="auto"``: as many worker processes as this process may use cores (:func:`available_cores`).
+AUTO = "auto"
 
 _CACHE: OrderedDict = OrderedDict()
 
@@ -80,6 +82,61 @@ class ParallelConfig:
     def sequential(self) -> bool:
         """Tasks run in this process, one after the other."""
         return self.scheduler is None and self.workers == 1
+
+
+def _cgroup_cpus() -> float | None:
+    """The CPU limit of this process's cgroup (cgroup v2 ``cpu.max``, v1 ``cpu.cfs_quota_us``), cores; None
+    when there is none or it cannot be read."""
+    from pathlib import Path
+
+    for quota, period in ((Path("/sys/fs/cgroup/cpu.max"), None),
+                          (Path("/sys/fs/cgroup/cpu/cpu.cfs_quota_us"), Path("/sys/fs/cgroup/cpu/cpu.cfs_period_us"))):
+        try:
+            fields = quota.read_text().split() + ([period.read_text().strip()] if period is not None else [])
+            q, p = (float(f) for f in fields[:2])
+        except (OSError, ValueError):
+            continue
+        if q > 0 and p > 0:  # "max" (v2) and -1 (v1) mean no limit
+            return q / p
+    return None
+
+
+def available_cores() -> int:
+    """Cores this process may run on: its CPU affinity (``os.sched_getaffinity``, else ``os.cpu_count``),
+    capped by its cgroup's CPU limit (a container's ``--cpus``, rounded down, at least 1)."""
+    import os
+
+    try:
+        n = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # not on Linux
+        n = os.cpu_count() or 1
+    limit = _cgroup_cpus()
+    if limit is not None:
+        n = min(n, int(limit))
+    return max(1, n)
+
+
+def resolve_workers(workers: "int | str", tasks: int | None = None) -> int:
+    """The number of worker processes of ``workers``: an integer as it is, :data:`AUTO` every available core
+    (:func:`available_cores`) but no more than ``tasks`` (a run of one frame needs no cluster).
+
+    Raises
+    ------
+    InputError
+        Neither ``"auto"`` nor an integer >= 1.
+    """
+    if isinstance(workers, str) and workers.strip().lower() == AUTO:
+        n = available_cores()
+        return max(1, min(n, int(tasks))) if tasks is not None else n
+    if isinstance(workers, str):
+        n = int(workers) if workers.strip().isdigit() else 0
+    elif isinstance(workers, (int, np.integer)) and not isinstance(workers, bool):
+        n = int(workers)
+    else:
+        n = 0
+    if n < 1:
+        raise InputError("workers (--workers)", f"a number of worker processes >= 1, or {AUTO!r}", repr(workers))
+    return n
 
 
 def single_threaded() -> contextlib.AbstractContextManager:

@@ -34,7 +34,8 @@ from toolkit.io.video import VIDEO_SUFFIXES
 from toolkit.multiview import FLIP_MODES, MAX_OFFSET_PX, MIN_JOINT_CONFIDENCE, MIN_VIEW_CONFIDENCE
 from toolkit.multiview.keypoint_sequence import OFFSET_MODES
 from toolkit.pipeline.detect_keypoints import DetectConfig
-from toolkit.pipeline.run import STOPPED_INTERRUPTED, RunResult, config_identity, terminate_as_interrupt
+from toolkit.pipeline.run import (STOPPED_INTERRUPTED, RunResult, close_run_recording, config_identity,
+                                  merge_killed_parts, terminate_as_interrupt)
 
 #: ``format`` names accepted, mapped to the names of toolkit.skeleton.mappings ("auto": found from the files).
 FORMATS = {"auto": None, "body_25b": "body_25b", "body_25": "body_25", "coco17": "coco_17", "coco_17": "coco_17",
@@ -203,7 +204,9 @@ def _recording(path: Path, rig):
     from toolkit.skeleton import SKELETON_14
     from toolkit.viz import RerunObserver
 
-    observer = RerunObserver(application_id="pose_from_keypoints", path=path, camera_names=rig.names)
+    merge_killed_parts(path.parent)
+    # in parts: a run killed outright leaves its finished parts complete; a dropped one leaves the file as it was
+    observer = RerunObserver(application_id="pose_from_keypoints", path=path, camera_names=rig.names, parts=True)
     observer.report("rig", rig=rig, static=True)
     observer.report("skeleton", skeleton=SKELETON_14)
     return observer
@@ -474,11 +477,12 @@ def run_person(config: PoseFromKeypointsConfig, session, out, *, observer=None, 
         status = "failed"
         raise
     finally:
-        exported = []
-        if _worth_writing(out, seq, status, log):
+        exported, recording = [], None
+        worth = _worth_writing(out, seq, status, log)
+        if worth:
             exported = _write_outputs(w, seq, status)
-        if own:
-            observer.close()
+        if own:  # the recording replaces the earlier one only together with the results it shows
+            recording = close_run_recording(observer, out, keep=worth)
         for v in videos:
             v.close()
     n_frames = session.keypoints.keypoints.shape[1]
@@ -488,7 +492,7 @@ def run_person(config: PoseFromKeypointsConfig, session, out, *, observer=None, 
                                      ("anthropometry", "anthropometry.txt"))}
     return RunResult(out, n_frames, metrics["processed"], metrics["processed"], 0,
                      STOPPED_INTERRUPTED if status == "interrupted" else "", time.perf_counter() - t0, metrics,
-                     out / "recording.rrd" if own else None, {"files": files, "exported": list(exported)})
+                     recording, {"files": files, "exported": list(exported)})
 
 
 def run_identity(config: PoseFromKeypointsConfig) -> dict:
@@ -593,7 +597,7 @@ def _run_people(config: PoseFromKeypointsConfig, session, out: Path, observer, l
     log(f"{people.n_people} people found in {len(kin.frames)} frames (seen by two cameras or more, in the "
         f"capture volume, tracked over time): {n_part} participants, {people.n_people - n_part} transient "
         f"(followed in under {PARTICIPANT_MIN_SHARE:.0%} of the frames)")
-    summary, results, finished = [], [], False
+    summary, results, finished, recording = [], [], False, None
     try:
         for k in range(people.n_people):
             name, seen = f"person_{k}", people.views[k] > 0
@@ -610,7 +614,8 @@ def _run_people(config: PoseFromKeypointsConfig, session, out: Path, observer, l
                 sub, one, out / name, observer=obs, log=log, identity=run_identity(config))))
         finished = not any(r.stopped for _, _, r in results)
     finally:
-        if not finished and (out / "people.json").is_file():  # an earlier run's complete list is kept
+        kept = not finished and (out / "people.json").is_file()
+        if kept:  # an earlier run's complete list is kept
             log(f"{out / 'people.json'}: kept (this run stopped after {len(results)} of {people.n_people} people)")
         else:
             atomic_write_text(out / "people.json", json.dumps({
@@ -618,11 +623,11 @@ def _run_people(config: PoseFromKeypointsConfig, session, out: Path, observer, l
                 "participants": sum(p["role"] == "participant" for p in summary),
                 "participant_rule": f"followed in at least {PARTICIPANT_MIN_SHARE:.0%} of the frames (else transient)",
                 "cameras": rig.names, "rule": PEOPLE_RULE}, indent=2) + "\n")
-        if own:
-            observer.close()
+        if own:  # the recording replaces the earlier one only together with the results it shows
+            recording = close_run_recording(observer, out, keep=not kept)
     stopped = STOPPED_INTERRUPTED if any(r.stopped for _, _, r in results) else ""
     return RunResult(out, len(kin.frames), len(results), len(results), 0, stopped, time.perf_counter() - t0,
-                     {"people": summary}, out / "recording.rrd" if own else None, {"people": results})
+                     {"people": summary}, recording, {"people": results})
 
 
 def _person_header(p: dict) -> str:

@@ -5,7 +5,9 @@ lists the outputs).  Per frame: foreground silhouettes per camera -> the k
 best database silhouettes per view -> multi-view selection with per-view 2D
 offsets (:func:`toolkit.silhouettes.pipeline.estimate_dataset`).  The stacked
 arrays are written every :data:`CHECKPOINT_FRAMES` frames and when the run
-ends, also when it stops early.
+ends, also when Ctrl-C or SIGTERM stops it early, except over the complete
+results of an earlier run (:func:`_held`), which stay, with their recording,
+until a run has estimated every frame (:func:`~toolkit.pipeline.run.whole_run`).
 
 The run is identified (``OUT/run.json``: the dataset, the config less its
 runtime fields, the database, the edits' content) like every run of
@@ -24,7 +26,7 @@ from pathlib import Path
 
 from toolkit.errors import InputError
 from toolkit.io.stage_outputs import STAGE1_FILES, Stage1Output
-from toolkit.pipeline.run import STOPPED_INTERRUPTED, RunResult, open_run
+from toolkit.pipeline.run import RunResult, open_run, whole_run
 from toolkit.silhouettes.estimate import Stage1Config
 
 #: Frames between two writes of the partial results.
@@ -123,29 +125,74 @@ def _identity(config: PoseFromSilhouettesConfig, db_path: Path) -> tuple[tuple, 
     return PoseFromSilhouettesConfig.RUNTIME + ("db", "edits", "plates"), extra
 
 
-def _write(out: Path, estimates: list, n: int, names: list, k: int) -> Stage1Output:
-    """The estimates so far as a :class:`toolkit.io.stage_outputs.Stage1Output`, written to ``OUT``."""
-    from toolkit.io.stage_outputs import write_stage1
-    from toolkit.silhouettes import stack_estimates
+def _held(out: Path) -> tuple[int, bool]:
+    """Frames of the stage-1 results an earlier run left in ``out``, and whether every one was estimated
+    ((0, False) when none or unreadable)."""
+    import numpy as np
 
-    output = stack_estimates(estimates, n, names, k)
+    from toolkit.silhouettes.pipeline import FRAME_NOT_PROCESSED
+
+    f = out / "poses3d.npz"
+    if not f.is_file():
+        return 0, False
+    try:
+        with np.load(f, allow_pickle=False) as z:
+            state = np.asarray(z["state"])
+    except (OSError, ValueError, KeyError):
+        return 0, False
+    return len(state), bool(len(state)) and not bool((state == FRAME_NOT_PROCESSED).any())
+
+
+def _write(out: Path, output: Stage1Output, dataset, n_done: int) -> None:
+    """The stage-1 files and ``edits_template.toml`` (the estimates so far) written to ``OUT``."""
+    from toolkit.io import atomic_write_text
+    from toolkit.io.stage_outputs import write_stage1
+    from toolkit.silhouettes import edits_template
+
     write_stage1(out, output)
-    return output
+    atomic_write_text(out / "edits_template.toml",
+                      edits_template(output.poses2d, range(n_done),
+                                     header=f"Edits for {dataset} (pose_from_silhouettes.py)"))
 
 
 def _observer(out: Path, names: list, recording_id: str | None):
-    """The rerun observer of the run, ``OUT/recording.rrd`` (a rerun replaces the earlier recording)."""
+    """The rerun observer of the run, ``OUT/recording.rrd``, written in parts (one per frame: a run killed
+    outright leaves the finished frames' recording complete; a dropped one leaves the earlier file)."""
     from toolkit.skeleton import SKELETON_14
     from toolkit.viz import RerunObserver
 
     observer = RerunObserver(application_id="pose_from_silhouettes", path=out / "recording.rrd",
-                             recording_id=recording_id, camera_names=names)
+                             recording_id=recording_id, camera_names=names, parts=True)
     observer.report("skeleton", skeleton=SKELETON_14)
     return observer
 
 
+def _open(config: PoseFromSilhouettesConfig, ds, db_path: Path, n: int, out: Path, log) -> bool:
+    """Open the run folder (its identity checked); whether it holds an earlier run's complete results.
+
+    Raises
+    ------
+    InputError
+        ``out`` holds another run's results, or complete results of more frames than ``n``.
+    """
+    from toolkit.pipeline.run import check_frames_held
+
+    exclude, extra = _identity(config, db_path)
+    folder = open_run(out, "pose_from_silhouettes", ds.root, config, n, exclude=exclude, extra=extra,
+                      replace_stale=config.replace_stale, recording=False, log=log)
+    held, complete = _held(out) if folder.resumed else (0, False)
+    if complete:
+        check_frames_held(out, n, held, what="complete stage-1 results")
+    return complete
+
+
 def run(config: PoseFromSilhouettesConfig, *, dataset, out, observer=None, log=print) -> RunResult:
     """Run stage 1 (silhouette database, multi-view selection) over a dataset into ``out``.
+
+    Ctrl-C or SIGTERM stops the run quietly (``stopped``); the frames
+    estimated so far are written (the others ``FRAME_NOT_PROCESSED``), but
+    never over the complete results of an earlier run of the same identity,
+    which stay with their recording (:func:`~toolkit.pipeline.run.whole_run`).
 
     Parameters
     ----------
@@ -163,7 +210,8 @@ def run(config: PoseFromSilhouettesConfig, *, dataset, out, observer=None, log=p
     -------
     RunResult
         ``metrics``: ``states`` (frames per ``FRAME_*`` code, str keys) and ``ok``
-        (frames with a 3D estimate); ``extra``: ``db`` (the database file).
+        (frames with a 3D estimate); ``extra``: ``db`` (the database file) and
+        ``earlier`` (the complete results of an earlier run were kept).
 
     Raises
     ------
@@ -175,9 +223,9 @@ def run(config: PoseFromSilhouettesConfig, *, dataset, out, observer=None, log=p
 
     from toolkit.calibration import cameras_for_run, refined_cameras
     from toolkit.foreground import BackgroundConfig, ForegroundConfig
-    from toolkit.io import Dataset, atomic_write_text, read_png
+    from toolkit.io import Dataset, read_png
     from toolkit.io.runs import run_recording
-    from toolkit.silhouettes import edits_template, read_edits
+    from toolkit.silhouettes import read_edits, stack_estimates
     from toolkit.silhouettes.pipeline import FRAME_OK, estimate_dataset
 
     log = log or (lambda *_: None)
@@ -191,42 +239,40 @@ def run(config: PoseFromSilhouettesConfig, *, dataset, out, observer=None, log=p
         plates = None if config.plates is None else \
             {c: [read_png(Path(config.plates) / f"{c}.png", channels=3, dtype=np.uint8)] for c in names}
         n = ds.frames_to_process(config.max_frames)
-        exclude, extra = _identity(config, db_path)
-        folder = open_run(out, "pose_from_silhouettes", ds.root, config, n, exclude=exclude, extra=extra,
-                          replace_stale=config.replace_stale, recording=False, log=log)
-        own = observer is None
-        obs = _observer(out, names, run_recording(out, False)[1]) if own and config.recording else observer
-        rig = cameras_for_run(ds, out, refine=config.refine_calibration, observer=obs, log=log)
-        s1config = config.stage1.with_refined_cameras(refined_cameras(out))  # tight offset prior where refined
-        if obs is not None:
-            obs.report("rig", rig=rig)
-        n_db, k = len(db), s1config.query.k
-        estimates, stopped = [], ""
+        earlier = _open(config, ds, db_path, n, out, log)
+        own = observer is None and config.recording
+        obs = _observer(out, names, run_recording(out, False)[1]) if own else observer
+        n_db, k = len(db), config.stage1.query.k
+        estimates = []
         t0 = time.perf_counter()
-        try:
-            frames = estimate_dataset(ds, db, s1config, foreground=fg, frames=range(n), edits=edits,
-                                      backgrounds=plates, rig=rig, observer=obs, log_images=config.log_images)
-            for est, _ in tqdm(frames, total=n, desc="stage 1", unit="frame", disable=not config.progress):
-                estimates.append(est)
-                if len(estimates) % CHECKPOINT_FRAMES == 0:
-                    _write(out, estimates, n, names, k)
-        except KeyboardInterrupt:
-            stopped = STOPPED_INTERRUPTED
-        finally:
-            output = _write(out, estimates, n, names, k)
-            atomic_write_text(out / "edits_template.toml",
-                              edits_template(output.poses2d, range(len(estimates)),
-                                             header=f"Edits for {dataset} (pose_from_silhouettes.py)"))
-            if len(db) > n_db:
-                db.save(db_path)
-                log(f"added {len(db) - n_db} corrected pose(s) to {db_path} ({len(db)} entries)")
-            if own and obs is not None:
-                obs.close()
-    states = output.state[:len(estimates)]
+        with whole_run(out, obs, own=own, earlier=earlier) as state:
+            rig = cameras_for_run(ds, out, refine=config.refine_calibration, observer=obs, log=log)
+            s1config = config.stage1.with_refined_cameras(refined_cameras(out))  # tight offset prior where refined
+            if obs is not None:
+                obs.report("rig", rig=rig)
+            try:
+                frames = estimate_dataset(ds, db, s1config, foreground=fg, frames=range(n), edits=edits,
+                                          backgrounds=plates, rig=rig, observer=obs, log_images=config.log_images)
+                for est, _ in tqdm(frames, total=n, desc="stage 1", unit="frame", disable=not config.progress):
+                    estimates.append(est)
+                    state.checkpoint()
+                    if not earlier and len(estimates) % CHECKPOINT_FRAMES == 0:
+                        with state.writing():
+                            _write(out, stack_estimates(estimates, n, names, k), dataset, len(estimates))
+            finally:
+                if len(estimates) == n or not earlier:  # never partial results over complete ones
+                    with state.writing():
+                        _write(out, stack_estimates(estimates, n, names, k), dataset, len(estimates))
+                if len(db) > n_db:
+                    db.save(db_path)
+                    log(f"added {len(db) - n_db} corrected pose(s) to {db_path} ({len(db)} entries)")
+    states = stack_estimates(estimates, n, names, k).state[:len(estimates)]
     metrics = {"ok": int((states == FRAME_OK).sum()),
                "states": {str(c): int(v) for c, v in sorted(Counter(states.tolist()).items())}}
-    return RunResult(out, n, len(estimates), len(estimates), 0, stopped, time.perf_counter() - t0, metrics,
-                     out / "recording.rrd" if own and config.recording else None, {"db": db_path})
+    kept = bool(state.stopped) and earlier and len(estimates) < n
+    recording = out / "recording.rrd" if kept and own and (out / "recording.rrd").is_file() else state.recording
+    return RunResult(out, n, len(estimates), len(estimates), 0, state.stopped, time.perf_counter() - t0, metrics,
+                     recording, {"db": db_path, "earlier": kept})
 
 
 def summary_lines(result: RunResult) -> list:
@@ -236,6 +282,9 @@ def summary_lines(result: RunResult) -> list:
     out, m, done, dt = result.out, result.metrics, result.finished, result.seconds
     lines = [f"{'stopped early (' + result.stopped + '): ' if result.stopped else ''}{done} of {result.frames} "
              f"frames in {dt:.1f} s ({dt / max(done, 1):.2f} s/frame); 3D estimate in {m['ok']}"]
+    if result.extra.get("earlier"):
+        return lines + [f"  not written: the complete results of the earlier run are kept in {out} (and its "
+                        "recording); run the same command again to estimate every frame"]
     lines += [f"  {v} frame(s): {FRAME_STATES[int(c)]}" for c, v in m["states"].items() if int(c) != FRAME_OK]
     lines += [f"  2D poses:  {out / 'poses2d.npz'}  (one (T, 14, 2) array per camera, pixels)",
               f"  3D joints: {out / 'poses3d.npz'}  (joints (T, 14, 3) metres, names, state)",

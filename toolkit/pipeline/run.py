@@ -263,14 +263,24 @@ class FrameRecords:
         InputError
             A record is not JSON (e.g. written by a foreign tool).
         """
-        out = []
+        return list(self.each())
+
+    def each(self):
+        """Yields every finished frame's record, in frame order, one read at a time (a long run's end goes
+        through them without holding them all).
+
+        Raises
+        ------
+        InputError
+            A record is not JSON (e.g. written by a foreign tool).
+        """
         for t in sorted(self.done()):
             p = self.path(t)
             try:
-                out.append(json.loads(p.read_text(encoding="utf-8")))
+                record = json.loads(p.read_text(encoding="utf-8"))
             except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
                 raise InputError(str(p), "a frame record (JSON) written by this run", f"unreadable: {e}") from None
-        return out
+            yield record
 
 
 def check_frames_held(out: str | os.PathLike, n_frames: int, held: int, *, what: str = "finished frames") -> None:
@@ -379,13 +389,24 @@ def open_run(out: str | os.PathLike, recipe: str, dataset_root, config, n_frames
     records = FrameRecords(Path(out), n_frames)
     rec = rec_id = None
     if resumed:  # a killed run's recording parts: one file again before this part is named
-        from toolkit.viz.rerun_observer import finish_parts
-
-        for parts in sorted(Path(out).glob("recording*.parts")):
-            finish_parts(parts)
+        merge_killed_parts(out)
     if recording and records.todo():
         rec, rec_id = run_recording(out, resumed)
     return RunFolder(Path(out), resumed, records, rec, rec_id)
+
+
+def merge_killed_parts(out: str | os.PathLike) -> None:
+    """Merge the recording parts a run killed outright left in ``out`` (``recording*.parts/``) into files.
+
+    Each folder becomes the ``.rrd`` of its name, or the next free
+    ``recording.resume-<k>.rrd`` when that exists
+    (:func:`toolkit.viz.rerun_observer.finish_parts`), so that a new part
+    of the recording never takes them in or is mixed with them.
+    """
+    from toolkit.viz.rerun_observer import finish_parts
+
+    for parts in sorted(Path(out).glob("recording*.parts")):
+        finish_parts(parts)
 
 
 @dataclass(frozen=True)
@@ -457,6 +478,149 @@ def terminate_as_interrupt():
         yield
     finally:
         signal.signal(signal.SIGTERM, old)
+
+
+@contextlib.contextmanager
+def deferred_interrupts():
+    """While the body runs, Ctrl-C and SIGTERM are held, then delivered once it ends.
+
+    For a set of result files written together (a run computed as a whole
+    writes them at its end): a stop never leaves some of them new and the
+    others old or missing.  Outside the main thread it does nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = []
+
+    def hold(signum, _frame):
+        held.append(signum)
+
+    old = {s: signal.signal(s, hold) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, handler in old.items():
+            signal.signal(s, handler)
+        if held:
+            signal.raise_signal(held[0])
+
+
+def close_run_recording(observer, out: str | os.PathLike, *, keep: bool) -> Path | None:
+    """Close a run's own recording: kept (its file replaces the folder's) or dropped; the file it leaves.
+
+    Parameters
+    ----------
+    observer : RerunObserver
+        Written in parts (``parts=True``), so that a dropped recording leaves
+        the folder's earlier file as it was.
+    out : path
+        The run folder.
+    keep : bool
+        Whether the run's results replaced the earlier ones (or there were
+        none): its recording then shows them; else it is dropped and the
+        earlier recording stays beside the earlier results.
+
+    Returns
+    -------
+    Path or None
+        The finished recording file of this run (None: dropped, or not
+        finalised: nothing to offer as openable).
+
+    Notes
+    -----
+    A run computed as a whole writes one recording, ``OUT/recording.rrd``;
+    ``recording.resume-<k>.rrd`` files in its folder are the parts of a
+    killed earlier run merged by :func:`open_run`, superseded: they are
+    removed (opened with ``rerun OUT/recording*.rrd`` they would mix with
+    the recording of the results).
+    """
+    observer.close(keep=keep)
+    for stale in Path(out).glob("recording.resume-*.rrd"):
+        stale.unlink(missing_ok=True)
+    return getattr(observer, "saved", None)
+
+
+@dataclass
+class WholeRun:
+    """A run computed as a whole (tracking that carries its state, a global fit), inside :func:`whole_run`.
+
+    Attributes
+    ----------
+    observer : Observer or None
+        The run's observer (its ``checkpoint()`` ends a part of the recording).
+    stopped : str
+        ``""``, or :data:`STOPPED_INTERRUPTED` once Ctrl-C or SIGTERM stopped the body.
+    written : bool
+        The run's results are written (:meth:`writing` ended).
+    recording : Path or None
+        The finished recording of this run once :func:`whole_run` ended (None:
+        none, or dropped because the earlier complete results were kept).
+    """
+
+    observer: typing.Any = None
+    stopped: str = ""
+    written: bool = False
+    recording: Path | None = None
+
+    def checkpoint(self) -> None:
+        """End a part of the recording: a run killed outright after this leaves it complete."""
+        checkpoint = getattr(self.observer, "checkpoint", None)
+        if callable(checkpoint):
+            checkpoint()
+
+    @contextlib.contextmanager
+    def writing(self):
+        """The body writes the run's results here: Ctrl-C and SIGTERM held until every file is written
+        (:func:`deferred_interrupts`); the run then counts as written."""
+        with deferred_interrupts():
+            yield
+            self.written = True
+
+
+@contextlib.contextmanager
+def whole_run(out: str | os.PathLike, observer=None, *, own: bool, earlier: bool):
+    """The body of a run computed as a whole: its stops, and what becomes of its recording.
+
+    A run whose frames depend on each other (the soft-body tracking and its
+    global fit, the marker labelling and joint centres) writes its results at
+    the end, all together (:meth:`WholeRun.writing`), and a rerun computes
+    them again from the start.  Inside this context
+
+    * SIGTERM stops the body as Ctrl-C does (:func:`terminate_as_interrupt`),
+      and either ends it quietly: ``state.stopped`` says so (no traceback);
+    * the results of an earlier complete run stay until this run has written
+      its own (they are written only at the end);
+    * the run's own recording (``own``; a :class:`~toolkit.viz.RerunObserver`
+      written in parts, ``state.checkpoint()`` between steps, so that a run
+      killed outright leaves the finished parts complete) is closed at the
+      end: kept when the run wrote its results or the folder held none
+      (``earlier`` False), else dropped, so the earlier recording stays with
+      the results it shows (:func:`close_run_recording`).
+
+    Parameters
+    ----------
+    out : path
+        The run folder.
+    observer : Observer, optional
+    own : bool
+        ``observer`` is the run's own recording (closed here).
+    earlier : bool
+        The folder holds the complete results of an earlier run of the same identity.
+
+    Yields
+    ------
+    WholeRun
+    """
+    state = WholeRun(observer)
+    try:
+        with terminate_as_interrupt():
+            yield state
+    except KeyboardInterrupt:
+        state.stopped = STOPPED_INTERRUPTED
+    finally:
+        if own and observer is not None:
+            state.recording = close_run_recording(observer, out, keep=state.written or not earlier)
 
 
 @dataclass(frozen=True)

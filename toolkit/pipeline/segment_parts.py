@@ -212,8 +212,9 @@ def _observer(folder, rig, names: list):
     from toolkit.skeleton import SKELETON_14
     from toolkit.viz import RerunObserver
 
+    # in parts, one per frame: a run killed outright leaves the finished frames' recording complete
     observer = RerunObserver(application_id="segment_parts", path=folder.recording,
-                             recording_id=folder.recording_id, camera_names=names)
+                             recording_id=folder.recording_id, camera_names=names, parts=True)
     observer.report("rig", rig=rig)
     observer.report("skeleton", skeleton=SKELETON_14)
     return observer
@@ -295,7 +296,8 @@ def run(config: SegmentPartsConfig, *, dataset, out, observer=None, log=print) -
     metrics = {"views": processed * len(names), "missing": dict(sorted(missing.items())),
                "iou": np.nanmean(np.array(ious, float), 0).tolist() if ious else None}
     return RunResult(out, n, len(records), processed, n - len(todo), stopped, seconds, metrics,
-                     folder.recording if own else None, {"poses": poses.name, "cameras": len(names)})
+                     obs.saved if own and obs is not None else None,  # a finished file only
+                     {"poses": poses.name, "cameras": len(names)})
 
 
 def summary_lines(result: RunResult) -> list:

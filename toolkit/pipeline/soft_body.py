@@ -17,7 +17,12 @@ The run folder is identified like every run (``OUT/run.json``: the dataset and
 the options that change the results); a folder of another run is refused
 (``replace_stale`` moves it aside).  Tracking carries its state from frame to
 frame and the global fit needs every frame, so a run always starts from the
-first frame and replaces earlier results.
+first frame and replaces earlier results once it has its own
+(:func:`toolkit.pipeline.run.whole_run`): Ctrl-C or SIGTERM ends it quietly
+(``RunResult.stopped``), a full disk with an error naming the file, and
+either leaves the results and recording of an earlier complete run as they
+were; a run killed outright leaves its recording's finished parts
+(``recording.parts/``, merged by the next run).
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from toolkit.errors import InputError
-from toolkit.pipeline.run import RunResult, open_run
+from toolkit.pipeline.run import RunResult, open_run, whole_run
 from toolkit.pointcloud.patches import PatchConfig
 from toolkit.pointcloud.stereo import StereoConfig
 from toolkit.softbody import GlobalFitConfig, TrackConfig
@@ -421,12 +426,13 @@ def _write_ply(path: Path, vertices: np.ndarray, triangles: np.ndarray) -> None:
     """A triangle mesh as binary PLY (Open3D's writer, via a temporary name renamed into place)."""
     import open3d as o3d
 
-    path.parent.mkdir(parents=True, exist_ok=True)
+    from toolkit.io.atomic import atomic_path
+
     mesh = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(vertices), o3d.utility.Vector3iVector(triangles))
-    tmp = path.with_name(path.stem + ".tmp.ply")
-    if not o3d.io.write_triangle_mesh(str(tmp), mesh):
-        raise OSError(f"could not write {tmp}")
-    tmp.replace(path)
+    with atomic_path(path) as tmp:
+        if not o3d.io.write_triangle_mesh(str(tmp), mesh):
+            raise InputError(str(path), "room to write the mesh (an earlier one is kept as it was)",
+                             "Open3D's PLY writer failed (a full or read-only disk?)")
 
 
 def _residuals(t: int, pts: np.ndarray, d: np.ndarray, observer) -> None:
@@ -621,46 +627,54 @@ def run(config: SoftBodyRunConfig, *, dataset, out, observer=None, log=print) ->
         raise InputError("init_frame (--init-frame)", f"a frame in [0, {n}) (the frames used)", str(config.init_frame))
     if config.independent and source.kind != "depth":
         raise InputError("independent (--independent)", "depth input (unrelated depth frames)", source.kind)
-    open_run(out, "fit_soft_body", dataset, config, n, exclude=SoftBodyRunConfig.RUNTIME,
-             extra={"source": source.kind}, replace_stale=config.replace_stale, recording=False, log=log)
+    folder = open_run(out, "fit_soft_body", dataset, config, n, exclude=SoftBodyRunConfig.RUNTIME,
+                      extra={"source": source.kind}, replace_stale=config.replace_stale, recording=False, log=log)
+    earlier = folder.resumed and (out / "metrics.json").is_file()   # written last: the results are complete
     own = observer is None and config.recording
     obs = _recording(out, run_recording(out, False)[1]) if own else observer
     t0 = time.perf_counter()
-    try:
+    metrics, timing = None, {}
+    with whole_run(out, obs, own=own, earlier=earlier) as state:
         clouds, raws, stats = build_clouds(source, n, config.patches, obs, config.progress)
         silhouettes = silhouettes_of(source, n) if source.keep_masks else None
-        t1 = time.perf_counter()
-        if config.independent:
-            fitted = fit_independent(source, clouds, config, obs)
-        else:
-            f0 = min(config.init_frame, n - 1)
-            model, params0, joints0 = initial_model(config, source, n, clouds[f0],
-                                                    None if silhouettes is None else silhouettes[f0], obs)
-            if own:
-                _send_layout(obs, joints0, source.viewpoints)
-            if obs is not None:
-                obs.report("joints3d", frame=min(config.init_frame, n - 1), joints=joints0,
-                           name="softbody/init_joints")
-            fitted = fit_clouds(model, params0, clouds, config, source.viewpoints, observer=obs,
-                                silhouettes=silhouettes, reinit=reinit_joints(source, n, clouds, log)
-                                if config.recovery else None)
-        t2 = time.perf_counter()
-        metrics = _write(out, fitted, n, dataset)
+        state.checkpoint()
+        timing["clouds"] = (time.perf_counter() - t0) / n
+        fitted = _fit(config, source, n, clouds, silhouettes, obs, own, log)
+        timing["fit"] = (time.perf_counter() - t0) / n - timing["clouds"]
+        state.checkpoint()
+        with state.writing():
+            metrics = _write(out, fitted, n, dataset)
         _surfaces(out, fitted, clouds, raws, config, source.forward, obs)
-    finally:
-        if own:
-            obs.close()
-    metrics["seconds_per_frame"] = {"clouds": (t1 - t0) / n, "fit": (t2 - t1) / n}
+    extra = {"source": source.kind, "joints": out / "joints.npz", "body_model": out / "body_model.json",
+             "meshes": out / "meshes" if config.meshes else None, "images": config.images, "earlier": earlier}
+    if metrics is None:   # stopped before its results were written: those of an earlier complete run stay
+        return RunResult(out, n, 0, 0, 0, state.stopped, time.perf_counter() - t0, {}, state.recording, extra)
+    metrics["seconds_per_frame"] = timing
     metrics["patches_median"] = float(np.median(stats["patches"]))
-    return RunResult(out, n, n, n, 0, "", time.perf_counter() - t0, metrics, out / "recording.rrd" if own else None,
-                     {"source": source.kind, "joints": out / "joints.npz", "body_model": out / "body_model.json",
-                      "meshes": out / "meshes" if config.meshes else None, "images": config.images})
+    return RunResult(out, n, n, n, 0, state.stopped, time.perf_counter() - t0, metrics, state.recording, extra)
+
+
+def _fit(config: SoftBodyRunConfig, source, n: int, clouds, silhouettes, obs, own: bool, log) -> Fitted:
+    """The initial model, tracking and the global fit (or the independent frames' fits) of a run."""
+    if config.independent:
+        return fit_independent(source, clouds, config, obs)
+    f0 = min(config.init_frame, n - 1)
+    model, params0, joints0 = initial_model(config, source, n, clouds[f0],
+                                            None if silhouettes is None else silhouettes[f0], obs)
+    if own:
+        _send_layout(obs, joints0, source.viewpoints)
+    if obs is not None:
+        obs.report("joints3d", frame=f0, joints=joints0, name="softbody/init_joints")
+    return fit_clouds(model, params0, clouds, config, source.viewpoints, observer=obs, silhouettes=silhouettes,
+                      reinit=reinit_joints(source, n, clouds, log) if config.recovery else None)
 
 
 def _recording(out: Path, recording_id: str):
     from toolkit.viz import RerunObserver
 
-    return RerunObserver(application_id="fit_soft_body", path=out / "recording.rrd", recording_id=recording_id)
+    # in parts: a run killed outright leaves its finished parts complete; a dropped one leaves the file as it was
+    return RerunObserver(application_id="fit_soft_body", path=out / "recording.rrd", recording_id=recording_id,
+                         parts=True)
 
 
 def _send_layout(rec, joints: np.ndarray, viewpoints: np.ndarray) -> None:
@@ -688,7 +702,13 @@ def _frame_ranges(frames) -> str:
 def summary_lines(result: RunResult) -> list:
     """What a soft-body run says when it ends (the recipe prints these)."""
     m, x = result.metrics, result.extra
-    lines = [f"fitted {result.frames} frames ({x['source']}) in {result.seconds:.1f} s: "
+    if not m:   # stopped before the results were written
+        kept = "the earlier complete results (and recording) are kept" if x.get("earlier") else "no results written"
+        return [f"{result.stopped}: stopped after {result.seconds:.1f} s, before the fit of the {result.frames} "
+                f"frames ({x['source']}) was written; {kept}; run the same command again to fit them"]
+    lines = [] if not result.stopped else [f"{result.stopped}: stopped while drawing the fitted surfaces; "
+                                           "the results are written (meshes and images: the frames drawn so far)"]
+    lines += [f"fitted {result.frames} frames ({x['source']}) in {result.seconds:.1f} s: "
              + ", ".join(f"{v} {k}" for k, v in m["states"].items())
              + f"; {m['patches_median']:.0f} patches per frame (median)",
              f"  trusted:     {_frame_ranges(m['trusted_frames'])} ({len(m['trusted_frames'])} of {result.frames}); "

@@ -25,6 +25,12 @@ from toolkit.rendering.baselines import VisualHull
 from toolkit.rendering.fans import RENDER_SUPERSAMPLE
 from toolkit.segmentation.pipeline import TEMPLATE_POSES
 
+#: Stages 2-3 and the billboards of a frame work on each camera's images resized so that the person's longer
+#: side (its 3D joints projected, ears to ankles) is at most this many pixels (:mod:`toolkit.pipeline.working_scale`:
+#: a scale of 0.38-0.49 on the Pose2Sim demo, whose joints span 610-790 px); twice the synthetic default scene's
+#: person (100-140 px), which stays at full size.
+WORK_HEIGHT_PX = 300
+
 #: ``FrameResult.status`` values.
 STATUS_OK = "ok"
 STATUS_NO_POSE = "no 3D pose from stage 1"
@@ -55,6 +61,10 @@ class FreeViewpointConfig:
     use_plates : bool
         Segment with the cameras' background plates when
         :meth:`toolkit.pipeline.frame.FrameProcessor.process` gets them.
+    work_height_px : float or None
+        Stages 2-3 and the billboards run on each camera's images resized so that the person's
+        longer side is at most this many pixels (:data:`WORK_HEIGHT_PX`,
+        :mod:`toolkit.pipeline.working_scale`); None or 0: at full resolution.
     """
 
     optimize: bool = True
@@ -64,6 +74,7 @@ class FreeViewpointConfig:
     baselines: bool = True
     template_pose: str = "multiview"
     use_plates: bool = True
+    work_height_px: float | None = WORK_HEIGHT_PX
 
     def __post_init__(self):
         if self.template_pose not in TEMPLATE_POSES:

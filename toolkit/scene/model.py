@@ -48,6 +48,9 @@ RENDERS_KEPT = 8
 #: Source-to-camera maps kept by :meth:`SceneModel.carry` (about 8 MB each at 1280 x 720; a run carries
 #: one source into each fixed camera every frame).
 CARRIES_KEPT = 4
+#: Pixel-ray tables kept (:meth:`SceneModel._pixel_rays`: one per camera intrinsics and size, 22 MB at
+#: 1280 x 720; a camera path's views share theirs).
+RAY_TABLES_KEPT = 4
 #: A source's image border, undistorted, is widened by this share when deciding what it sees.
 FRUSTUM_MARGIN = 0.02
 
@@ -91,6 +94,16 @@ def _fill(img: np.ndarray, hole: np.ndarray) -> np.ndarray:
     return out
 
 
+def _project_cam(cam: Camera, pc: np.ndarray) -> np.ndarray:
+    """Pixels (N, 2) of points (N, 3) in front of ``cam`` given in its own frame (what :meth:`Camera.project`
+    does after its ``to_cam``, without transforming the points again)."""
+    if cam.has_distortion:
+        uv, _ = cv2.projectPoints(pc.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), cam.K, cam.dist)
+        return uv.reshape(-1, 2)
+    q = pc @ cam.K.T
+    return q[:, :2] / q[:, 2:3]
+
+
 def _key(cam: Camera) -> bytes:
     return cam.K.tobytes() + cam.dist.tobytes() + cam.cam_from_world.tobytes() + np.asarray(cam.size).tobytes()
 
@@ -128,15 +141,33 @@ class SceneModel:
         self._frusta = {cam.name: _frustum(cam) for cam in rig}
         self._kept: OrderedDict = OrderedDict()
         self._carried: OrderedDict = OrderedDict()
+        self._rays: OrderedDict = OrderedDict()
 
     # ------------------------------------------------------------------ rendering
     def _geometry(self, camera: Camera):
         """The proxy points (N, 3), surfaces (N,) and unit view rays (N, 3) of the camera's pixels."""
+        d = camera.cam_from_world[:3, :3]
+        d = self._pixel_rays(camera) @ d  # R^T d for row vectors, as Camera.rays
+        d /= np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])[:, None]
+        pts, surf = self.proxy.intersect(np.broadcast_to(camera.center, d.shape), d)
+        return pts, surf, d
+
+    def _pixel_rays(self, camera: Camera) -> np.ndarray:
+        """The camera's pixel rays in its own frame, ``(x/z, y/z, 1)`` (N, 3) float64, read-only: the same for
+        every camera of these intrinsics (a camera path's views), so undistorted once (:data:`RAY_TABLES_KEPT`)."""
+        key = camera.K.tobytes() + camera.dist.tobytes() + np.asarray(camera.size).tobytes()
+        if key in self._rays:
+            self._rays.move_to_end(key)
+            return self._rays[key]
         w, h = camera.size
         u, v = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
-        o, d = camera.rays(np.stack([u, v], -1).reshape(-1, 2))
-        pts, surf = self.proxy.intersect(o, d)
-        return pts, surf, d
+        n = camera.undistort_points(np.stack([u, v], -1).reshape(-1, 2))
+        rays = np.concatenate([n, np.ones((n.shape[0], 1))], axis=1)
+        rays.flags.writeable = False
+        self._rays[key] = rays
+        while len(self._rays) > RAY_TABLES_KEPT:
+            self._rays.popitem(last=False)
+        return rays
 
     def _sample(self, cam: Camera, pts: np.ndarray, images: list, shape: tuple) -> tuple[list, np.ndarray]:
         """The images of source ``cam`` sampled at the proxy points, and where it sees them (N,) bool."""
@@ -149,13 +180,13 @@ class SceneModel:
         """Where source ``cam`` sees the proxy points (N, 3): remap maps ``mx``, ``my`` of ``shape`` (float32
         pixels) and the points it sees (N,) bool."""
         pc = cam.to_cam(pts)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            n = pc[:, :2] / pc[:, 2:3]
         lo, hi = self._frusta.get(cam.name) or _frustum(cam)
-        sees = (pc[:, 2] > 1e-6) & np.all((n >= lo) & (n <= hi), axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            nx, ny = pc[:, 0] / pc[:, 2], pc[:, 1] / pc[:, 2]
+            sees = (pc[:, 2] > 1e-6) & (nx >= lo[0]) & (nx <= hi[0]) & (ny >= lo[1]) & (ny <= hi[1])
         uv = np.full((pts.shape[0], 2), -1e4, np.float32)
         if sees.any():
-            uv[sees] = cam.project(pts[sees])
+            uv[sees] = _project_cam(cam, pc[sees])
         sees &= np.isfinite(uv).all(1) & cam.in_image(uv)
         mx = np.ascontiguousarray(uv[:, 0].reshape(shape))
         my = np.ascontiguousarray(uv[:, 1].reshape(shape))
@@ -196,16 +227,20 @@ class SceneModel:
             sees &= hit
             if not sees.any():
                 continue
-            src = pts[sees] - cam.center
-            src /= np.linalg.norm(src, axis=1, keepdims=True)
-            ang = np.degrees(np.arccos(np.clip((src * view[sees]).sum(1), -1.0, 1.0)))
-            wt = conf[sees, 0] / (1.0 + ang / ANGLE_SCALE_DEG) ** 2
-            acc[sees] += wt[:, None] * col[sees]
-            wsum[sees] += wt
-            cover[sees] = np.maximum(cover[sees], conf[sees, 0])
-        img = np.zeros((pts.shape[0], 3), np.float32)
+            conf = conf[:, 0]
+            # every pixel at once, the unseen ones weighted 0 (the same sums as over the seen ones alone)
+            with np.errstate(invalid="ignore"):
+                sx, sy, sz = (pts[:, k] - cam.center[k] for k in range(3))
+                norm = np.sqrt(sx * sx + sy * sy + sz * sz)
+                cos = (sx / norm) * view[:, 0] + (sy / norm) * view[:, 1] + (sz / norm) * view[:, 2]
+                ang = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+                wt = np.where(sees, conf / (1.0 + ang / ANGLE_SCALE_DEG) ** 2, 0.0)
+            acc += wt[:, None] * np.where(sees[:, None], col, np.float32(0))
+            wsum += wt
+            np.maximum(cover, np.where(sees, conf, np.float32(0)), out=cover)
         ok = wsum > 0
-        img[ok] = acc[ok] / wsum[ok, None]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            img = np.where(ok[:, None], acc / wsum[:, None], 0.0).astype(np.float32)
         img = img.reshape(h, w, 3)
         if self.fill_holes and not ok.all() and ok.any():
             img = _fill(img, ~ok.reshape(h, w))
@@ -240,24 +275,38 @@ class SceneModel:
         ndarray of shape (H, W, 3) uint8
             Black where the source does not see the pixel's proxy point.
         """
-        cam = self.rig[source]
         w, h = camera.size
-        key = (_key(camera), source)
-        if key in self._carried:  # a fixed camera (novel, held out): its maps are the same every frame
-            self._carried.move_to_end(key)
-            mx, my, sees = self._carried[key]
-        else:
-            pts, surf, _ = self._geometry(camera)
-            mx, my, sees = self._maps(cam, pts, (h, w))
-            sees &= surf != SURFACE_NONE
-            self._carried[key] = (mx, my, sees)
-            while len(self._carried) > CARRIES_KEPT:
-                self._carried.popitem(last=False)
+        mx, my, sees = self._carry_maps(camera, source)
         col = cv2.remap(np.asarray(image, np.float32), mx, my, cv2.INTER_LINEAR,
                         borderMode=cv2.BORDER_REPLICATE).reshape(h * w, -1)
         out = np.zeros((h * w, 3), np.float32)
         out[sees] = col[sees]
         return np.clip(out.reshape(h, w, 3) + 0.5, 0, 255).astype(np.uint8)
+
+    def _carry_maps(self, camera: Camera, source: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Where source ``source`` sees ``camera``'s pixels on the proxy: remap maps ``mx``, ``my`` (H, W) float32
+        and the pixels it sees (H * W,) bool; kept for a fixed camera (:data:`CARRIES_KEPT`)."""
+        key = (_key(camera), source)
+        if key in self._carried:  # a fixed camera (novel, held out): its maps are the same every frame
+            self._carried.move_to_end(key)
+            return self._carried[key]
+        w, h = camera.size
+        pts, surf, _ = self._geometry(camera)
+        mx, my, sees = self._maps(self.rig[source], pts, (h, w))
+        sees &= surf != SURFACE_NONE
+        self._carried[key] = (mx, my, sees)
+        while len(self._carried) > CARRIES_KEPT:
+            self._carried.popitem(last=False)
+        return mx, my, sees
+
+    def prepare(self, cameras: list, carry: bool = True) -> None:
+        """Draw the views of fixed ``cameras`` (a run's novel and held-out cameras, the bird's-eye view) and,
+        with ``carry``, their maps from the nearest source, ahead of the first frame that needs them (a
+        worker's warm-up): kept, the frames then find them (:meth:`render`, :meth:`carry`)."""
+        for cam in cameras:
+            self.render(cam)
+            if carry:
+                self._carry_maps(cam, self.nearest_source(cam))
 
     def report(self, observer) -> None:
         """Show the model: each source's empty view and confidence over its camera

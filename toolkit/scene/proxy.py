@@ -77,27 +77,27 @@ class SceneProxy:
         """
         o = np.asarray(origins, float)
         d = np.asarray(directions, float)
-        c = np.asarray(self.centre, float)
+        cx, cy = (float(v) for v in self.centre)
         r2 = float(self.radius_m) ** 2
-        pts = np.full(o.shape, np.nan)
-        surf = np.zeros(o.shape[0], np.uint8)
-        # the ground, where the ray goes down onto it inside the cylinder
+        ox, oy, oz = o[:, 0], o[:, 1], o[:, 2]
+        dx, dy, dz = d[:, 0], d[:, 1], d[:, 2]
+        # the ground, where the ray goes down onto it inside the cylinder (column by column: the same
+        # arithmetic as on (N, 3) rows, without the reductions over rows of three)
         with np.errstate(divide="ignore", invalid="ignore"):
-            tg = (self.ground_z - o[:, 2]) / d[:, 2]
-        g = o + tg[:, None] * d
-        ground = (d[:, 2] < 0) & (tg > 0) & (((g[:, :2] - c) ** 2).sum(1) <= r2)
-        # the wall: |o_xy + t d_xy - c| = r, the positive root (from inside)
-        q = o[:, :2] - c
-        a = (d[:, :2] ** 2).sum(1)
-        b = 2 * (q * d[:, :2]).sum(1)
-        cc = (q ** 2).sum(1) - r2
-        with np.errstate(divide="ignore", invalid="ignore"):
+            tg = (self.ground_z - oz) / dz
+            gx, gy = ox + tg * dx, oy + tg * dy
+            ground = (dz < 0) & (tg > 0) & ((gx - cx) ** 2 + (gy - cy) ** 2 <= r2)
+            # the wall: |o_xy + t d_xy - c| = r, the positive root (from inside)
+            qx, qy = ox - cx, oy - cy
+            a = dx ** 2 + dy ** 2
+            b = 2 * (qx * dx + qy * dy)
+            cc = (qx ** 2 + qy ** 2) - r2
             tw = (-b + np.sqrt(b * b - 4 * a * cc)) / (2 * a)
-        wall = ~ground & (cc < 0) & np.isfinite(tw) & (tw > 0)
-        wp = o + tw[:, None] * d
-        wall &= wp[:, 2] >= self.ground_z - 1e-9
-        pts[ground] = g[ground]
-        pts[wall] = wp[wall]
+            wall = ~ground & (cc < 0) & np.isfinite(tw) & (tw > 0)
+            wall &= oz + tw * dz >= self.ground_z - 1e-9
+        t = np.where(ground, tg, np.where(wall, tw, np.nan))
+        pts = o + t[:, None] * d
+        surf = np.zeros(o.shape[0], np.uint8)
         surf[ground] = SURFACE_GROUND
         surf[wall] = SURFACE_WALL
         return pts, surf

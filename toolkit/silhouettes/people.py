@@ -16,11 +16,16 @@ this module separates them:
    A cell needs two agreeing cameras (one in a one-camera rig); its score is
    the agreeing cameras' fill minus the shortfall of the clear ones that do
    not agree, so a camera that misses a person (a kit the colour of the
-   pitch) lowers the score but does not veto it.  Last, a person must show
-   foreground of its own (no other chosen box over it) in two cameras, else
-   it is dropped: a ghost (the crossing of two people's rays, which plain
-   visual-hull occupancy finds) is explained by the real people in the
-   cameras that made it and empty in the others.
+   pitch) lowers the score but does not veto it.  A person hidden behind
+   people already chosen in every camera but one (two cameras and a crowd)
+   is taken on that one camera when it *stands* there: the box's bottom band
+   (the feet) is foreground and the band just below it is not, which fixes
+   the depth along that camera's ray; the hidden cameras must show
+   foreground over the box.  Last, a person must show foreground of its own
+   (no other chosen box over it) in two cameras (the one for such a hidden
+   person), else it is dropped: a ghost (the crossing of two people's rays,
+   which plain visual-hull occupancy finds) is explained by the real people
+   in the cameras that made it and empty in the others.
    Each position is then refined (:func:`refine_positions`): the vertical
    planes through every camera and the median column of the person's own
    silhouette meet on the ground.
@@ -66,6 +71,15 @@ __all__ = ["PeopleSilhouettesConfig", "GroundGrid", "ground_grid", "locate_peopl
 MIRROR_MIN_SPEED_M_S = 0.8
 #: ... and faces backwards when the cosine between its hips' facing and the way it goes is below this.
 MIRROR_MAX_COSINE = -0.3
+
+#: Ground contact of a box in a camera (people hidden in all cameras but one): the feet band is
+#: this share of the box's height; it must be at least CONTACT_MIN_FEET foreground, and the band of
+#: the same height just below the box at most CONTACT_MAX_BELOW.
+CONTACT_BAND, CONTACT_MIN_FEET, CONTACT_MAX_BELOW = 0.08, 0.1, 0.1
+
+#: A person seen usable by one camera only stands where the ray of its silhouette's median column at
+#: this percentile of its rows (the feet) meets the ground.
+FEET_PERCENTILE = 99.0
 
 #: Rounds of :func:`refine_positions` at most, and the move (metres) under which it stops.
 REFINE_ROUNDS, REFINE_STOP_M = 4, 0.02
@@ -253,6 +267,25 @@ def _area(boxes: np.ndarray) -> np.ndarray:
     return np.maximum((boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1]), 1)
 
 
+def _contact(integral: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """Per box (N, 4) of one camera: does a person standing there touch the ground in the image?
+
+    The bottom band of the box (:data:`CONTACT_BAND` of its height) holds the feet: at least
+    :data:`CONTACT_MIN_FEET` foreground; the band of the same height just below it is the ground in
+    front of the feet: at most :data:`CONTACT_MAX_BELOW` (a box at the image's bottom edge passes).
+    A box further along the ray than the person is smaller and ends above the feet (legs below it);
+    a nearer one ends below them (no feet in its band).
+    """
+    x0, y0, x1, y1 = boxes.T
+    height = integral.shape[0] - 1
+    band = np.maximum(2, np.round((y1 - y0) * CONTACT_BAND)).astype(int)
+    feet = np.stack([x0, np.maximum(y1 - band, y0), x1, y1], 1)
+    below = np.stack([x0, y1, x1, np.minimum(y1 + band, height)], 1)
+    f = _box_sums(integral, feet) / _area(feet)
+    u = _box_sums(integral, below) / _area(below)
+    return (f >= CONTACT_MIN_FEET) & (u <= CONTACT_MAX_BELOW)
+
+
 def locate_people(masks, grid: GroundGrid, config: PeopleSilhouettesConfig = PeopleSilhouettesConfig()
                   ) -> tuple[np.ndarray, np.ndarray]:
     """Where people stand in one frame (see the module docstring).
@@ -282,12 +315,14 @@ def locate_people(masks, grid: GroundGrid, config: PeopleSilhouettesConfig = Peo
     possible = seen.sum(0) >= max(need, 1)
     integrals = [None if m is None else cv2.integral(m.astype(np.uint8)) for m in fg]
     total = np.zeros((V, N))
+    contact = np.zeros((V, N), bool)
     for v in range(V):
         if fg[v] is not None:
             total[v] = _box_sums(integrals[v], grid.boxes[v])
+            contact[v] = _contact(integrals[v], grid.boxes[v])
     hidden = np.zeros((V, N))  # box area covered by the boxes of people already chosen
     taken = np.zeros((V, N))   # the foreground in it
-    chosen, scores = [], []
+    chosen, scores, hidden_in = [], [], []
     while len(chosen) < config.max_people and possible.any():
         visible = np.maximum(areas - hidden, 1.0)
         clear = seen & (hidden / areas < config.occluded_share)
@@ -296,12 +331,16 @@ def locate_people(masks, grid: GroundGrid, config: PeopleSilhouettesConfig = Peo
         bad = clear & ~good
         n_good = good.sum(0)
         score = (free * good).sum(0) - config.disagree_weight * ((config.min_fill - free) * bad).sum(0)
-        score = np.where(possible & (n_good >= max(need, 1)) & (score >= config.min_fill), score, -np.inf)
+        lone = _hidden_but_one(good, bad, seen & ~clear, total / areas, contact, need, config)
+        ok = (n_good >= max(need, 1)) | lone
+        score = np.where(possible & ok & (score >= config.min_fill), score, -np.inf)
         best = int(np.argmax(score))
         if not np.isfinite(score[best]):
             break
         chosen.append(best)
         scores.append(float(score[best]))
+        # a person taken on one camera is hidden in the others: it explains nothing there
+        hidden_in.append(set(np.flatnonzero(seen[:, best] & ~clear[:, best])) if n_good[best] < need else set())
         possible &= np.linalg.norm(grid.xy - grid.xy[best], axis=1) >= config.min_separation_m
         for v in range(V):  # every other cell loses what the chosen person's box covers
             if fg[v] is None or not grid.seen[v, best]:
@@ -314,17 +353,34 @@ def locate_people(masks, grid: GroundGrid, config: PeopleSilhouettesConfig = Peo
             taken[v] += _box_sums(integrals[v], inter)
         hidden = np.minimum(hidden, areas)
         taken = np.minimum(taken, total)
-    keep = _explaining(fg, grid, chosen, need, config)
+    keep = _explaining(fg, grid, chosen, hidden_in, need, config)
     return grid.xy[np.array(chosen, int)[keep]].reshape(-1, 2), np.array(scores, float)[keep]
 
 
-def _explaining(fg: list, grid: GroundGrid, cells: list, need: int, config: PeopleSilhouettesConfig) -> list:
+def _hidden_but_one(good: np.ndarray, bad: np.ndarray, occluded: np.ndarray, fill: np.ndarray,
+                    contact: np.ndarray, need: int, config: PeopleSilhouettesConfig) -> np.ndarray:
+    """Cells (N,) a person may stand on with one agreeing camera: in a rig that asks for two, exactly
+    one camera agrees and shows the person standing there (``contact``), no clear camera disagrees,
+    and every other camera that sees the cell is occluded by people already chosen with foreground
+    over the box.  Inputs are (V, N): agreeing, clear but not agreeing, occluded, box fill, ground
+    contact."""
+    if need < 2:
+        return np.zeros(good.shape[1], bool)
+    consistent = occluded & (fill >= config.min_fill)
+    return ((good.sum(0) == 1) & (good & contact).any(0) & ~bad.any(0) & consistent.any(0)
+            & ~(occluded & ~consistent).any(0))
+
+
+def _explaining(fg: list, grid: GroundGrid, cells: list, hidden_in: list, need: int,
+                config: PeopleSilhouettesConfig) -> list:
     """Indices of the chosen cells that explain foreground of their own: weakest first, a person is
-    dropped unless at least ``need`` cameras show ``config.min_own`` of its box as foreground that no
-    other (remaining) person's box covers.  A ghost between real people has none of its own."""
+    dropped unless at least ``need`` cameras (one for a person taken on one camera) show
+    ``config.min_own`` of its box as foreground that no other (remaining) person's box covers.  A
+    ghost between real people has none of its own.  ``hidden_in[i]``: the cameras in which person
+    ``i`` was taken on one camera as hidden; its box covers nothing there."""
     alive = list(range(len(cells)))
     for i in reversed(range(len(cells))):
-        others = [cells[j] for j in alive if j != i]
+        others = [(cells[j], hidden_in[j]) for j in alive if j != i]
         own_views = 0
         for v, m in enumerate(fg):
             if m is None or not grid.seen[v, cells[i]]:
@@ -333,12 +389,12 @@ def _explaining(fg: list, grid: GroundGrid, cells: list, need: int, config: Peop
             if x1 <= x0 or y1 <= y0:
                 continue
             free = m[y0:y1, x0:x1].copy()
-            for c in others:
-                if grid.seen[v, c]:
+            for c, hid in others:
+                if grid.seen[v, c] and v not in hid:
                     a0, b0, a1, b1 = grid.boxes[v, c]
                     free[max(b0 - y0, 0):max(b1 - y0, 0), max(a0 - x0, 0):max(a1 - x0, 0)] = False
             own_views += free.mean() >= config.min_own
-        if own_views < need:
+        if own_views < (1 if hidden_in[i] else need):
             alive.remove(i)
     return alive
 
@@ -525,7 +581,7 @@ def _refine_once(masks, rig: Rig, positions: np.ndarray, start: np.ndarray, conf
     own, usable = split_masks(masks, rig, positions, config)
     out = positions.copy()
     for k in range(len(positions)):
-        rows, rhs = [], []
+        rows, rhs, feet = [], [], None
         for v, cam in enumerate(rig):
             m = own[k][v]
             if m is None or not usable[k][v]:
@@ -534,6 +590,7 @@ def _refine_once(masks, rig: Rig, positions: np.ndarray, start: np.ndarray, conf
             if len(xs) < 20:
                 continue
             u, vmid = float(np.median(xs)), float(np.median(ys))
+            feet = _ground_under(cam, u, float(np.percentile(ys, FEET_PERCENTILE)))
             _, d = cam.rays(np.array([[u, vmid], [u, vmid + 10.0]]))
             n = np.cross(d[0], d[1])
             if np.linalg.norm(n[:2]) < 1e-9:
@@ -541,6 +598,11 @@ def _refine_once(masks, rig: Rig, positions: np.ndarray, start: np.ndarray, conf
             n = n / np.linalg.norm(n[:2])
             rows.append(n[:2])
             rhs.append(n @ cam.center)
+        if len(rows) == 1 and feet is not None:
+            p = feet
+            if np.isfinite(p).all() and np.linalg.norm(p - start[k]) <= config.wide_radius_m:
+                out[k] = p
+            continue
         if len(rows) < 2:
             continue
         A, b = np.array(rows), np.array(rhs)
@@ -550,6 +612,15 @@ def _refine_once(masks, rig: Rig, positions: np.ndarray, start: np.ndarray, conf
         if np.linalg.norm(p - start[k]) <= config.wide_radius_m:
             out[k] = p
     return out
+
+
+def _ground_under(cam, u: float, v: float) -> np.ndarray:
+    """The ground point (2,) metres (z = 0) on the ray of pixel (u, v); NaN where the ray does not
+    go down to it."""
+    o, d = cam.rays(np.array([[u, v]], float))
+    if not d[0, 2] < -1e-6:
+        return np.full(2, np.nan)
+    return (o[0] - o[0, 2] / d[0, 2] * d[0])[:2]
 
 
 def ground_velocities(positions: np.ndarray, fps: float) -> np.ndarray:

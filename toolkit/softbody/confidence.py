@@ -1,9 +1,9 @@
-"""How far a tracked frame can be trusted: residuals, coverage and silhouettes of the fitted model.
+"""How far a tracked frame can be trusted: residuals, coverage, silhouettes and motion of the fitted model.
 
 A tracker that has lost the person still returns a pose, and the tracker's
 own inlier fraction alone does not say so: the model may fit the points near
 it well (a leg on the other leg's points, the trunk on the near side of the
-body) while a whole limb or half the body is elsewhere.  Three measures of
+body) while a whole limb or half the body is elsewhere.  Four measures of
 the fitted pose, each a fraction in [0, 1], see different failures:
 
 * **residuals**: the share of the points within ``residual_gate`` of the
@@ -22,14 +22,37 @@ the fitted pose, each a fraction in [0, 1], see different failures:
   each limb segment), the share of its unburied surface samples projecting
   into the mask (the part where the camera sees the person; an occluded limb
   still projects into the mask of what hides it); the least over the cameras (one camera that sees the model off the
-  person is enough to doubt the frame).  Both come from what the silhouette
-  block of tracking uses (:mod:`toolkit.softbody.silhouette`), at about a
-  tenth of the cost of drawing the model's own silhouette.
+  person is enough to doubt the frame);
+* **missed outline**: per camera, the share of the outline rays within
+  ``residual_gate`` of the model passing ``missed_distance`` or further from
+  it (those passing near points not taken for the subject's left out:
+  another person touching it), the largest over the cameras.  A limb the
+  model holds in the wrong place while the true one sticks out of the
+  body's outline (arms raised in a jump, swung in a run) leaves 5-18 % of a
+  camera's outline rays 0.1-0.25 m from the model while the shares above
+  stay at a tracked frame's level.
 
-The frame's **confidence** is the least of the three, each divided by its
-``trusted_*`` level (clipped to 1): 1 when every measure reaches its level.
-A frame is **lost** when any measure falls below its ``lost_*`` level, and
-**trusted** otherwise.
+The silhouette measures come from what the silhouette block of tracking uses
+(:mod:`toolkit.softbody.silhouette`), at about a tenth of the cost of drawing
+the model's own silhouette.
+
+A fifth measure needs the last trusted frame's joints (``previous``):
+
+* **motion**: the largest move of a joint against the body (the pelvis's
+  frame: hips and neck) per frame since the last trusted frame, metres per
+  frame.  A tracker can jump a limb with few points of its own (a forearm
+  without texture, a hand) onto another limb's or the trunk's points in one
+  frame, and then hold it there while every share above stays at a tracked
+  frame's level: the jump is what shows.  A fit that comes from the frame's
+  own joints (a re-initialisation) is measured without it.
+
+The frame's **confidence** is the least of the shares, each divided by its
+``trusted_*`` level (clipped to 1; the motion's share: ``trusted_step``
+over the move; the missed outline's: the explained share over its lost
+level, so that it only says lost or not), 1 when every measure reaches its
+level.  A frame is **lost** when any measure falls below its ``lost_*``
+level (the move above ``lost_step``, the missed outline above
+``lost_missed_outline``), and **trusted** otherwise.
 """
 
 from __future__ import annotations
@@ -44,7 +67,8 @@ from toolkit.errors import InputError
 from toolkit.softbody.distance import distance
 from toolkit.softbody.model import SoftBodyModel, SoftBodyParams
 
-__all__ = ["ConfidenceConfig", "FrameConfidence", "frame_confidence", "VERDICTS"]
+__all__ = ["ConfidenceConfig", "FrameConfidence", "frame_confidence", "body_frame_joints", "largest_step",
+           "VERDICTS"]
 
 #: What a frame's confidence says.
 VERDICTS = ("trusted", "lost")
@@ -75,6 +99,24 @@ class ConfidenceConfig:
         this is lost.
     trusted_residual, trusted_coverage, trusted_silhouette : float
         The levels that count as full confidence (1).
+    missed_distance : float
+        An outline ray within ``residual_gate`` of the model passing this far or further from it (and not
+        this near to points taken for other bodies') is missed, metres.
+    lost_missed_outline : float
+        A frame where more than this share of a camera's outline rays is missed is lost (the measure only
+        says lost or not).  Set on the trinocular runs of seed 21000 (``bench_softbody --motions
+        walk,run,jump,turn --frames 30``): of the 95 tracked frames within 60 mm of the truth none had more
+        than 0.039 of a camera's outline rays missed, 19 of the 25 frames over 60 mm more than 0.05 (the
+        jump's raised arms, the run's swung forearm).
+    lost_step, trusted_step : float
+        A joint moving further than ``lost_step`` against the body per frame since the last trusted frame
+        (metres per frame) makes the frame lost; moves up to ``trusted_step`` count as full confidence
+        (the same by default: the move only says lost or not, and a fast limb alone does not make a frame
+        doubtful).  Set on the runs of seed 21000 (``bench_softbody --motions walk,run,jump,turn --frames
+        30``, 25 and 30 fps): the true joints move at most 0.19 m per frame against the body (the ankles of
+        the runs; wrists 0.12 m), tracked frames' fits up to 0.22 m; the stereo runner's forearm with few
+        points of its own jumped 0.51 m in one frame and stayed off (0.2-0.7 m) at full confidence
+        otherwise.
 
     Notes
     -----
@@ -98,9 +140,13 @@ class ConfidenceConfig:
     trusted_residual: float = 0.97
     trusted_coverage: float = 0.7
     trusted_silhouette: float = 0.8
+    missed_distance: float = 0.1
+    lost_missed_outline: float = 0.05
+    lost_step: float = 0.3
+    trusted_step: float = 0.3
 
     def __post_init__(self):
-        for name in ("inlier_distance", "residual_gate", "coverage_distance"):
+        for name in ("inlier_distance", "residual_gate", "coverage_distance", "missed_distance"):
             if not getattr(self, name) > 0:
                 raise InputError(f"ConfidenceConfig.{name}", "a positive distance in metres", repr(getattr(self, name)))
         for kind in ("residual", "coverage", "silhouette"):
@@ -108,6 +154,12 @@ class ConfidenceConfig:
             if not 0.0 <= lo < hi <= 1.0:
                 raise InputError(f"ConfidenceConfig.lost_{kind}/trusted_{kind}", "0 <= lost < trusted <= 1",
                                  f"{lo}, {hi}")
+        if not 0.0 <= self.lost_missed_outline < 1.0:
+            raise InputError("ConfidenceConfig.lost_missed_outline", "a share in [0, 1)",
+                             repr(self.lost_missed_outline))
+        if not 0.0 < self.trusted_step <= self.lost_step:
+            raise InputError("ConfidenceConfig.trusted_step/lost_step", "0 < trusted_step <= lost_step (metres per "
+                             "frame)", f"{self.trusted_step}, {self.lost_step}")
 
 
 class FrameConfidence(NamedTuple):
@@ -121,6 +173,12 @@ class FrameConfidence(NamedTuple):
         Least of the measured fractions, each divided by its trusted level, clipped to [0, 1]; 0 without points.
     verdict : str
         One of :data:`VERDICTS`.
+    step : float
+        The largest move of a joint against the body per frame since the last trusted frame, metres per
+        frame (:func:`largest_step`); NaN where not measured.
+    missed_outline : float
+        The largest share over the cameras of the outline rays passing ``missed_distance`` or further from
+        the model; NaN without masks.
     """
 
     residual: float
@@ -128,6 +186,55 @@ class FrameConfidence(NamedTuple):
     silhouette: float
     confidence: float
     verdict: str
+    step: float = float("nan")
+    missed_outline: float = float("nan")
+
+
+def body_frame_joints(joints) -> np.ndarray:
+    """Joints in the body's own frame: origin the mid-hip point, x from the right hip to the left, z towards
+    the neck (orthogonalised), y = z x x.
+
+    Parameters
+    ----------
+    joints : array_like of shape (..., 14, 3)
+        Metres, ``SKELETON_14`` order.
+
+    Returns
+    -------
+    ndarray of shape (..., 14, 3)
+        Metres.
+    """
+    from toolkit.skeleton import SKELETON_14
+
+    j = np.asarray(joints, float)
+    lh, rh, neck = (j[..., SKELETON_14.index(n), :] for n in ("l_hip", "r_hip", "neck"))
+    mid = 0.5 * (lh + rh)
+    x = lh - rh
+    x = x / np.maximum(np.linalg.norm(x, axis=-1, keepdims=True), 1e-9)
+    z = neck - mid
+    z = z - np.sum(z * x, axis=-1, keepdims=True) * x
+    z = z / np.maximum(np.linalg.norm(z, axis=-1, keepdims=True), 1e-9)
+    R = np.stack([x, np.cross(z, x), z], axis=-2)   # rows: the body's axes in the world
+    return np.einsum("...ab,...jb->...ja", R, j - mid[..., None, :])
+
+
+def largest_step(joints, previous, frames: int = 1) -> float:
+    """The largest move of a joint against the body from ``previous`` to ``joints``, per frame (metres).
+
+    Parameters
+    ----------
+    joints, previous : array_like of shape (14, 3)
+        Metres, world.
+    frames : int
+        Frames between the two (>= 1).
+
+    Returns
+    -------
+    float
+        Metres per frame.
+    """
+    d = np.linalg.norm(body_frame_joints(joints) - body_frame_joints(previous), axis=-1)
+    return float(np.max(d)) / max(int(frames), 1)
 
 
 def _coverage(model: SoftBodyModel, params: SoftBodyParams, tree: cKDTree, config: ConfidenceConfig,
@@ -141,7 +248,21 @@ def _coverage(model: SoftBodyModel, params: SoftBodyParams, tree: cKDTree, confi
     return float(np.mean(d < config.coverage_distance))
 
 
-def _silhouette(model: SoftBodyModel, params: SoftBodyParams, views, config: ConfidenceConfig) -> float:
+def _ray_distances(origins: np.ndarray, directions: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Per ray (R,), the distance of the nearest of ``points`` (M, 3) to it, metres (inf without points)."""
+    if len(points) == 0:
+        return np.full(len(origins), np.inf)
+    u = directions / np.linalg.norm(directions, axis=1, keepdims=True)
+    rel = points[None, :, :] - origins[:, None, :]                       # (R, M, 3)
+    along = np.maximum(np.einsum("rmk,rk->rm", rel, u), 0.0)
+    return np.linalg.norm(rel - along[..., None] * u[:, None, :], axis=-1).min(axis=1)
+
+
+def _silhouette(model: SoftBodyModel, params: SoftBodyParams, views, config: ConfidenceConfig,
+                others: np.ndarray | None = None) -> tuple[float, float]:
+    """The silhouette share (least over the cameras) and the missed outline share (largest; outline rays
+    passing within ``missed_distance`` of ``others``, points not taken for the subject's, left out), NaN
+    without a usable mask."""
     from toolkit.softbody.mesh import unit_directions
     from toolkit.softbody.residuals import CoverageSamples
     from toolkit.softbody.silhouette import ray_minimum
@@ -153,13 +274,17 @@ def _silhouette(model: SoftBodyModel, params: SoftBodyParams, views, config: Con
     unburied = distance(model, params, surface, state=st) > -0.01   # not inside another metaball
     surface, part = surface[unburied], np.asarray(model.prim_frame)[prims[unburied]]
     parts = [part == k for k in np.unique(part) if np.count_nonzero(part == k) >= 5]
-    shares = []
+    shares, missed = [], []
     for v in views:
         if v.state != "ok":
             continue
         _, d = ray_minimum(model, params, v.origins, v.directions, state=st)
         near = np.abs(d) < config.residual_gate   # another person's outline in the same mask: left out
         outline = float(np.mean(np.abs(d[near]) < config.outline_distance)) if near.any() else 0.0
+        mine = near.copy()   # another person touching the subject (their points known): their outline is no miss
+        if others is not None and len(others) and mine.any():
+            mine[mine] = _ray_distances(v.origins[mine], v.directions[mine], others) >= config.missed_distance
+        missed.append(float(np.mean(np.abs(d[mine]) >= config.missed_distance)) if mine.any() else 0.0)
         uv = v.camera.project(surface)
         ok = np.isfinite(uv).all(axis=1) & v.camera.in_image(uv, margin=0.0) & (v.camera.depth_of(surface) > 0)
         q = np.round(uv[ok]).astype(int)
@@ -167,11 +292,12 @@ def _silhouette(model: SoftBodyModel, params: SoftBodyParams, views, config: Con
         inside[np.flatnonzero(ok)] = v.outside[q[:, 1], q[:, 0]] <= config.mask_margin_px
         # each rigid part on its own: one limb out in the background is a loss however well the rest fits
         shares.append(min([outline] + [float(np.mean(inside[m])) for m in parts]))
-    return float(min(shares)) if shares else float("nan")
+    return (float(min(shares)), float(max(missed))) if shares else (float("nan"), float("nan"))
 
 
 def frame_confidence(model: SoftBodyModel, params: SoftBodyParams, points, *, silhouettes=None, viewpoints=None,
-                     config: ConfidenceConfig = ConfidenceConfig()) -> FrameConfidence:
+                     config: ConfidenceConfig = ConfidenceConfig(), previous=None,
+                     frames_since: int = 1, others=None) -> FrameConfidence:
     """How far one fitted frame can be trusted.
 
     Parameters
@@ -186,6 +312,14 @@ def frame_confidence(model: SoftBodyModel, params: SoftBodyParams, points, *, si
     viewpoints : array_like of shape (V, 3), optional
         Camera centres (metres): coverage only of the surface facing one.
     config : ConfidenceConfig
+    previous : array_like of shape (14, 3), optional
+        The last trusted frame's joints (metres, world): the motion measure (:func:`largest_step`); None: not
+        measured (a first frame, a fit from the frame's own joints).
+    frames_since : int
+        Frames since that trusted frame.
+    others : array_like of shape (M, 3), optional
+        Points not fitted as the subject's (other bodies', undecided ones; metres, world): outline rays passing
+        within ``missed_distance`` of them are left out of the missed outline.
 
     Returns
     -------
@@ -199,11 +333,17 @@ def frame_confidence(model: SoftBodyModel, params: SoftBodyParams, points, *, si
     near = d < config.residual_gate
     residual = float(np.mean(d[near] < config.inlier_distance)) if near.any() else 0.0
     coverage = _coverage(model, params, cKDTree(pts), config, viewpoints)
-    sil = _silhouette(model, params, silhouettes, config) if silhouettes else nan
+    oth = None if others is None else np.asarray(others, float).reshape(-1, 3)
+    sil, missed = _silhouette(model, params, silhouettes, config, oth) if silhouettes else (nan, nan)
     measured = [(residual, config.lost_residual, config.trusted_residual),
                 (coverage, config.lost_coverage, config.trusted_coverage),
                 (sil, config.lost_silhouette, config.trusted_silhouette)]
     measured = [m for m in measured if np.isfinite(m[0])]
+    step = nan if previous is None else largest_step(model.joints(params), previous, frames_since)
+    if np.isfinite(step):   # as a share: the trusted move over the move (1 at or below it)
+        measured.append((config.trusted_step / max(step, 1e-9), config.trusted_step / config.lost_step, 1.0))
+    if np.isfinite(missed):   # the outline explained; full confidence at the lost level (says lost or not)
+        measured.append((1.0 - missed, 1.0 - config.lost_missed_outline, 1.0 - config.lost_missed_outline))
     confidence = float(np.clip(min(v / hi for v, _, hi in measured), 0.0, 1.0))
     lost = any(v < lo for v, lo, _ in measured)
-    return FrameConfidence(residual, coverage, sil, confidence, "lost" if lost else "trusted")
+    return FrameConfidence(residual, coverage, sil, confidence, "lost" if lost else "trusted", step, missed)

@@ -161,6 +161,15 @@ class TrackConfig:
         noiseless points of a trunk really bent 20 degrees and twisted 15,
         tracking ends at about 16 and 9 degrees (joints 4 mm off): the surface
         shows a twist against the pelvis only weakly.
+    hold_step : float
+        A fitted frame where a joint moved further than this against the body since the previous tracked
+        frame (metres per frame; :func:`toolkit.softbody.confidence.largest_step`) is fitted again with the
+        angles of the limbs that jumped held at the start pose (``hold_weight``, metres per radian), and the
+        fit whose largest move is smaller kept: a limb with few points of its own (a forearm without
+        texture) can jump onto another part's points in one frame.  The true joints of 25-30 fps runs move
+        at most 0.19 m per frame against the body.  0: not checked.
+    hold_weight : float
+        Pull of the held angles towards the start pose, metres per radian.
     """
 
     loss: str = "soft_l1"
@@ -191,6 +200,8 @@ class TrackConfig:
     max_nfev: int = 40
     silhouette_weight: float = 1.0
     posture_weight: float = 0.2
+    hold_step: float = 0.3
+    hold_weight: float = 1.0
 
     def __post_init__(self):
         if self.loss not in LOSSES:
@@ -200,6 +211,9 @@ class TrackConfig:
                 raise InputError(f"TrackConfig.{name}", "a positive distance in metres", repr(getattr(self, name)))
         if not self.silhouette_weight >= 0:
             raise InputError("TrackConfig.silhouette_weight", "a weight >= 0", repr(self.silhouette_weight))
+        for name in ("hold_step", "hold_weight"):
+            if not (np.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
+                raise InputError(f"TrackConfig.{name}", "a finite value >= 0", repr(getattr(self, name)))
         if not (np.isfinite(self.posture_weight) and self.posture_weight >= 0):
             raise InputError("TrackConfig.posture_weight", "a finite weight >= 0 (metres per radian)",
                              repr(self.posture_weight))
@@ -302,7 +316,8 @@ def _pose_prior_weights(model, st, support: np.ndarray, config: TrackConfig) -> 
 
 
 def _fit_pose(model, start: SoftBodyParams, pts: np.ndarray, config: TrackConfig,
-              coverage_weight: float, anchor: SoftBodyParams | None = None, silhouettes=None) -> SoftBodyParams:
+              coverage_weight: float, anchor: SoftBodyParams | None = None, silhouettes=None,
+              hold: np.ndarray | None = None) -> SoftBodyParams:
     cols = np.arange(N_POSE)
     tree = cKDTree(pts)
     margin = coverage_margin(tree, pts, config.coverage_margin)
@@ -319,6 +334,9 @@ def _fit_pose(model, start: SoftBodyParams, pts: np.ndarray, config: TrackConfig
     if anchor is not None:  # unseen parts are pulled to the previous frame, not to the extrapolation
         unseen = wp > config.prior_weight
         xa[unseen] = np.clip(anchor.pose, lo + 1e-9, hi - 1e-9)[unseen]
+    if hold is not None:   # angles held at the start (a limb that jumped: ``TrackConfig.hold_step``)
+        wp = wp + hold
+        xa[hold > 0] = x0[hold > 0]
     wc = np.sqrt(coverage_weight)
     posture_jac = np.zeros((len(TRUNK_POSTURE), N_POSE))
     posture_jac[np.arange(len(TRUNK_POSTURE)), TRUNK_POSTURE] = config.posture_weight
@@ -385,7 +403,7 @@ class FrameFit(NamedTuple):
 
 def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: TrackConfig = TrackConfig(),
                 anchor: SoftBodyParams | None = None, others: np.ndarray | None = None,
-                motion: np.ndarray | None = None, silhouettes=None) -> FrameFit:
+                motion: np.ndarray | None = None, silhouettes=None, hold: np.ndarray | None = None) -> FrameFit:
     """Fit the pose of one frame.
 
     Parameters
@@ -407,6 +425,8 @@ def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: Trac
         frame): the separation then allows ``init_reach`` everywhere.
     silhouettes : list of SilhouetteView, optional
         The frame's camera silhouettes (used with ``config.silhouette_weight > 0``).
+    hold : ndarray of shape (27,), optional
+        Extra pull (metres per radian) of each pose entry towards ``start``.
 
     Returns
     -------
@@ -442,10 +462,10 @@ def track_frame(model: SoftBodyModel, start: SoftBodyParams, cloud, config: Trac
     pts = subsample(cloud[keep], config.max_points)
     if len(pts) < config.min_points:
         return FrameFit(start, "empty", len(pts), nan, nan, keep, sep.other, sep.contact, sep.undecided)
-    fitted = _fit_pose(model, base, pts, config, 0.0, anchor, silhouettes)
+    fitted = _fit_pose(model, base, pts, config, 0.0, anchor, silhouettes, hold)
     if config.coverage_weight > 0:
         fitted = _fit_pose(model, fitted, pts, config, config.coverage_weight, anchor if anchor is not None
-                           else start, silhouettes)
+                           else start, silhouettes, hold)   # held at the first fit's (held) angles
     d = np.abs(distance(model, fitted, pts))
     n_keep = int(keep.sum())
     inl, med = float(np.mean(d < config.inlier_distance)) * n_keep / (n_keep + doubt), float(np.median(d))
@@ -464,6 +484,48 @@ DOUBT_GAIN = 0.05
 #: Pose entries of the left and right limbs' swing (flexion) and bend, swapped by the recovery's search:
 #: in a walk or a run the limbs swing in turn, and a tracker a step behind holds the wrong leg forward.
 _SWING_PAIRS = {"arms": ((11, 15), (14, 18)), "legs": ((19, 23), (22, 26))}
+
+
+#: Per joint, the pose entries (name prefixes of :data:`toolkit.softbody.model.DOF_NAMES`) that move it against
+#: the body: held when it jumps (``TrackConfig.hold_step``).
+_JUMP_HOLDS = {"head": ("head_",), "neck": ("lean", "bend", "twist"), "l_shoulder": ("lean", "bend", "twist"),
+               "r_shoulder": ("lean", "bend", "twist"), "l_elbow": ("l_shoulder",),
+               "l_wrist": ("l_shoulder", "l_elbow"), "r_elbow": ("r_shoulder",), "r_wrist": ("r_shoulder", "r_elbow"),
+               "l_knee": ("l_hip",), "l_ankle": ("l_hip", "l_knee"), "r_knee": ("r_hip",),
+               "r_ankle": ("r_hip", "r_knee")}
+
+
+def _jump_hold(model: SoftBodyModel, params: SoftBodyParams, previous: SoftBodyParams, config: TrackConfig):
+    """The joints' moves against the body from ``previous`` (14,) metres, and the hold weights (27,) of the
+    pose entries moving those over ``config.hold_step`` (zeros: no jump)."""
+    from toolkit.skeleton import SKELETON_14
+    from toolkit.softbody.confidence import body_frame_joints
+    from toolkit.softbody.model import DOF_NAMES
+
+    move = np.linalg.norm(body_frame_joints(model.joints(params)) - body_frame_joints(model.joints(previous)), axis=-1)
+    hold = np.zeros(N_POSE)
+    for j in np.flatnonzero(move > config.hold_step):
+        prefixes = _JUMP_HOLDS.get(SKELETON_14.joint_names[j], ())
+        hold[[k for k, name in enumerate(DOF_NAMES) if prefixes and name.startswith(prefixes)]] = config.hold_weight
+    return move, hold
+
+
+def _held_if_jumped(model: SoftBodyModel, f, start: SoftBodyParams, previous: SoftBodyParams, cloud,
+                    config: TrackConfig, **frame_args):
+    """Fit ``f`` of a frame, or the frame fitted again from ``start`` with the limbs that jumped since
+    ``previous`` (the last tracked frame) held (``TrackConfig.hold_step``) when that one moves less.
+    ``frame_args``: :func:`track_frame`'s ``anchor``, ``others``, ``motion``, ``silhouettes``.  Returns
+    ``(fit, held)``."""
+    if config.hold_step <= 0 or f.state not in ("ok", "crowded"):
+        return f, False
+    move, hold = _jump_hold(model, f.params, previous, config)
+    if not hold.any():
+        return f, False
+    g = track_frame(model, start, cloud, config, hold=hold, **frame_args)
+    if g.state not in ("ok", "crowded"):
+        return f, False
+    moved, _ = _jump_hold(model, g.params, previous, config)
+    return (g, True) if moved.max() < move.max() else (f, False)
 
 
 def _swung(params: SoftBodyParams, groups) -> SoftBodyParams:
@@ -539,7 +601,7 @@ def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, con
         np.zeros(len(clouds), bool)
     # angles kept in their principal ranges (the root's rotation vector far from |r| = 2 pi, where it is singular)
     prev, prev2, others, run = params0.replace(pose=canonical_pose(params0.pose)), None, None, 0   # run: fitted in a row
-    last = prev   # the last trusted pose (the start until a frame is trusted)
+    last, t_last = prev, None   # the last trusted pose and frame (the start, None until a frame is trusted)
     for t, cloud in enumerate(clouds):
         start = prev
         if prev2 is not None and config.predict > 0:
@@ -548,11 +610,16 @@ def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, con
         motion = None if run < 2 else np.linalg.norm(model.state(prev).centres - model.state(prev2).centres, axis=1)
         views = None if silhouettes is None else silhouettes[t]
         f = track_frame(model, start, cloud, config, anchor=prev, others=others, motion=motion, silhouettes=views)
+        if run >= 1:   # a limb that jumped since the last tracked frame: held and fitted again
+            f, held = _held_if_jumped(model, f, start, prev, cloud, config, anchor=prev, others=others, motion=motion,
+                                      silhouettes=views)
+            if held:
+                obs.report("text", text=f"frame {t}: a limb jumped, fitted again held", level="INFO", frame=t)
         pts = check_points(cloud, "cloud")
         fitted, said_lost = f.state in ("ok", "crowded"), False
         if confidence is not None:
-            f, c, fitted, said_lost, again = _confident_fit(model, f, cloud, pts, views, t, last, config, confidence,
-                                                            reinit, recover, obs)
+            f, c, fitted, said_lost, again = _confident_fit(model, f, cloud, pts, views, t, (last, t_last), config,
+                                                            confidence, reinit, recover, obs)
             if again:
                 recovered[t] = True
                 prev2, run = None, 0   # no motion extrapolated across a re-initialisation
@@ -566,7 +633,7 @@ def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, con
         out[t] = p.vector
         fits.append(f)
         if fitted:
-            last = p
+            last, t_last = p, t
         # the motion is extrapolated between two tracked frames only: the start params0 is no frame (its
         # correction by frame 0's fit, e.g. a clicked pose on another branch of the Euler angles, is no motion)
         prev2, prev = (prev if t > 0 and not recovered[t] else None, p) if fitted else (None, p)
@@ -580,10 +647,12 @@ def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, con
                          trusted if confidence is not None else None, recovered if confidence is not None else None)
 
 
-def _confident_fit(model: SoftBodyModel, f, cloud, pts: np.ndarray, views, t: int, last: SoftBodyParams,
+def _confident_fit(model: SoftBodyModel, f, cloud, pts: np.ndarray, views, t: int, trusted_before: tuple,
                    config: TrackConfig, confidence, reinit, recover: bool, obs) -> tuple:
     """Frame ``t``'s fit ``f`` judged by its confidence, and searched for again where doubtful or lost
-    (the steps of :func:`track_sequence` with ``confidence``).
+    (the steps of :func:`track_sequence` with ``confidence``).  ``trusted_before``: the last trusted pose and
+    its frame (None before the first): the motion measure of the confidence for fits that do not come from
+    the frame's own joints.
 
     Returns
     -------
@@ -598,9 +667,13 @@ def _confident_fit(model: SoftBodyModel, f, cloud, pts: np.ndarray, views, t: in
     """
     from toolkit.softbody.confidence import frame_confidence
 
-    def judged(g):
+    last, t_last = trusted_before
+    previous = None if t_last is None else model.joints(last)
+
+    def judged(g, own_joints=False):   # a fit from the frame's own joints: no motion measure
         return frame_confidence(model, g.params, pts[g.subject], silhouettes=views, viewpoints=config.viewpoints,
-                                config=confidence)
+                                config=confidence, previous=None if own_joints else previous,
+                                frames_since=1 if t_last is None else t - t_last, others=pts[~g.subject])
 
     fitted, said_lost, again = f.state in ("ok", "crowded"), False, False
     c = judged(f) if fitted else None
@@ -612,7 +685,7 @@ def _confident_fit(model: SoftBodyModel, f, cloud, pts: np.ndarray, views, t: in
             g = track_frame(model, s0, cloud, config, anchor=s0, silhouettes=views)
             if g.state not in ("ok", "crowded"):
                 continue
-            cg = judged(g)
+            cg = judged(g, own_joints=True)
             if cg.verdict == "trusted" and cg.confidence > c.confidence + DOUBT_GAIN:
                 f, c, again = g, cg, True
                 obs.report("text", text=f"frame {t}: re-initialised (confidence {c.confidence:.2f})",
@@ -624,7 +697,7 @@ def _confident_fit(model: SoftBodyModel, f, cloud, pts: np.ndarray, views, t: in
             g = track_frame(model, s0, cloud, config, anchor=s0, silhouettes=views)
             if g.state not in ("ok", "crowded"):
                 continue
-            cg = judged(g)
+            cg = judged(g, own_joints=how == "re-initialised")
             if cg.verdict == "trusted" and (best is None or cg.confidence > best[1].confidence):
                 best = (g, cg, how)
             if best is not None and best[1].confidence >= 1.0:

@@ -146,6 +146,7 @@ class RerunObserver:
                                  str(e)) from None
         self.frame: int | None = None
         self.closed = False
+        self._saved = False  # the file at path was finalised by close
         self._blueprint_sent = False
         self._cam_roots: dict[str, str] = {}
         self._skeleton_ids: dict[str, int] = {}
@@ -264,12 +265,27 @@ class RerunObserver:
         self.recording.save(self._part_file(self._part, True))  # the file before is finished (footer)
         os.replace(done, self._part_file(self._part - 1))
 
-    def close(self) -> None:
+    @property
+    def saved(self) -> Path | None:
+        """The finished ``.rrd`` file once :meth:`close` wrote it, else None (still open, written in parts
+        that were not merged, dropped, or no ``path``): the only file a run may offer as openable."""
+        return self.path if self.closed and self._saved and self.path.is_file() else None
+
+    def close(self, keep: bool = True) -> None:
         """Flush and finalise the recording (the ``.rrd`` file is complete afterwards).
 
         Closes the stream's sinks when this observer created the stream or
         opened the file; a caller's stream without ``path`` is only flushed.
         Calling ``close`` again does nothing.
+
+        Parameters
+        ----------
+        keep : bool
+            False: drop what was recorded instead of writing it to ``path``.
+            With ``parts`` the file at ``path`` stays as it was (e.g. the
+            recording of a complete earlier run, whose results an interrupted
+            run did not replace); without parts ``path`` was written from the
+            start and is finalised all the same.
         """
         if self.closed:
             return
@@ -280,11 +296,17 @@ class RerunObserver:
             self.recording.disconnect()
         self.closed = True
         if self._parts is not None:
+            if not keep:
+                import shutil
+
+                shutil.rmtree(self._parts, ignore_errors=True)
+                return
             last = self._part_file(self._part, True)
             if last.is_file():
                 os.replace(last, self._part_file(self._part))
             if not finish_parts(self._parts, self.path):
                 return  # the parts stay (each one complete); a warning said why
+        self._saved = self.path is not None
         if self.path is not None and self.config.compact_on_close:
             self._compact()
 
