@@ -56,8 +56,8 @@ Writes into OUT:
 
 A run in which no frame has a 3D pose ends with exit code 2 and a one-line
 error naming each frame status (the summary says which frames have none).
-Stop it at any time (Ctrl-C, or even a kill) and run the same command again:
-finished frames are kept.  --workers N runs the frames on N processes of this
+Stop it at any time (Ctrl-C or SIGTERM: exit code 130; or even a kill) and run
+the same command again: finished frames are kept.  --workers N runs the frames on N processes of this
 machine (default auto: every core), --scheduler tcp://HOST:PORT on a Dask cluster (docs/parallel.md);
 stage 1 keeps its frame order in this process, the outputs are the same.  Options may also come from a TOML file (--config; the keys of
 toolkit.pipeline.free_viewpoint.FreeViewpointRunConfig, the per-frame chain in
@@ -187,7 +187,7 @@ def main(argv=None) -> int:
     if failure:
         print(f"error: {failure}", file=sys.stderr)
         return 2
-    return 1 if result.stopped else 0
+    return 130 if result.stopped else 0  # stopped by Ctrl-C or SIGTERM, like every recipe
 
 
 if __name__ == "__main__":

@@ -399,6 +399,28 @@ def test_free_viewpoint_resumed_recordings_all_verify(tiny, tmp_path, monkeypatc
     assert np.isfinite(np.load(out / "poses3d.npz")["joints"]).all()
 
 
+def test_free_viewpoint_recipe_stopped_exits_130_and_resumes(tiny, tmp_path, monkeypatch, capsys):
+    """The recipe stopped by Ctrl-C exits 130 like every recipe (not 1, which reads as a failure) and
+    the same command finishes the run."""
+    import toolkit.pipeline.free_viewpoint as fv
+    from recipes import free_viewpoint as recipe
+
+    real_frame = fv._Frames.__call__
+
+    def call(self, est, *a, **kw):
+        if est.frame == 1:
+            raise KeyboardInterrupt
+        return real_frame(self, est, *a, **kw)
+
+    args = [str(tiny), "--out", str(tmp_path / "o"), "--max-frames", "2", "--no-recording", "--no-baselines",
+            "--workers", "1", "--quiet"]
+    monkeypatch.setattr(fv._Frames, "__call__", call)
+    assert recipe.main(args) == 130
+    monkeypatch.setattr(fv._Frames, "__call__", real_frame)
+    assert recipe.main(args) == 0
+    assert np.isfinite(np.load(tmp_path / "o" / "poses3d.npz")["joints"]).all()
+
+
 def test_free_viewpoint_joints_behind_the_cameras_are_not_a_success(tiny, tmp_path, monkeypatch):
     """A calibration in the wrong convention that the readers cannot tell gave joints behind the cameras,
     drawn and reported as 'ok'; each such frame is now said, not drawn, and counted in the summary."""

@@ -173,3 +173,20 @@ def test_a_short_sequence_with_a_spurious_detection_keeps_its_person(tmp_path, v
     J = np.load(tmp_path / "o" / "poses3d.npz")["joints"]
     assert np.isfinite(J[:2]).all() and np.isnan(J[2]).all()
     assert np.linalg.norm(J[:2] - poses[:2], axis=-1).max() < 0.05
+
+
+def test_a_run_where_only_other_people_are_drawn_is_not_a_failure(tmp_path):
+    """With several people the first one (``poses3d.npz``) may have no pose in any frame while the others
+    are drawn (a player the silhouettes lost): that run went through, it is no failure."""
+    from types import SimpleNamespace
+
+    from toolkit.pipeline.free_viewpoint import run_failure
+
+    def result(drawn):
+        return SimpleNamespace(stopped=None, finished=4, frames=4, out=tmp_path,
+                               metrics={"status": {"no 3D pose from stage 1": 4},
+                                        "people": {"frames_drawn": drawn}})
+
+    assert run_failure(result({"person_0": 0, "person_1": 4})) is None
+    assert "no frame has a 3D pose" in run_failure(result({"person_0": 0, "person_1": 0}))
+    assert "no frame has a 3D pose" in run_failure(result({}))

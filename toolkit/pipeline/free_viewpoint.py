@@ -758,12 +758,14 @@ def _ranges(frames: list) -> str:
 
 
 def run_failure(result: RunResult) -> str | None:
-    """Why a run that went through is a failure: no finished frame has a 3D pose (None: some have, or it
-    stopped early); one line, for the recipe's error."""
+    """Why a run that went through is a failure: no finished frame has a 3D pose of anybody (None: some
+    have, or it stopped early; with several people, a frame where any of them is drawn has one); one
+    line, for the recipe's error."""
     from toolkit.rendering.freeviewpoint import STATUS_OK
 
     status = result.metrics.get("status") or {}
-    if result.stopped or not result.finished or status.get(STATUS_OK, 0):
+    drawn = (result.metrics.get("people") or {}).get("frames_drawn") or {}
+    if result.stopped or not result.finished or status.get(STATUS_OK, 0) or any(drawn.values()):
         return None
     return (f"no frame has a 3D pose ({result.finished} of {result.frames} frames finished): "
             + "; ".join(f"{v} {k}" for k, v in status.items()) + f" (status in {result.out / 'poses3d.npz'})")

@@ -370,25 +370,26 @@ def _raw_masks(dataset, rig: Rig, extractors: dict, t: int) -> list:
 
 
 def _several_blobs(masks: list, share: float = 0.3, min_px: int = 50) -> bool:
-    """Whether two cameras or more show two foreground blobs or more, each at least ``share`` of the
-    camera's largest and ``min_px`` pixels."""
-    n = 0
+    """Whether a camera shows two foreground blobs or more, each at least ``share`` of the camera's
+    largest and ``min_px`` pixels.  One camera is enough: with two or three cameras the people who
+    stand apart in one of them often overlap in the others (the search that follows still needs
+    two people on the ground before the scene is taken for several people's)."""
     for m in masks:
         if m is None:
             continue
         k, _, stats, _ = cv2.connectedComponentsWithStats(np.asarray(m, np.uint8), connectivity=8)
         areas = stats[1:, cv2.CC_STAT_AREA]
         if len(areas) and np.sum(areas >= max(share * areas.max(), min_px)) >= 2:
-            n += 1
-    return n >= 2
+            return True
+    return False
 
 
 def locate_silhouette_people(dataset, rig: Rig, *, foreground=None, config=None, probe_frames: int = 8,
                              log=None, extractors: dict | None = None) -> tuple[np.ndarray, np.ndarray] | None:
     """Where every participant stands in every frame, from the cameras' foreground alone.
 
-    First ``probe_frames`` frames spread over the sequence are looked at: if in none of them two
-    cameras show two large foreground blobs, or none holds two people on the ground, the scene is one
+    First ``probe_frames`` frames spread over the sequence are looked at: if in none of them a
+    camera shows two large foreground blobs, or none holds two people on the ground, the scene is one
     person's (None: the one-person stage runs unchanged).  Otherwise every
     frame is searched and the positions are tracked
     (:func:`toolkit.silhouettes.people.track_positions`).
