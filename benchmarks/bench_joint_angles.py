@@ -53,7 +53,7 @@ from toolkit.biomech.validate import plugin_gait_comparison
 REALDATA = Path(os.environ.get("TOOLKIT_REALDATA", Path(__file__).resolve().parents[2] / "shared" / "realdata"))
 #: Frames of each synthetic scene.
 N_FRAMES = 60
-#: Landmarks the noise is added to (a markerless system's joints and toes).
+#: The targets, degrees RMS over a trial (knee flexion 5, hip and ankle flexion 8), as in tests/biomech/test_realdata_angles.py.
 TARGETS = {"knee_flexion": 5.0, "hip_flexion": 8.0, "ankle_dorsiflexion": 8.0}
 
 

@@ -43,11 +43,18 @@ def test_inverse_kinematics_recovers_known_angles(tmp_path):
     assert knee[1] == pytest.approx(-0.42, abs=1e-6)
 
 
+def _legs_with_lateral_markers(n_frames: int, rng: np.random.Generator) -> tuple[dict, dict]:
+    """Random leg and trunk angles (no shoulder or elbow) and their landmarks with lateral markers, posed
+    by a random body rotation."""
+    truth = {k: v for k, v in smooth_motion(n_frames, rng).items()
+             if not k.startswith(("l_sh", "r_sh", "l_el", "r_el"))}
+    return truth, posed_points(truth, n_frames, body=random_rotation(rng), lateral_markers=True)
+
+
 @needs_opensim
 def test_lateral_knee_markers_give_a_three_axis_knee_and_the_hip_rotation(tmp_path):
     rng = np.random.default_rng(13)
-    truth = {k: v for k, v in smooth_motion(15, rng).items() if not k.startswith(("l_sh", "r_sh", "l_el", "r_el"))}
-    pts = posed_points(truth, 15, body=random_rotation(rng), lateral_markers=True)
+    truth, pts = _legs_with_lateral_markers(15, rng)
     res = opensim_angles(pts, 30.0, tmp_path)
     assert "l_knee_adduction" in res.angles.names and "r_knee_rotation" in res.angles.names
     for name in ("l_hip_rotation", "r_hip_rotation", "l_knee_flexion", "r_knee_flexion", "l_hip_adduction"):
@@ -106,8 +113,7 @@ def test_orientation_targets_are_met_on_exact_data_and_reported(tmp_path):
     import json
 
     rng = np.random.default_rng(15)
-    truth = {k: v for k, v in smooth_motion(10, rng).items() if not k.startswith(("l_sh", "r_sh", "l_el", "r_el"))}
-    pts = posed_points(truth, 10, body=random_rotation(rng), lateral_markers=True)
+    truth, pts = _legs_with_lateral_markers(10, rng)
     res = opensim_angles(pts, 30.0, tmp_path)
     summary = json.loads(res.files["residuals"].read_text())
     assert set(summary["orientations_deg"]) == {"l_femur", "r_femur", "l_tibia", "r_tibia", "l_foot", "r_foot"}

@@ -84,6 +84,26 @@ def interrupt(monkeypatch, module, name: str) -> None:
     monkeypatch.setattr(module, name, stop)
 
 
+def check_ctrl_c_then_rerun(main, args, module, name: str, out: Path, result: str, ref: Path, monkeypatch, capsys):
+    """A whole run stopped by Ctrl-C in ``module.name`` writes no ``result`` and a recording that opens; the
+    rerun gives the reference result; an interrupted rerun after it keeps results and recording as they were."""
+    real = getattr(module, name)
+    interrupt(monkeypatch, module, name)
+    assert main(args) == 130                                         # a first run stopped: nothing written
+    assert "interrupted" in capsys.readouterr().out and not (out / result).exists()
+    verify(out / "recording.rrd")                                    # what it recorded so far opens
+    monkeypatch.setattr(module, name, real)
+    assert main(args) == 0                                           # recomputed: the uninterrupted result
+    assert compare_runs(ref, out) == []
+    complete = snapshot(out)
+    interrupt(monkeypatch, module, name)
+    capsys.readouterr()
+    assert main(args) == 130
+    assert "earlier complete results (and recording) are kept" in capsys.readouterr().out
+    assert snapshot(out) == complete                                 # results and recording as they were
+    verify(out / "recording.rrd")
+
+
 # ------------------------------------------------------------ the library's mechanism
 def test_a_stop_while_results_are_written_waits_for_them(tmp_path):
     """Ctrl-C or SIGTERM while a whole run writes its results lets every file be written first."""
@@ -142,21 +162,7 @@ def test_soft_body_ctrl_c_keeps_the_complete_results(soft, tmp_path, monkeypatch
 
     ds, ref = soft
     out, args = tmp_path / "o", [str(ds), "--out", str(tmp_path / "o"), *SOFT_FRAMES]
-    real = sb.fit_clouds
-    interrupt(monkeypatch, sb, "fit_clouds")
-    assert fit_soft_body.main(args) == 130                           # a first run stopped: nothing written
-    assert "interrupted" in capsys.readouterr().out and not (out / "joints.npz").exists()
-    verify(out / "recording.rrd")                                    # what it recorded (the clouds) opens
-    monkeypatch.setattr(sb, "fit_clouds", real)
-    assert fit_soft_body.main(args) == 0                             # recomputed: the uninterrupted result
-    assert compare_runs(ref, out) == []
-    complete = snapshot(out)
-    interrupt(monkeypatch, sb, "fit_clouds")
-    capsys.readouterr()
-    assert fit_soft_body.main(args) == 130
-    assert "earlier complete results (and recording) are kept" in capsys.readouterr().out
-    assert snapshot(out) == complete                                 # results and recording as they were
-    verify(out / "recording.rrd")
+    check_ctrl_c_then_rerun(fit_soft_body.main, args, sb, "fit_clouds", out, "joints.npz", ref, monkeypatch, capsys)
 
 
 def test_soft_body_sigterm_and_kill_leave_valid_recordings(soft, tmp_path):
@@ -234,20 +240,8 @@ def test_joint_centres_ctrl_c_keeps_the_complete_results(markers, tmp_path, monk
 
     cap, ref = markers
     out, args = tmp_path / "o", [str(cap), "--out", str(tmp_path / "o")]
-    real = functional.joint_centres
-    interrupt(monkeypatch, functional, "joint_centres")
-    assert joint_centres.main(args) == 130
-    assert "interrupted" in capsys.readouterr().out and not (out / "joint_centres.npz").exists()
-    verify(out / "recording.rrd")                                    # the labelling recorded so far
-    monkeypatch.setattr(functional, "joint_centres", real)
-    assert joint_centres.main(args) == 0
-    assert compare_runs(ref, out) == []
-    complete = snapshot(out)
-    interrupt(monkeypatch, functional, "joint_centres")
-    capsys.readouterr()
-    assert joint_centres.main(args) == 130
-    assert "earlier complete results (and recording) are kept" in capsys.readouterr().out
-    assert snapshot(out) == complete
+    check_ctrl_c_then_rerun(joint_centres.main, args, functional, "joint_centres", out, "joint_centres.npz", ref,
+                            monkeypatch, capsys)
 
 
 def test_joint_centres_sigterm_kill_and_full_disk(markers, tmp_path, monkeypatch, capsys):
@@ -306,22 +300,14 @@ def test_keypoints_sigterm_kill_and_an_interrupted_rerun(tmp_path, monkeypatch, 
 def test_depth_interrupted_rerun_keeps_the_complete_recording(tmp_path, monkeypatch, capsys):
     """An interrupted depth rerun kept the complete skeleton.npz but replaced its recording by a partial one."""
     from recipes import depth_tracking
-    from tests.reliability.test_no_output_lost import raw_frames
-    from toolkit.io.depth_readers import DepthInput
+    from tests.reliability.test_no_output_lost import ctrl_c_at_frame, raw_frames
 
     frames, out = raw_frames(tmp_path / "frames", 5), tmp_path / "out"
     args = [str(frames), "--out", str(out), "--size", "64", "48", "--quiet"]
     assert depth_tracking.main(args) == 0
     verify(*advertised(capsys.readouterr().out))
     complete = snapshot(out)
-    real = DepthInput.read
-
-    def read(self, i):
-        if i == 3:
-            raise KeyboardInterrupt
-        return real(self, i)
-
-    monkeypatch.setattr(DepthInput, "read", read)
+    ctrl_c_at_frame(monkeypatch, 3)
     assert depth_tracking.main(args) == 130
     shown = advertised(capsys.readouterr().out)
     assert shown == [out / "recording.rrd"] and snapshot(out) == complete

@@ -183,23 +183,31 @@ def raw_frames(folder: Path, n: int) -> Path:
     return folder
 
 
+def ctrl_c_at_frame(monkeypatch, frame: int):
+    """From now on reading depth frame ``frame`` raises KeyboardInterrupt (Ctrl-C); returns the real reader."""
+    from toolkit.io.depth_readers import DepthInput
+
+    real = DepthInput.read
+
+    def read(self, i):
+        if i == frame:
+            raise KeyboardInterrupt
+        return real(self, i)
+
+    monkeypatch.setattr(DepthInput, "read", read)
+    return real
+
+
 def depth_args(frames, out, *extra):
     return [str(frames), "--out", str(out), "--size", "64", "48", "--quiet", "--no-recording", *extra]
 
 
 def test_depth_ctrl_c_keeps_the_frames_tracked(tmp_path, monkeypatch, capsys):
     """depth_tracking lost every result on Ctrl-C."""
-    frames, out = raw_frames(tmp_path / "frames", 5), tmp_path / "out"
     from toolkit.io.depth_readers import DepthInput
 
-    real = DepthInput.read
-
-    def read(self, i):
-        if i == 3:
-            raise KeyboardInterrupt
-        return real(self, i)
-
-    monkeypatch.setattr(DepthInput, "read", read)
+    frames, out = raw_frames(tmp_path / "frames", 5), tmp_path / "out"
+    real = ctrl_c_at_frame(monkeypatch, 3)
     assert recipe("depth_tracking")(depth_args(frames, out)) == 130
     z = np.load(out / "skeleton.npz")
     assert len(z["frames"]) == 3 and str(z["status"]) == "interrupted"
@@ -208,7 +216,7 @@ def test_depth_ctrl_c_keeps_the_frames_tracked(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(DepthInput, "read", real)
     assert recipe("depth_tracking")(depth_args(frames, out)) == 0
     complete = (out / "skeleton.npz").read_bytes()
-    monkeypatch.setattr(DepthInput, "read", read)
+    ctrl_c_at_frame(monkeypatch, 3)
     assert recipe("depth_tracking")(depth_args(frames, out)) == 130
     assert (out / "skeleton.npz").read_bytes() == complete
 

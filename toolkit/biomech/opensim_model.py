@@ -353,13 +353,18 @@ def placed_markers(points: dict, foot_offsets: dict | None = None) -> dict:
     return out
 
 
-def _marker_table(osim, points: dict, names, fps: float):
-    T = len(points[names[0]])
-    table = osim.TimeSeriesTableVec3()
+def _labelled(osim, table, names):
+    """``table`` (an empty OpenSim time-series table) with ``names`` as its column labels."""
     labels = osim.StdVectorString()
     for n in names:
         labels.append(n)
     table.setColumnLabels(labels)
+    return table
+
+
+def _marker_table(osim, points: dict, names, fps: float):
+    T = len(points[names[0]])
+    table = _labelled(osim, osim.TimeSeriesTableVec3(), names)
     for t in range(T):
         row = osim.RowVectorVec3(len(names))
         for k, n in enumerate(names):
@@ -403,11 +408,7 @@ def _orientation_table(osim, orientations: dict, fps: float):
     """OpenSim table of rotations (one column per body) for an ``OrientationsReference``."""
     names = list(orientations)
     T = len(orientations[names[0]])
-    table = osim.TimeSeriesTableRotation()
-    labels = osim.StdVectorString()
-    for n in names:
-        labels.append(n)
-    table.setColumnLabels(labels)
+    table = _labelled(osim, osim.TimeSeriesTableRotation(), names)
     for t in range(T):
         row = osim.RowVectorRotation(len(names))
         for k, n in enumerate(names):
@@ -602,11 +603,7 @@ def _write_mot(osim, coords: list[str], values: np.ndarray, fps: float, path: Pa
     path : Path
         The file to write.
     """
-    mot = osim.TimeSeriesTable()
-    labels = osim.StdVectorString()
-    for c in coords:
-        labels.append(c)
-    mot.setColumnLabels(labels)
+    mot = _labelled(osim, osim.TimeSeriesTable(), coords)
     for t in range(len(values)):
         row = osim.RowVector(len(coords))
         for k in range(len(coords)):

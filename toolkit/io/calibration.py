@@ -151,13 +151,6 @@ def write_calibration(path: str | os.PathLike, rig: Rig, *, metadata: dict | Non
 
 
 # ------------------------------------------------------------ validation
-def _require_file(path: Path) -> None:
-    if not path.exists():
-        raise InputError(str(path), "an existing calibration file", "no such file")
-    if not path.is_file():
-        raise InputError(str(path), "a calibration file", "a folder or special file")
-
-
 def _numbers(where: str, value, shape: tuple[int, ...], what: str) -> np.ndarray:
     """``value`` as a finite float array of ``shape``, or an InputError naming ``where``."""
     try:
@@ -252,7 +245,6 @@ def _rig(path: Path, cameras: list[Camera]) -> Rig:
 # ------------------------------------------------------------------ TOML
 def _load_toml(path: Path) -> dict:
     """The parsed TOML document at ``path``, or an InputError naming the file."""
-    _require_file(path)
     return load_toml(path, "a valid TOML calibration file")
 
 
@@ -471,7 +463,6 @@ def _open_yaml(path: Path):
     InputError
         Missing, non-UTF-8 or unparsable file.
     """
-    _require_file(path)
     text = read_text(path, "a UTF-8 YAML calibration file")
     try:
         return cv2.FileStorage(

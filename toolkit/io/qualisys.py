@@ -44,6 +44,7 @@ import numpy as np
 from toolkit.cameras import Camera, Rig
 from toolkit.cameras.validate import check_rig
 from toolkit.errors import InputError
+from toolkit.io.text import require_file
 
 __all__ = ["QCA_SUFFIXES", "is_qca", "read_calibration_qca"]
 
@@ -157,10 +158,7 @@ def read_calibration_qca(path: str | os.PathLike) -> Rig:
         a camera without ``transform`` / ``intrinsic`` / ``fov_video`` or with a missing or
         non-numeric attribute, a matrix that is not a rotation, a rotated view.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(str(path), "an existing Qualisys calibration file (.qca.txt)",
-                         "no such file" if not path.exists() else "a folder or special file")
+    path = require_file(path, "an existing Qualisys calibration file (.qca.txt)")
     try:
         root = ET.parse(path).getroot()
     except ET.ParseError as e:

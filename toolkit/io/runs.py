@@ -107,6 +107,13 @@ def _flatten(d: dict, prefix: str = "") -> dict:
     return out
 
 
+def _refuse_files_on_path(out: Path, what: str) -> None:
+    """An InputError when ``out`` or a folder above it is a file."""
+    for p in (out, *out.parents):
+        if p.exists() and not p.is_dir():
+            raise InputError(f"{what} {out}", "an output folder", f"{p} is a file" if p != out else "a file")
+
+
 def check_out_folder(out: str | os.PathLike, what: str = "--out") -> Path:
     """``out`` as a folder this process can write, created if missing, or an InputError.
 
@@ -127,9 +134,7 @@ def check_out_folder(out: str | os.PathLike, what: str = "--out") -> Path:
         ``out`` (or a folder above it) is a file, or it cannot be created or written.
     """
     out = Path(out)
-    for p in (out, *out.parents):
-        if p.exists() and not p.is_dir():
-            raise InputError(f"{what} {out}", "an output folder", f"{p} is a file" if p != out else "a file")
+    _refuse_files_on_path(out, what)
     try:
         out.mkdir(parents=True, exist_ok=True)
         probe = temp_path(out / "write-probe")
@@ -221,9 +226,7 @@ def start_run(out: str | os.PathLike, identity: dict, *, replace_stale: bool = F
         ``replace_stale``), or its ``run.json`` is unreadable.
     """
     out = Path(out)
-    for p in (out, *out.parents):
-        if p.exists() and not p.is_dir():
-            raise InputError(f"--out {out}", "an output folder", f"{p} is a file" if p != out else "a file")
+    _refuse_files_on_path(out, "--out")
     log = log or (lambda *_: None)
     ident = json.loads(json.dumps(identity, sort_keys=True))
     if RECORDING_ID_KEY in ident:

@@ -17,12 +17,38 @@ from pathlib import Path
 
 from toolkit.errors import InputError
 
-__all__ = ["MAX_TEXT_BYTES", "read_text", "parse_json", "parse_toml", "load_json", "load_toml"]
+__all__ = ["MAX_TEXT_BYTES", "require_file", "read_text", "parse_json", "parse_toml", "load_json", "load_toml"]
 
 #: Largest text file read, bytes (keypoint files of a whole video stay far below; a larger one is no such file).
 MAX_TEXT_BYTES = 512 << 20
 #: The UTF-8 byte-order mark some editors write at the start of a file.
 BOM = "\ufeff"
+
+
+def require_file(path: str | os.PathLike, what: str) -> Path:
+    """``path`` as a Path when it is an existing regular file, else an InputError saying what it is.
+
+    Parameters
+    ----------
+    path : str or PathLike
+    what : str
+        What the file should be, for messages (``"a TOML config file"``).
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    InputError
+        No such file, a folder or a special file.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise InputError(str(p), what, "no such file")
+    if not p.is_file():
+        raise InputError(str(p), what, "a folder" if p.is_dir() else "a special file")
+    return p
 
 
 def read_text(path: str | os.PathLike, what: str = "a text file", max_bytes: int = MAX_TEXT_BYTES) -> str:
@@ -45,11 +71,7 @@ def read_text(path: str | os.PathLike, what: str = "a text file", max_bytes: int
     InputError
         No such file, a folder, a file over ``max_bytes``, unreadable or not UTF-8.
     """
-    p = Path(path)
-    if not p.exists():
-        raise InputError(str(p), what, "no such file")
-    if not p.is_file():
-        raise InputError(str(p), what, "a folder" if p.is_dir() else "a special file")
+    p = require_file(path, what)
     try:
         size = p.stat().st_size
         if size > max_bytes:

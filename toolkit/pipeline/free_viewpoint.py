@@ -24,7 +24,7 @@ import numpy as np
 from toolkit.errors import InputError
 from toolkit.pipeline.parallel import AUTO, Cluster, ParallelConfig, drop_cached, resolve_workers, worker_cache
 from toolkit.pipeline.people import PEOPLE_CHOICES
-from toolkit.pipeline.run import FrameRecords, RunResult, open_run, run_frames
+from toolkit.pipeline.run import FrameRecords, RunResult, frame_ranges, open_run, run_frames
 from toolkit.rendering.freeviewpoint import FreeViewpointConfig
 
 #: Camera paths rendered for every run (``OUT/paths/<name>/``).
@@ -746,17 +746,6 @@ def _failed_frames(status: list, finished: Counter) -> dict:
     return {k: [t for t, s in enumerate(status) if s == k] for k in finished if k != STATUS_OK}
 
 
-def _ranges(frames: list) -> str:
-    """Frame numbers as ranges: [0, 1, 2, 5] -> '0-2, 5'."""
-    runs: list = []
-    for f in sorted(frames):
-        if runs and f == runs[-1][1] + 1:
-            runs[-1][1] = f
-        else:
-            runs.append([f, f])
-    return ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in runs)
-
-
 def run_failure(result: RunResult) -> str | None:
     """Why a run that went through is a failure: no finished frame has a 3D pose of anybody (None: some
     have, or it stopped early; with several people, a frame where any of them is drawn has one); one
@@ -812,7 +801,7 @@ def summary_lines(result: RunResult) -> list:
     if failed:  # e.g. a calibration in the wrong convention: joints behind the cameras, frames not drawn
         lines.append("  frames without a result: " + "; ".join(f"{v} {k}" for k, v in failed.items())
                      + " (poses3d.npz status)")
-        lines += [f"    frames {_ranges(f)} ({k})" for k, f in (m.get("failed_frames") or {}).items()]
+        lines += [f"    frames {frame_ranges(f)} ({k})" for k, f in (m.get("failed_frames") or {}).items()]
     outcome = m.get("optimize") or {}
     if outcome:  # e.g. two cameras far apart: every joint "few_views", stage 3 changed nothing
         total = sum(outcome.values())

@@ -26,7 +26,7 @@ from pathlib import Path
 
 from toolkit.errors import InputError
 from toolkit.io.stage_outputs import STAGE1_FILES, Stage1Output
-from toolkit.pipeline.run import RunResult, open_run, whole_run
+from toolkit.pipeline.run import RunResult, check_frames_held, open_run, whole_run
 from toolkit.silhouettes.estimate import Stage1Config
 
 #: Frames between two writes of the partial results.
@@ -175,8 +175,6 @@ def _open(config: PoseFromSilhouettesConfig, ds, db_path: Path, n: int, out: Pat
     InputError
         ``out`` holds another run's results, or complete results of more frames than ``n``.
     """
-    from toolkit.pipeline.run import check_frames_held
-
     exclude, extra = _identity(config, db_path)
     folder = open_run(out, "pose_from_silhouettes", ds.root, config, n, exclude=exclude, extra=extra,
                       replace_stale=config.replace_stale, recording=False, log=log)

@@ -409,6 +409,17 @@ def merge_killed_parts(out: str | os.PathLike) -> None:
         finish_parts(parts)
 
 
+def frame_ranges(frames) -> str:
+    """Frame numbers as ranges, for a summary: [0, 1, 2, 5] -> '0-2, 5' ('' for none)."""
+    runs: list = []
+    for f in sorted(frames):
+        if runs and f == runs[-1][1] + 1:
+            runs[-1][1] = f
+        else:
+            runs.append([f, f])
+    return ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in runs)
+
+
 @dataclass(frozen=True)
 class RunResult:
     """What a run returns.

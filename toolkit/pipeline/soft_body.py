@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from toolkit.errors import InputError
-from toolkit.pipeline.run import RunResult, open_run, whole_run
+from toolkit.pipeline.run import RunResult, frame_ranges, open_run, whole_run
 from toolkit.pointcloud.patches import PatchConfig
 from toolkit.pointcloud.stereo import StereoConfig
 from toolkit.softbody import GlobalFitConfig, TrackConfig
@@ -688,17 +688,6 @@ def _send_layout(rec, joints: np.ndarray, viewpoints: np.ndarray) -> None:
     rec.send_blueprint(softbody_blueprint(LENGTH_NAMES, eye=eye))
 
 
-def _frame_ranges(frames) -> str:
-    """Frame numbers as ranges: [0, 1, 2, 5] -> '0-2, 5'."""
-    out, frames = [], sorted(frames)
-    for f in frames:
-        if out and f == out[-1][1] + 1:
-            out[-1][1] = f
-        else:
-            out.append([f, f])
-    return ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in out)
-
-
 def summary_lines(result: RunResult) -> list:
     """What a soft-body run says when it ends (the recipe prints these)."""
     m, x = result.metrics, result.extra
@@ -711,9 +700,9 @@ def summary_lines(result: RunResult) -> list:
     lines += [f"fitted {result.frames} frames ({x['source']}) in {result.seconds:.1f} s: "
              + ", ".join(f"{v} {k}" for k, v in m["states"].items())
              + f"; {m['patches_median']:.0f} patches per frame (median)",
-             f"  trusted:     {_frame_ranges(m['trusted_frames'])} ({len(m['trusted_frames'])} of {result.frames}); "
-             f"lost: {_frame_ranges(m['lost_frames']) or 'none'}; found again: "
-             f"{_frame_ranges(m['recovered_frames']) or 'none'}",
+             f"  trusted:     {frame_ranges(m['trusted_frames'])} ({len(m['trusted_frames'])} of {result.frames}); "
+             f"lost: {frame_ranges(m['lost_frames']) or 'none'}; found again: "
+             f"{frame_ranges(m['recovered_frames']) or 'none'}",
              f"  joints:      {x['joints']}", f"  body model:  {x['body_model']}"]
     if x["meshes"] is not None:
         lines.append(f"  meshes:      {x['meshes']}/")

@@ -205,11 +205,8 @@ def _ground_extent(rig: Rig, limit_m: float = 150.0) -> tuple[np.ndarray, np.nda
     for cam in rig:
         w, h = cam.size
         px = np.array([[x, y] for x in np.linspace(0, w - 1, 5) for y in np.linspace(0, h - 1, 5)], float)
-        o, d = cam.rays(px)
-        ok = d[:, 2] < -1e-6
-        s = -o[ok, 2] / d[ok, 2]
-        p = o[ok] + s[:, None] * d[ok]
-        hits.append(p[:, :2])
+        p = _ground_points(cam, px)
+        hits.append(p[np.isfinite(p).all(1)])
         hits.append(cam.center[None, :2])
     pts = np.clip(np.concatenate(hits), -limit_m, limit_m)
     return pts.min(0), pts.max(0)
@@ -274,7 +271,9 @@ def _contact(integral: np.ndarray, boxes: np.ndarray) -> np.ndarray:
     :data:`CONTACT_MIN_FEET` foreground; the band of the same height just below it is the ground in
     front of the feet: at most :data:`CONTACT_MAX_BELOW` (a box at the image's bottom edge passes).
     A box further along the ray than the person is smaller and ends above the feet (legs below it);
-    a nearer one ends below them (no feet in its band).
+    a nearer one ends below them (no feet in its band).  The box's bottom edge is its near face's, a
+    little below the feet of a person seen from above (a striding person's feet also fill little of
+    a narrow box), hence the low :data:`CONTACT_MIN_FEET`.
     """
     x0, y0, x1, y1 = boxes.T
     height = integral.shape[0] - 1
@@ -590,7 +589,7 @@ def _refine_once(masks, rig: Rig, positions: np.ndarray, start: np.ndarray, conf
             if len(xs) < 20:
                 continue
             u, vmid = float(np.median(xs)), float(np.median(ys))
-            feet = _ground_under(cam, u, float(np.percentile(ys, FEET_PERCENTILE)))
+            feet = (cam, u, float(np.percentile(ys, FEET_PERCENTILE)))  # the last usable camera's feet
             _, d = cam.rays(np.array([[u, vmid], [u, vmid + 10.0]]))
             n = np.cross(d[0], d[1])
             if np.linalg.norm(n[:2]) < 1e-9:
@@ -598,8 +597,9 @@ def _refine_once(masks, rig: Rig, positions: np.ndarray, start: np.ndarray, conf
             n = n / np.linalg.norm(n[:2])
             rows.append(n[:2])
             rhs.append(n @ cam.center)
-        if len(rows) == 1 and feet is not None:
-            p = feet
+        if len(rows) == 1 and feet is not None:  # one camera: the ground under its feet
+            cam, u, v = feet
+            p = _ground_points(cam, np.array([[u, v]]))[0]
             if np.isfinite(p).all() and np.linalg.norm(p - start[k]) <= config.wide_radius_m:
                 out[k] = p
             continue
@@ -614,13 +614,13 @@ def _refine_once(masks, rig: Rig, positions: np.ndarray, start: np.ndarray, conf
     return out
 
 
-def _ground_under(cam, u: float, v: float) -> np.ndarray:
-    """The ground point (2,) metres (z = 0) on the ray of pixel (u, v); NaN where the ray does not
+def _ground_points(cam, px: np.ndarray) -> np.ndarray:
+    """Where the rays of pixels (N, 2) meet the ground z = 0: (N, 2) metres, NaN for a ray that does not
     go down to it."""
-    o, d = cam.rays(np.array([[u, v]], float))
-    if not d[0, 2] < -1e-6:
-        return np.full(2, np.nan)
-    return (o[0] - o[0, 2] / d[0, 2] * d[0])[:2]
+    o, d = cam.rays(np.asarray(px, float))
+    down = d[:, 2] < -1e-6
+    s = np.where(down, -o[:, 2] / np.where(down, d[:, 2], -1.0), np.nan)
+    return (o + s[:, None] * d)[:, :2]
 
 
 def ground_velocities(positions: np.ndarray, fps: float) -> np.ndarray:

@@ -67,11 +67,19 @@ from toolkit.errors import InputError
 from toolkit.softbody.distance import distance
 from toolkit.softbody.model import SoftBodyModel, SoftBodyParams
 
-__all__ = ["ConfidenceConfig", "FrameConfidence", "frame_confidence", "body_frame_joints", "largest_step",
+__all__ = ["ConfidenceConfig", "FrameConfidence", "frame_confidence", "body_frame_joints", "joint_steps",
+           "largest_step",
            "VERDICTS"]
 
 #: What a frame's confidence says.
 VERDICTS = ("trusted", "lost")
+
+#: A metaball's surface sample further than this inside the model (metres) is buried in another metaball:
+#: no camera sees it, so it is left out of the silhouette share.
+BURIED_DEPTH = 0.01
+#: Fewest unburied surface samples a rigid part needs for a silhouette share of its own (fewer: too few to
+#: say the part lies out of the mask).
+MIN_PART_SAMPLES = 5
 
 
 @dataclass(frozen=True)
@@ -218,6 +226,22 @@ def body_frame_joints(joints) -> np.ndarray:
     return np.einsum("...ab,...jb->...ja", R, j - mid[..., None, :])
 
 
+def joint_steps(joints, previous) -> np.ndarray:
+    """Each joint's move against the body from ``previous`` to ``joints`` (metres).
+
+    Parameters
+    ----------
+    joints, previous : array_like of shape (14, 3)
+        Metres, world.
+
+    Returns
+    -------
+    ndarray of shape (14,)
+        Metres.
+    """
+    return np.linalg.norm(body_frame_joints(joints) - body_frame_joints(previous), axis=-1)
+
+
 def largest_step(joints, previous, frames: int = 1) -> float:
     """The largest move of a joint against the body from ``previous`` to ``joints``, per frame (metres).
 
@@ -233,8 +257,7 @@ def largest_step(joints, previous, frames: int = 1) -> float:
     float
         Metres per frame.
     """
-    d = np.linalg.norm(body_frame_joints(joints) - body_frame_joints(previous), axis=-1)
-    return float(np.max(d)) / max(int(frames), 1)
+    return float(np.max(joint_steps(joints, previous))) / max(int(frames), 1)
 
 
 def _coverage(model: SoftBodyModel, params: SoftBodyParams, tree: cKDTree, config: ConfidenceConfig,
@@ -271,9 +294,9 @@ def _silhouette(model: SoftBodyModel, params: SoftBodyParams, views, config: Con
     n_dirs = config.coverage_dirs
     prims = np.repeat(np.arange(model.n_prims), n_dirs)
     surface = CoverageSamples(prims, np.tile(unit_directions(n_dirs), (model.n_prims, 1))).points(st)
-    unburied = distance(model, params, surface, state=st) > -0.01   # not inside another metaball
+    unburied = distance(model, params, surface, state=st) > -BURIED_DEPTH
     surface, part = surface[unburied], np.asarray(model.prim_frame)[prims[unburied]]
-    parts = [part == k for k in np.unique(part) if np.count_nonzero(part == k) >= 5]
+    parts = [part == k for k in np.unique(part) if np.count_nonzero(part == k) >= MIN_PART_SAMPLES]
     shares, missed = [], []
     for v in views:
         if v.state != "ok":

@@ -30,8 +30,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from toolkit.cameras.triangulation import triangulate_linear
+from toolkit.cameras.triangulation import reprojection_errors, triangulate_linear
 from toolkit.errors import InputError
+from toolkit.multiview.selection import flip_permutation
 from toolkit.skeleton import SKELETON_14
 
 __all__ = ["ViewJoints", "triangulate_views", "fill_hanging_limbs", "LIMB_GROUPS", "MAX_REPROJECTION_PX", "MIN_CONFIDENCE"]
@@ -54,15 +55,16 @@ PX_PER_M = 200.0
 #: frames.  Heads at one height see swapped arms hanging beside the trunk as well as the right ones (their
 #: epipolar lines run along the image rows and the points land inside the body): the previous pose decides.
 REACH_M = 0.2
+#: A joint's distance off the body or move beyond :data:`REACH_M` counts as at most this (metres), as
+#: :data:`_ERROR_CLIP_PX` for the reprojection errors: one wild joint must not decide the labelling.
+_EXCESS_CAP_M = 0.5
 
 
 def _swap_index(groups) -> np.ndarray:
     """Joint order (14,) with the left and right joints of ``groups`` (names of :data:`LIMB_GROUPS`) swapped."""
     idx = np.arange(SKELETON_14.n_joints)
-    for g in groups:
-        for part in LIMB_GROUPS[g]:
-            a, b = SKELETON_14.index("l_" + part), SKELETON_14.index("r_" + part)
-            idx[a], idx[b] = b, a
+    for g in groups:   # the groups' joints are disjoint: the order does not matter
+        idx = idx[flip_permutation(SKELETON_14, g)]
     return idx
 
 
@@ -96,22 +98,12 @@ class ViewJoints:
         return self.complete
 
 
-def _reprojection(cameras, pts: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """Per view and joint, pixels between the observation and the projection (NaN where either is missing)."""
-    out = np.full(pts.shape[:2], np.nan)
-    ok = np.isfinite(X).all(-1)
-    for c, cam in enumerate(cameras):
-        if ok.any():
-            out[c, ok] = np.linalg.norm(cam.project(X[ok]) - pts[c, ok], axis=-1)
-    return out
-
-
 def _labelling_cost(cameras, pts: np.ndarray, tree=None, previous=None) -> tuple[float, np.ndarray, np.ndarray]:
     """Cost (pixels) of one labelling: clipped reprojection errors, the joints' distance outside the cloud's
     body, the left/right difference of the limb bones and how far the joints moved from ``previous`` beyond
     :data:`REACH_M`; with the triangulated joints and errors."""
     X = triangulate_linear(list(cameras), pts)
-    err = _reprojection(cameras, pts, X)
+    err = reprojection_errors(list(cameras), X, pts)   # NaN where the joint or the keypoint is missing
     given = np.isfinite(pts).all(-1)
     # every keypoint given counts (one whose joint is not triangulated costs the clip): hiding a keypoint
     # by pairing it with a missing one is no cheaper
@@ -121,10 +113,10 @@ def _labelling_cost(cameras, pts: np.ndarray, tree=None, previous=None) -> tuple
         # two views' rays nearly meet for swapped labels too (the epipolar lines of heads at one height run
         # along the image rows): such a joint lands off the body, where the cloud has no point
         d, _ = tree.query(X[ok])
-        cost += PX_PER_M * float(np.sum(np.minimum(np.maximum(d - INSIDE_M, 0.0), 0.5)))
+        cost += PX_PER_M * float(np.sum(np.minimum(np.maximum(d - INSIDE_M, 0.0), _EXCESS_CAP_M)))
     if previous is not None and ok.any():
         moved = np.linalg.norm(X[ok] - previous[ok], axis=-1)
-        cost += PX_PER_M * float(np.sum(np.minimum(np.maximum(moved - REACH_M, 0.0), 0.5)))
+        cost += PX_PER_M * float(np.sum(np.minimum(np.maximum(moved - REACH_M, 0.0), _EXCESS_CAP_M)))
     L = SKELETON_14.bone_lengths(X)
     for a, b in SKELETON_14.symmetric_bones:
         if np.isfinite(L[a]) and np.isfinite(L[b]):

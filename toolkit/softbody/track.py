@@ -45,8 +45,8 @@ from scipy.spatial import cKDTree
 from toolkit.errors import InputError
 from toolkit.observe import Observer, as_observer
 from toolkit.softbody.distance import check_points, distance, primitive_distances
-from toolkit.softbody.model import (N_POSE, TRUNK_POSTURE, SoftBodyModel, SoftBodyParams, canonical_pose, pose_bounds,
-                                    pose_step)
+from toolkit.softbody.model import (DOF_NAMES, N_POSE, TRUNK_POSTURE, SoftBodyModel, SoftBodyParams, canonical_pose,
+                                    pose_bounds, pose_step)
 from toolkit.softbody.residuals import (LOSSES, CoverageSamples, coverage_residuals, coverage_samples, data_residuals,
                                        coverage_margin,
                                        one_blas_thread)
@@ -483,7 +483,8 @@ DOUBT_GAIN = 0.05
 
 #: Pose entries of the left and right limbs' swing (flexion) and bend, swapped by the recovery's search:
 #: in a walk or a run the limbs swing in turn, and a tracker a step behind holds the wrong leg forward.
-_SWING_PAIRS = {"arms": ((11, 15), (14, 18)), "legs": ((19, 23), (22, 26))}
+_SWING_PAIRS = {g: tuple((DOF_NAMES.index(f"l_{n}"), DOF_NAMES.index(f"r_{n}")) for n in names)
+                for g, names in (("arms", ("shoulder_flexion", "elbow")), ("legs", ("hip_flexion", "knee")))}
 
 
 #: Per joint, the pose entries (name prefixes of :data:`toolkit.softbody.model.DOF_NAMES`) that move it against
@@ -499,14 +500,13 @@ def _jump_hold(model: SoftBodyModel, params: SoftBodyParams, previous: SoftBodyP
     """The joints' moves against the body from ``previous`` (14,) metres, and the hold weights (27,) of the
     pose entries moving those over ``config.hold_step`` (zeros: no jump)."""
     from toolkit.skeleton import SKELETON_14
-    from toolkit.softbody.confidence import body_frame_joints
-    from toolkit.softbody.model import DOF_NAMES
+    from toolkit.softbody.confidence import joint_steps
 
-    move = np.linalg.norm(body_frame_joints(model.joints(params)) - body_frame_joints(model.joints(previous)), axis=-1)
+    move = joint_steps(model.joints(params), model.joints(previous))
     hold = np.zeros(N_POSE)
     for j in np.flatnonzero(move > config.hold_step):
-        prefixes = _JUMP_HOLDS.get(SKELETON_14.joint_names[j], ())
-        hold[[k for k, name in enumerate(DOF_NAMES) if prefixes and name.startswith(prefixes)]] = config.hold_weight
+        prefixes = _JUMP_HOLDS.get(SKELETON_14.joint_names[j], ())   # (): a hip, nothing to hold
+        hold[[k for k, name in enumerate(DOF_NAMES) if name.startswith(prefixes)]] = config.hold_weight
     return move, hold
 
 
