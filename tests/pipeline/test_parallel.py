@@ -22,7 +22,7 @@ import pytest
 
 from toolkit.errors import InputError
 from toolkit.observe import RecordingObserver
-from toolkit.pipeline.free_viewpoint import PLATE_STORE, FreeViewpointRunConfig, run
+from toolkit.pipeline.free_viewpoint import PLATE_STORE, VIEW_STORE, FreeViewpointRunConfig, run
 from toolkit.pipeline.parallel import AUTO, ParallelConfig, available_cores, map_scenes, map_tasks, resolve_workers
 from toolkit.pipeline.run import compare_runs
 from toolkit.rendering.freeviewpoint import FreeViewpointConfig
@@ -94,6 +94,7 @@ def test_two_workers_give_the_outputs_of_one(tiny, tmp_path):
     assert two.complete and two.processed == N_FRAMES
     assert compare_runs(one, tmp_path / "two") == []
     assert not (tmp_path / "two" / PLATE_STORE).exists()  # the shared plates go when every frame is done
+    assert not (tmp_path / "two" / VIEW_STORE).exists()  # and so do the scene model's shared views
     # every frame's reports came back from the workers, in frame order
     frames = [d["frame"] for d in obs.of_kind("joints3d") if d.get("name") == "free_viewpoint/joints"]
     assert frames == list(range(N_FRAMES))

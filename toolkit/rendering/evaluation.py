@@ -9,16 +9,13 @@ data only).
 from __future__ import annotations
 
 import hashlib
-import io
-import os
-import time
 from pathlib import Path
 
 import numpy as np
 
 from toolkit.cameras import Camera
 from toolkit.errors import InputError
-from toolkit.io import atomic_write_bytes
+from toolkit.io.shared_store import SharedStore
 
 
 #: Background plates :class:`BackgroundPlates` keeps (~11 MB each at 1280x720).
@@ -54,7 +51,7 @@ class BackgroundPlates:
         self._renderer = make_renderer(spec, env)
         self._kept: dict = {}
         self._scene_digest = hashlib.sha1(text.encode()).hexdigest()
-        self._store = None if store is None else Path(store)
+        self._store = None if store is None else SharedStore(store)
 
     def plate(self, camera: Camera) -> np.ndarray:
         """The surroundings seen by ``camera`` (its size must be the scene's resolution); read-only.
@@ -81,67 +78,27 @@ class BackgroundPlates:
         Every process of a run calls it with the run's fixed cameras (novel
         views, a bird's-eye view) before its first frame: each plate is drawn
         once in all, the work split between the processes, none waiting for
-        another.  Without a store it does nothing.
+        another (:meth:`toolkit.io.shared_store.SharedStore.compute`).  Without a
+        store it does nothing.
         """
         if self._store is None:
             return 0
-        self._store.mkdir(parents=True, exist_ok=True)
-        drawn = 0
-        for cam in cameras:
-            path = self._path(cam)
-            if path.exists() or not _claim(path.with_suffix(".claim")):
-                continue
-            try:
-                plate = self._renderer.background_plate(cam, keep=False)
-                buf = io.BytesIO()
-                np.save(buf, plate, allow_pickle=False)
-                atomic_write_bytes(path, buf.getvalue())
-                drawn += 1
-            finally:
-                path.with_suffix(".claim").unlink(missing_ok=True)
-        return drawn
+        return sum(self._store.compute(self._key(cam), lambda cam=cam: {
+            "plate": self._renderer.background_plate(cam, keep=False)}) for cam in cameras)
 
-    def _path(self, camera: Camera) -> Path:
+    def _key(self, camera: Camera) -> str:
         h = hashlib.sha1(self._scene_digest.encode())
         for a in (camera.K, camera.cam_from_world, np.asarray(camera.size)):
             h.update(np.ascontiguousarray(a, np.float64).tobytes())
-        return self._store / f"{h.hexdigest()}.npy"
+        return h.hexdigest()
+
+    def _path(self, camera: Camera) -> Path:
+        return self._store.path(self._key(camera))
 
     def _stored(self, camera: Camera) -> np.ndarray | None:
         """The stored plate of ``camera``; while another process draws it (its claim is fresh), waited for."""
-        path = self._path(camera)
-        claim = path.with_suffix(".claim")
-        deadline = time.monotonic() + CLAIM_STALE_S
-        while True:
-            if path.exists():
-                return np.load(path, allow_pickle=False)
-            if not (claim.exists() and time.monotonic() < deadline and _fresh(claim)):
-                return None
-            time.sleep(0.05)
-
-
-#: A claim on a plate older than this (seconds) is taken for one a killed process left.
-CLAIM_STALE_S = 120.0
-
-
-def _claim(path: Path) -> bool:
-    """Create ``path`` if nobody has (atomic on a local or NFS file system); whether this call made it."""
-    try:
-        fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-    except FileExistsError:
-        if _fresh(path):
-            return False
-        path.unlink(missing_ok=True)  # left by a killed process
-        return _claim(path)
-    os.close(fd)
-    return True
-
-
-def _fresh(path: Path) -> bool:
-    try:
-        return time.time() - path.stat().st_mtime < CLAIM_STALE_S
-    except FileNotFoundError:
-        return False
+        got = self._store.get(self._key(camera))
+        return None if got is None else got["plate"]
 
 
 #: PSNRs are capped at this in the averages, dB (identical images give inf).

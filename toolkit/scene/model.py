@@ -27,6 +27,7 @@ sampled over the run, the detected people left out) and
 
 from __future__ import annotations
 
+import hashlib
 import json
 from collections import OrderedDict
 from pathlib import Path
@@ -94,16 +95,6 @@ def _fill(img: np.ndarray, hole: np.ndarray) -> np.ndarray:
     return out
 
 
-def _project_cam(cam: Camera, pc: np.ndarray) -> np.ndarray:
-    """Pixels (N, 2) of points (N, 3) in front of ``cam`` given in its own frame (what :meth:`Camera.project`
-    does after its ``to_cam``, without transforming the points again)."""
-    if cam.has_distortion:
-        uv, _ = cv2.projectPoints(pc.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), cam.K, cam.dist)
-        return uv.reshape(-1, 2)
-    q = pc @ cam.K.T
-    return q[:, :2] / q[:, 2:3]
-
-
 def _key(cam: Camera) -> bytes:
     return cam.K.tobytes() + cam.dist.tobytes() + cam.cam_from_world.tobytes() + np.asarray(cam.size).tobytes()
 
@@ -142,6 +133,8 @@ class SceneModel:
         self._kept: OrderedDict = OrderedDict()
         self._carried: OrderedDict = OrderedDict()
         self._rays: OrderedDict = OrderedDict()
+        self._store = None  # SharedStore of the run's processes (share_views)
+        self._shared: dict = {}  # _key(camera) -> the store's key, for the cameras of share_views
 
     # ------------------------------------------------------------------ rendering
     def _geometry(self, camera: Camera):
@@ -186,7 +179,7 @@ class SceneModel:
             sees = (pc[:, 2] > 1e-6) & (nx >= lo[0]) & (nx <= hi[0]) & (ny >= lo[1]) & (ny <= hi[1])
         uv = np.full((pts.shape[0], 2), -1e4, np.float32)
         if sees.any():
-            uv[sees] = _project_cam(cam, pc[sees])
+            uv[sees] = cam.project_cam(pc[sees])
         sees &= np.isfinite(uv).all(1) & cam.in_image(uv)
         mx = np.ascontiguousarray(uv[:, 0].reshape(shape))
         my = np.ascontiguousarray(uv[:, 1].reshape(shape))
@@ -215,6 +208,10 @@ class SceneModel:
         if not with_surface and key in self._kept:
             self._kept.move_to_end(key)
             return self._kept[key]
+        if not with_surface and key in self._shared:
+            got = self._store.get(self._shared[key])  # drawn by another process of the run (or waited for)
+            if got is not None:
+                return self._keep(key, (got["image"], got["coverage"]))
         w, h = camera.size
         pts, surf, view = self._geometry(camera)
         acc = np.zeros((pts.shape[0], 3), np.float64)
@@ -245,14 +242,59 @@ class SceneModel:
         if self.fill_holes and not ok.all() and ok.any():
             img = _fill(img, ~ok.reshape(h, w))
         out = (img, cover.reshape(h, w))
+        if with_surface:
+            for a in out:
+                a.flags.writeable = False
+            return out + (surf.reshape(h, w),)
+        return self._keep(key, out)
+
+    def _keep(self, key: bytes, out: tuple) -> tuple:
+        """Keep a fixed camera's render (:data:`RENDERS_KEPT`, read-only) and return it."""
         for a in out:
             a.flags.writeable = False
-        if with_surface:
-            return out + (surf.reshape(h, w),)
         self._kept[key] = out
         while len(self._kept) > RENDERS_KEPT:
             self._kept.popitem(last=False)
         return out
+
+    def share_views(self, cameras: list, store) -> int:
+        """Draw the views of fixed ``cameras`` into a store the processes of a run share; returns how many
+        this process drew.
+
+        Every worker of a run calls it while it warms up: each view is drawn once in all, by whichever
+        process claims it first (:class:`toolkit.io.shared_store.SharedStore`), and :meth:`render` of
+        these cameras then reads it from the store (the same float32 values), waiting while another
+        process still draws it.
+
+        Parameters
+        ----------
+        cameras : list of Camera
+            The run's fixed cameras (novel, held-out, bird's-eye).
+        store : path or SharedStore
+            A folder of the run (removed when the run is finished).
+        """
+        from toolkit.io.shared_store import SharedStore
+
+        self._store = store if isinstance(store, SharedStore) else SharedStore(store)
+        digest = self._digest()
+        drawn = 0
+        for cam in cameras:
+            key = _key(cam)
+            stored = hashlib.sha1(digest + key).hexdigest()
+            drawn += self._store.compute(stored, lambda cam=cam: dict(zip(("image", "coverage"), self.render(cam))))
+            self._shared[key] = stored  # after drawing it: render() of a camera this process claimed draws it
+        return drawn
+
+    def _digest(self) -> bytes:
+        """What the model's views depend on: its sources' cameras and backgrounds, its proxy (SHA-1)."""
+        h = hashlib.sha1(json.dumps(self.proxy.to_json(), sort_keys=True, default=str).encode())
+        h.update(str(self.fill_holes).encode())
+        for cam in self.rig:
+            b = self.backgrounds[cam.name]
+            h.update(_key(cam))
+            h.update(np.ascontiguousarray(b.image, np.float32).tobytes())
+            h.update(np.ascontiguousarray(b.confidence, np.float32).tobytes())
+        return h.digest()
 
     def nearest_source(self, camera: Camera) -> str:
         """The source camera whose view of the proxy's centre is closest in angle to ``camera``'s."""
