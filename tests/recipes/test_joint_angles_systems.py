@@ -69,7 +69,7 @@ def test_depth_run_to_angles_bvh_and_gltf(depth_run, tmp_path):
 
 def _people_run(tmp_path):
     """A free-viewpoint run folder with two people, written by the pipeline's own people3d.npz writer."""
-    from toolkit.pipeline.free_viewpoint import _write_people
+    from toolkit.pipeline.free_viewpoint import _PeopleJoints
 
     rng = np.random.default_rng(31)
     n = 12
@@ -82,7 +82,10 @@ def _people_run(tmp_path):
                                        for p in PEOPLE]} for t in range(n)]
     folder = tmp_path / "fvv"
     folder.mkdir()
-    assert _write_people(folder, records, n)["names"] == list(PEOPLE)
+    people = _PeopleJoints(n)
+    for r in records:
+        people.add(r)
+    assert people.write(folder)["names"] == list(PEOPLE)
     # the main person's poses3d.npz, as the recipe writes it besides people3d.npz
     np.savez(folder / "poses3d.npz", joints=joints[PEOPLE[0]], names=np.array(JOINTS_14))
     return folder, truths

@@ -35,8 +35,8 @@ import numpy as np
 from toolkit.depth.tracker_state import TrackerConfig
 from toolkit.errors import InputError
 from toolkit.pipeline.parallel import ParallelConfig, map_tasks
-from toolkit.pipeline.run import (STOPPED_INTERRUPTED, RunResult, check_frames_held, close_run_recording, open_run,
-                                  terminate_as_interrupt)
+from toolkit.pipeline.run import (STOPPED_INTERRUPTED, RunResult, check_frames_held, close_run_recording,
+                                  deferred_interrupts, open_run, terminate_as_interrupt)
 
 #: Depth file readers (``"auto"``: by suffix).
 READERS = ("auto", "png", "raw", "open3d", "npy")
@@ -340,7 +340,11 @@ def run(config: DepthTrackingRunConfig, *, dataset, out, observer=None, log=prin
     keep = tracked.interrupted and held_status == "complete"  # never replace complete results by partial ones
     if keep:
         log(f"{out}: interrupted after {done} of {n} frames; the complete results of the earlier run are kept")
-    scores = None if keep else _write(out, tracked, inp)
+    if keep:
+        scores = None
+    else:
+        with deferred_interrupts():  # skeleton.npz and metrics.json together: a stop never leaves one old
+            scores = _write(out, tracked, inp)
     metrics = {"states": {name: int((res.states == k).sum()) for k, name in enumerate(STATE_NAMES)},
                "cpu_ms_median": float(np.nanmedian(res.timings("total")) * 1000) if done else float("nan"),
                "lost_reasons": _lost_reasons(res),

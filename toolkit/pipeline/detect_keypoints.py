@@ -20,7 +20,6 @@ rerun with other options into the same folder is refused).  Cameras run in paral
 from __future__ import annotations
 
 import json
-import os
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
@@ -31,6 +30,7 @@ import numpy as np
 
 from toolkit.errors import InputError
 from toolkit.io.video import VIDEO_SUFFIXES
+from toolkit.pipeline.parallel import available_cores
 
 __all__ = ["DetectConfig", "DetectResult", "VIDEO_SUFFIXES", "find_videos", "detect_videos", "synchronise",
            "read_sync", "ensure_keypoints", "detected_frame_rate", "summary_lines", "DETECTION_FILE", "SYNC_FILE"]
@@ -335,7 +335,7 @@ def detect_videos(source, out, config: DetectConfig = DetectConfig(), log=print)
     probe.close()
     _check_identity(out, config, model)
     out.mkdir(parents=True, exist_ok=True)
-    workers = config.workers or max(1, min(len(videos), os.cpu_count() or 1))
+    workers = config.workers or max(1, min(len(videos), available_cores()))
     jobs = [(str(v), str(out), config.detector, config.backend_options(), config.max_frames) for v in videos]
     summaries = {}
     if workers == 1:

@@ -562,15 +562,6 @@ class _PeopleJoints:
         return {"names": names, "frames_drawn": dict(self.drawn)}
 
 
-def _write_people(out: Path, records, n: int) -> dict:
-    """``people3d.npz`` (``joints`` (P, T, 14, 3) metres, ``people`` (P,) names, ``names`` (14,) joint names)
-    when the run followed several people; returns per person the frames drawn (empty otherwise)."""
-    people = _PeopleJoints(n)
-    for r in records:
-        people.add(r)
-    return people.write(out)
-
-
 class _Tally:
     """What the end of a run needs of its frames' records, gathered one record at a time, so that a long run's
     end never holds every record (a few numbers and the scores per frame)."""

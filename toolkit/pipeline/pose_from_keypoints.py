@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from toolkit.cameras.validate import cameras_behind
 from toolkit.errors import InputError
 from toolkit.io.video import VIDEO_SUFFIXES
 from toolkit.multiview import FLIP_MODES, MAX_OFFSET_PX, MIN_JOINT_CONFIDENCE, MIN_VIEW_CONFIDENCE
@@ -269,14 +270,9 @@ def _check_in_front(seq, session) -> None:
         return
     joints = np.asarray(seq.joints3d)[ok]                              # (n_ok, 14, 3)
     seen = np.isfinite(np.asarray(seq.poses2d)[:, ok]).all(axis=-1)    # (n_cams, n_ok, 14)
-    behind = np.zeros(joints.shape[0], bool)
-    cams_behind = set()
-    for c, cam in enumerate(session.rig):
-        z = cam.depth_of(joints)
-        bad = (seen[c] & np.isfinite(z) & (z <= 0)).any(axis=1)
-        behind |= bad
-        if bad.any():
-            cams_behind.add(cam.name)
+    per_frame = [cameras_behind(session.rig, joints[i], seen[:, i]) for i in range(joints.shape[0])]
+    behind = np.array([bool(c) for c in per_frame])
+    cams_behind = {name for c in per_frame for name in c}
     if behind.mean() > MAX_SHARE_BEHIND:
         raise InputError(f"{session.calibration}: rotation/translation",
                          "camera poses (cam_from_world, world to camera) that put the joints each camera sees in "

@@ -9,7 +9,6 @@ one file; the result does not depend on the number of workers.
 
 from __future__ import annotations
 
-import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -51,8 +50,11 @@ class SilhouetteDatabaseRunConfig:
 
     @property
     def n_workers(self) -> int:
-        """The processes used: ``workers``, else every core."""
-        return int(self.workers) if self.workers is not None else (os.cpu_count() or 1)
+        """The processes used: ``workers``, else every core this process may use
+        (:func:`toolkit.pipeline.parallel.available_cores`: CPU affinity and cgroup limits)."""
+        from toolkit.pipeline.parallel import available_cores
+
+        return int(self.workers) if self.workers is not None else available_cores()
 
 
 @dataclass(frozen=True)
