@@ -133,6 +133,7 @@ class SceneModel:
         self._kept: OrderedDict = OrderedDict()
         self._carried: OrderedDict = OrderedDict()
         self._rays: OrderedDict = OrderedDict()
+        self._rgbc: dict = {}  # per source, its background and confidence as one (H, W, 4) float32 image
         self._store = None  # SharedStore of the run's processes (share_views)
         self._shared: dict = {}  # _key(camera) -> the store's key, for the cameras of share_views
 
@@ -162,12 +163,18 @@ class SceneModel:
             self._rays.popitem(last=False)
         return rays
 
-    def _sample(self, cam: Camera, pts: np.ndarray, images: list, shape: tuple) -> tuple[list, np.ndarray]:
-        """The images of source ``cam`` sampled at the proxy points, and where it sees them (N,) bool."""
+    def _sample(self, cam: Camera, pts: np.ndarray, shape: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Source ``cam``'s background colour (N, 3) and confidence (N,) at the proxy points, float32, and
+        where it sees them (N,) bool: one remap of both (a four-channel image kept per source; each channel
+        is resampled on its own, the same values as two remaps)."""
         mx, my, sees = self._maps(cam, pts, shape)
-        out = [cv2.remap(np.asarray(im, np.float32), mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-               .reshape(pts.shape[0], -1) for im in images]
-        return out, sees
+        both = self._rgbc.get(cam.name)
+        if both is None:
+            b = self.backgrounds[cam.name]
+            both = self._rgbc[cam.name] = np.dstack([np.asarray(b.image, np.float32),
+                                                      np.asarray(b.confidence, np.float32)])
+        out = cv2.remap(both, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).reshape(pts.shape[0], 4)
+        return out[:, :3], out[:, 3], sees
 
     def _maps(self, cam: Camera, pts: np.ndarray, shape: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Where source ``cam`` sees the proxy points (N, 3): remap maps ``mx``, ``my`` of ``shape`` (float32
@@ -219,12 +226,10 @@ class SceneModel:
         cover = np.zeros(pts.shape[0], np.float32)
         hit = surf != SURFACE_NONE
         for cam in self.rig:
-            b = self.backgrounds[cam.name]
-            (col, conf), sees = self._sample(cam, pts, [b.image, b.confidence], (h, w))
+            col, conf, sees = self._sample(cam, pts, (h, w))
             sees &= hit
             if not sees.any():
                 continue
-            conf = conf[:, 0]
             # every pixel at once, the unseen ones weighted 0 (the same sums as over the seen ones alone)
             with np.errstate(invalid="ignore"):
                 sx, sy, sz = (pts[:, k] - cam.center[k] for k in range(3))
