@@ -256,7 +256,7 @@ def main(argv=None) -> int:
                          "scene, a zoo scene and the real trial, on one worker and on all (--workers auto)")
     ap.add_argument("--zoo-seed", type=int, default=71, help="--stages: the zoo scene (the first of this seed)")
     ap.add_argument("--real", type=Path, default=REAL_TRIAL, help="--stages: the real trial (a Pose2Sim trial)")
-    ap.add_argument("--hold-out", default="cam01", help="--stages: the real trial's held-out camera")
+    ap.add_argument("--hold-out", default="cam_01", help="--stages: the real trial's held-out camera (imported names)")
     args = ap.parse_args(argv)
     if args.frames < 1 or args.workers < 1:
         ap.error("--frames and --workers must be >= 1")
