@@ -20,7 +20,9 @@ Per scene, on the novel cameras against the rendered truth:
 * ``people``: per true person, PSNR over its region (+ 2 px) of the articulated rendering and
   of the better of standard billboards / visual hull; the margin;
 * ``miou``: per true person, the part mIoU of the run's labels on the source cameras inside
-  that person's true pixels (grown by 3 px, the other people's left out);
+  that person's true pixels (grown by 3 px, the other people's left out); ``miou_touching`` and
+  ``miou_alone`` the same over the views where another person's pixels come within 4 px of the
+  person's and over the others (overlaps told apart from the rest);
 * ``mpjpe_cm``: per true person, the mean joint error of the estimated person matched to it
   (minimum-cost assignment on the hip centres over the frames run; NaN when nobody was matched
   within 1 m), so that a poor label is told apart from a poor pose.
@@ -74,14 +76,25 @@ def make_dataset(spec, out: Path, detect: bool) -> Path:
     return out
 
 
-def people_miou(ds, run: Path, frames: int) -> list:
-    """Per true person, the mean over source views and frames of its part mIoU (see the module docstring)."""
+#: A person *touches* another in a view when at least this many of the other people's pixels lie within
+#: :data:`TOUCH_PX` of its own (true instances).
+TOUCH_MIN_PX, TOUCH_PX = 20, 4
+
+
+def people_miou(ds, run: Path, frames: int, split: bool = False):
+    """Per true person, the mean over source views and frames of its part mIoU (see the module docstring).
+
+    With ``split``, also the same mean over the views where the person touches another person
+    (:data:`TOUCH_PX`, :data:`TOUCH_MIN_PX`) and over the others: ``(all, touching, alone)``, each a
+    list over the true people (NaN: no such view).
+    """
     import cv2
 
     from toolkit.io.frames import frame_filename, read_png
     from toolkit.segmentation import part_iou
 
     kernel = np.ones((7, 7), np.uint8)
+    touch_kernel = np.ones((2 * TOUCH_PX + 1, 2 * TOUCH_PX + 1), np.uint8)
     vals: dict = {}
     for cam in ds.camera_names:
         for t in range(frames):
@@ -96,8 +109,18 @@ def people_miou(ds, run: Path, frames: int) -> list:
                 near = (cv2.dilate(mine.astype(np.uint8), kernel) > 0) & ((inst == 0) | mine)
                 iou = part_iou(np.where(near, pred, 0), np.where(mine, truth, 0))
                 if np.isfinite(iou).any():
-                    vals.setdefault(k, []).append(float(np.nanmean(iou)))
-    return [float(np.mean(vals[k])) if k in vals else float("nan") for k in range(ds.people_count)]
+                    grown = cv2.dilate(mine.astype(np.uint8), touch_kernel) > 0
+                    touching = np.count_nonzero(grown & (inst > 0) & ~mine) >= TOUCH_MIN_PX
+                    vals.setdefault(k, []).append((float(np.nanmean(iou)), touching))
+
+    def mean(k, which=None):
+        v = [x for x, touching in vals.get(k, []) if which is None or touching == which]
+        return float(np.mean(v)) if v else float("nan")
+
+    every = [mean(k) for k in range(ds.people_count)]
+    if not split:
+        return every
+    return every, [mean(k, True) for k in range(ds.people_count)], [mean(k, False) for k in range(ds.people_count)]
 
 
 #: An estimated person is matched to a true one when their hip centres are within this (m).
@@ -157,7 +180,7 @@ def score_run(dataset: Path, run: Path, frames: int, name: str, seconds: float) 
 
     m = json.loads((run / "metrics.json").read_text())
     with Dataset.open(dataset) as ds:
-        miou = people_miou(ds, run, frames)
+        miou, touching, alone = people_miou(ds, run, frames, split=True)
         P = ds.people_count
         info = json.loads((dataset / "groundtruth" / "scene_info.json").read_text())
     art = m["methods"].get("articulated", {})
@@ -169,7 +192,8 @@ def score_run(dataset: Path, run: Path, frames: int, name: str, seconds: float) 
         "psnr_frame": art.get("psnr_frame", np.nan),
         "psnr_frame_nearest": m["methods"].get("nearest_source", {}).get("psnr_frame", np.nan),
         "psnr_people": each, "psnr_people_best_baseline": best,
-        "people_margin": [e - b for e, b in zip(each, best)], "miou": miou,
+        "people_margin": [e - b for e, b in zip(each, best)], "miou": miou, "miou_touching": touching,
+        "miou_alone": alone,
         "mpjpe_cm": run_pose_error(dataset, run), "seconds": seconds}
 
 
@@ -231,6 +255,13 @@ def summarise_poses(rows: list) -> None:
     if right:
         print(f"part mIoU of the players within {POSE_RIGHT_CM:.0f} cm: median {np.median(right):.3f}, worst decile "
               f"{worst_decile(right):.3f}; of the others: median {np.median(wrong) if wrong else float('nan'):.3f}")
+    # the same players' views apart: where another person touches them and where nobody does
+    apart = {w: [v for r in rows for e, v in zip(r["mpjpe_cm"], r.get(f"miou_{w}", [])) if np.isfinite(e)
+                 and e <= POSE_RIGHT_CM and np.isfinite(v)] for w in ("touching", "alone")}
+    if apart["touching"] and apart["alone"]:
+        print(f"  their views where another person touches them: median {np.median(apart['touching']):.3f} "
+              f"({len(apart['touching'])} players); where nobody does: median {np.median(apart['alone']):.3f} "
+              f"({len(apart['alone'])})")
 
 
 def main(argv=None) -> int:

@@ -1,4 +1,5 @@
-"""The players benchmark's matching of estimated people to true ones (``people_mpjpe``)."""
+"""The players benchmark: matching estimated people to true ones (``people_mpjpe``), and the part mIoU told
+apart where people touch (``people_miou``)."""
 
 import numpy as np
 import pytest
@@ -35,3 +36,41 @@ def test_only_the_frames_both_hold_are_compared():
     estimated = truth[:, :2].copy()
     estimated[:, 1, :, 0] += 0.1
     assert people_mpjpe(truth, estimated)[0] == pytest.approx(5.0)
+
+
+class _Views:
+    """Two people in two cameras: side by side touching in ``a``, far apart in ``b`` (one frame)."""
+
+    camera_names = ["a", "b"]
+    people_count = 2
+
+    def gt_instances(self, cam, t):
+        inst = np.zeros((60, 80), np.uint8)
+        inst[10:50, 10:30] = 1
+        if cam == "a":
+            inst[10:50, 30:50] = 2
+        else:
+            inst[10:50, 55:75] = 2
+        return inst
+
+    def gt_parts(self, cam, t):
+        return np.where(self.gt_instances(cam, t) > 0, 2, 0).astype(np.uint8)
+
+
+def test_miou_is_told_apart_where_people_touch(tmp_path):
+    from toolkit.io import atomic_write_png
+    from toolkit.io.frames import frame_filename
+
+    from benchmarks.bench_players import people_miou
+
+    ds = _Views()
+    for cam in ds.camera_names:
+        labels = ds.gt_parts(cam, 0)
+        if cam == "a":
+            labels[10:50, 25:35] = 3  # a wrong part where the two meet
+        atomic_write_png(tmp_path / "parts" / cam / frame_filename(0), labels)
+    every, touching, alone = people_miou(ds, tmp_path, 1, split=True)
+    assert alone == pytest.approx([1.0, 1.0])
+    assert touching[0] < 1.0 and touching[1] < 1.0
+    assert every == pytest.approx([(a + b) / 2 for a, b in zip(touching, alone)])
+    assert people_miou(ds, tmp_path, 1) == every

@@ -24,8 +24,10 @@ Without keypoints (synthetic scenes, a studio with clean plates),
 cameras' foreground alone (:mod:`toolkit.silhouettes.people`: ground-plane
 occupancy chosen greedily, ghosts explained away), and
 :func:`estimate_people_silhouettes` gives each person its share of the
-foreground and a silhouette-database estimator of its own.  A scene in which
-no probed frame holds two people runs the one-person stage unchanged.
+foreground and a silhouette-database estimator of its own; once every person
+has a pose, :func:`depth_ordered_shares` shares each camera's foreground again
+by their posed templates, nearest surface first, for stages 2-4.  A scene in
+which no probed frame holds two people runs the one-person stage unchanged.
 
 People keep the index of their track over the whole run (``person_0`` is the
 one followed longest); ``OUT/people3d.npz`` holds their joints.
@@ -45,7 +47,8 @@ from toolkit.errors import InputError
 from toolkit.observe import as_observer
 
 __all__ = ["PeopleFrame", "triangulate_people", "estimate_people", "exclusive_masks", "PARTICIPANT_MIN_SHARE",
-           "PEOPLE_CHOICES", "locate_silhouette_people", "estimate_people_silhouettes", "people_foreground"]
+           "PEOPLE_CHOICES", "locate_silhouette_people", "estimate_people_silhouettes", "people_foreground",
+           "depth_ordered_shares", "SHARE_REACH_SHARE"]
 
 #: A person followed in at least this share of the frames is a participant (drawn); the others are passers-by.
 PARTICIPANT_MIN_SHARE = 0.25
@@ -209,6 +212,111 @@ def exclusive_masks(masks: list, joints: list, rig: Rig) -> list:
             if claimed[k] is None:
                 continue
             out[k][v] = claimed[k] & (owner == k)
+    return out
+
+
+#: A foreground pixel that no person's template covers goes to the person whose template is nearest in the
+#: image within this share of that person's image height (arms and legs the pose misses); beyond it, or
+#: where stage 1 gave it to a person without a pose, it stays with the person stage 1 gave it to.
+SHARE_REACH_SHARE = 0.25
+#: The templates are drawn with the person at most this tall (pixels) in a camera, then brought back to its size.
+SHARE_WORK_HEIGHT_PX = 300.0
+
+
+def _template_view(template, joints: np.ndarray, mesh, cam, box: tuple) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """A person's template seen by ``cam`` inside ``box`` (x0, y0, x1, y1; pixels, end excluded):
+    covered (h, w) bool, surface depth (h, w) float32 metres (inf where not covered) and the person's
+    image height (pixels); None when the person has no usable pose or is behind the camera.
+
+    The template is ray-cast with the person at most :data:`SHARE_WORK_HEIGHT_PX` tall and brought back
+    to the camera's size (nearest neighbour)."""
+    if mesh is None or np.any(cam.depth_of(joints) <= 0):
+        return None
+    h_px = _height_px(cam, joints)
+    if h_px <= 0:
+        return None
+    x0, y0, x1, y1 = box
+    scale = min(1.0, SHARE_WORK_HEIGHT_PX / h_px)
+    labels, depth = template.render(joints, cam if scale == 1.0 else cam.scaled(scale), mesh=mesh)
+    if scale != 1.0:
+        w, h = cam.size
+        labels = cv2.resize(labels, (w, h), interpolation=cv2.INTER_NEAREST)
+        depth = cv2.resize(depth, (w, h), interpolation=cv2.INTER_NEAREST)
+    covered = labels[y0:y1, x0:x1] > 0
+    return covered, np.where(covered, depth[y0:y1, x0:x1], np.inf).astype(np.float32), h_px
+
+
+def depth_ordered_shares(masks: list, joints: list, rigs: list, template) -> list:
+    """Each person's share of the cameras' foreground from every person's posed template, nearest first.
+
+    Per camera, the foreground is every person's stage-1 silhouette together.  A pixel that one or more
+    people's templates (posed on their stage-1 joints, :meth:`toolkit.template.Template.render`) cover
+    goes to the one whose template surface is nearest the camera there: a person behind another keeps
+    what the one in front leaves visible, and its pixels are never the one in front's.  A pixel no
+    template covers stays with the person whose silhouette held it when that person has no pose, else
+    goes to the person whose template is nearest in the image within :data:`SHARE_REACH_SHARE` of its
+    height, else stays where it was.
+
+    Parameters
+    ----------
+    masks : list over people of list over cameras of (ndarray (H, W) bool or None)
+        Each person's stage-1 silhouette per camera (rig order; None: no frame or not seen).
+    joints : list over people of ndarray of shape (14, 3)
+        Their 3D joints this frame, metres (NaN: unknown; such a person keeps the pixels of its
+        silhouette that no other person's template covers).
+    rigs : list over people of Rig
+        Each person's cameras as its stage 1 corrected them (:func:`toolkit.multiview.corrected_rig`).
+    template : toolkit.template.Template
+
+    Returns
+    -------
+    list over people of list over cameras of (ndarray (H, W) bool or None)
+        Exclusive shares: no pixel in two of them; None where the person's stage-1 silhouette was None.
+    """
+    P = len(masks)
+    if P <= 1:
+        return masks
+    V = len(rigs[0])
+    J = [np.asarray(j, float) for j in joints]
+    meshes = [template.mesh(j) if j.shape == (14, 3) and np.isfinite(j).all() else None for j in J]
+    out = [[None] * V for _ in range(P)]
+    for v in range(V):
+        have = [k for k in range(P) if masks[k][v] is not None]
+        fg = np.logical_or.reduce([np.asarray(masks[k][v], bool) for k in have]) if have else None
+        if fg is None or not fg.any():
+            for k in have:
+                out[k][v] = np.zeros_like(fg)
+            continue
+        # everything happens in the foreground's box, grown by the farthest reach
+        h, w = fg.shape
+        ys, xs = np.nonzero(fg)
+        pad = 2 + int(np.ceil(SHARE_REACH_SHARE * max((_height_px(rigs[k][v], J[k]) for k in range(P)
+                                                        if meshes[k] is not None), default=0.0)))
+        x0, y0 = max(int(xs.min()) - pad, 0), max(int(ys.min()) - pad, 0)
+        x1, y1 = min(int(xs.max()) + 1 + pad, w), min(int(ys.max()) + 1 + pad, h)
+        crop = fg[y0:y1, x0:x1]
+        stage1 = np.full(crop.shape, -1, np.int32)  # the person stage 1 gave the pixel to (the first, if several)
+        for k in reversed(have):
+            stage1[np.asarray(masks[k][v], bool)[y0:y1, x0:x1]] = k
+        depth = np.full((P,) + crop.shape, np.inf, np.float32)
+        dist = np.full((P,) + crop.shape, np.inf, np.float32)
+        for k in range(P):
+            seen = _template_view(template, J[k], meshes[k], rigs[k][v], (x0, y0, x1, y1))
+            if seen is None or not seen[0].any():
+                continue
+            covered, depth[k], h_px = seen
+            d = cv2.distanceTransform((~covered).astype(np.uint8), cv2.DIST_L2, 3)
+            dist[k] = np.where(d <= SHARE_REACH_SHARE * h_px, d, np.inf)
+        # covered: the nearest surface; else the nearest template within reach, unless stage 1 gave the
+        # pixel to a person without a pose (nobody else's template explains it)
+        posed = np.array([m is not None for m in meshes] + [True])  # [-1]: nobody's pixel
+        keep = ~posed[stage1] | ~np.isfinite(dist.min(0))
+        owner = np.where(np.isfinite(depth.min(0)), np.argmin(depth, 0), np.where(keep, stage1, np.argmin(dist, 0)))
+        owner[~crop] = -1
+        for k in have:
+            share = np.zeros((h, w), bool)
+            share[y0:y1, x0:x1] = owner == k
+            out[k][v] = share
     return out
 
 
@@ -461,14 +569,18 @@ def _mirrored(est):
 
 
 def estimate_people_silhouettes(dataset, database, rig: Rig, located, s1config=None, *, frames=None,
-                                foreground=None, config=None, observer=None, extractors: dict | None = None) -> Iterator[PeopleFrame]:
+                                foreground=None, config=None, observer=None, extractors: dict | None = None,
+                                template_height_m: float = 1.75) -> Iterator[PeopleFrame]:
     """Stage 1 of every participant from silhouettes, frame by frame.
 
-    The cameras' foreground is split between the people
+    The cameras' foreground is split between the people by where they stand
     (:func:`toolkit.silhouettes.people.split_masks`) and each person has a silhouette-database
     estimator of its own (:class:`toolkit.silhouettes.pipeline.SilhouettePoseEstimator`); a person
     moving whose hips face backwards takes its mirror image
-    (:func:`toolkit.silhouettes.people.faces_backwards`).
+    (:func:`toolkit.silhouettes.people.faces_backwards`).  The silhouettes handed on to stages 2-4
+    are then shared again by every person's posed template, nearest first
+    (:func:`depth_ordered_shares`): a person partly hidden in a camera keeps only what the people in
+    front leave visible, and is never labelled or textured with their pixels.
 
     Parameters
     ----------
@@ -485,14 +597,19 @@ def estimate_people_silhouettes(dataset, database, rig: Rig, located, s1config=N
     observer : Observer, optional
     extractors : dict, optional
         :func:`people_foreground`'s extractors (those of :func:`locate_silhouette_people`).
+    template_height_m : float
+        Stature of the template whose posed copies share the foreground (metres; the segmentation's).
 
     Yields
     ------
     PeopleFrame
+        ``masks``: each person's share per camera (:func:`depth_ordered_shares`).
     """
+    from toolkit.multiview import corrected_rig
     from toolkit.silhouettes.pipeline import SilhouettePoseEstimator
     from toolkit.silhouettes.people import PeopleSilhouettesConfig, faces_backwards, ground_velocities, split_masks
     from toolkit.skeleton import SKELETON_14
+    from toolkit.template import Template
 
     config = config or PeopleSilhouettesConfig()
     obs = as_observer(observer)
@@ -506,6 +623,7 @@ def estimate_people_silhouettes(dataset, database, rig: Rig, located, s1config=N
     setup = (time.perf_counter() - t0) / max(len(todo), 1)
     estimators = [SilhouettePoseEstimator(rig, database, s1config, observer if k == 0 else None)
                   for k in range(len(positions))]
+    template = Template(template_height_m)
     for t in todo:
         t1 = time.perf_counter()
         images, masks = _frame_masks(dataset, rig, extractors, t)
@@ -517,6 +635,10 @@ def estimate_people_silhouettes(dataset, database, rig: Rig, located, s1config=N
         ests = [est.step([m if ok else None for m, ok in zip(own, oks)], t)
                 for est, own, oks in zip(estimators, person_masks, usable)]
         ests = [_mirrored(e) if faces_backwards(e.joints3d, velocity[k, t], *hips) else e for k, e in enumerate(ests)]
+        # stages 2-4 take each person's share by depth among everyone's posed templates
+        person_masks = depth_ordered_shares(
+            person_masks, [e.joints3d if e.ok else np.full((14, 3), np.nan) for e in ests],
+            [corrected_rig(rig, e.offsets) for e in ests], template)
         for k, person in enumerate(person_masks):
             for c, m in zip(rig.names, person):
                 if m is not None:

@@ -116,12 +116,15 @@ class Template:
         """The template posed on ``joints3d`` (14, 3): a :class:`toolkit.body.model.BodyMesh`."""
         return self.model.mesh(joints3d)
 
-    def render(self, joints3d: np.ndarray, camera: Camera, margin_px: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    def render(self, joints3d: np.ndarray, camera: Camera, margin_px: int = 4,
+               mesh=None) -> tuple[np.ndarray, np.ndarray]:
         """Ray-cast the posed template: part labels (H, W) uint8 and depth (H, W) float32 metres.
 
         Only the pixels of the box around the projected mesh (plus ``margin_px``) are cast.
+        ``mesh``: :meth:`mesh` of ``joints3d`` when the caller has it already (one pose seen by
+        several cameras).
         """
-        mesh = self.mesh(joints3d)
+        mesh = self.mesh(joints3d) if mesh is None else mesh
         w, h = camera.size
         labels = np.zeros((h, w), np.uint8)
         depth = np.full((h, w), np.nan, np.float32)
