@@ -26,6 +26,12 @@ motions (``wave``, ``kick``, ``crouch``, ``turn``, in turn), seen by
   cameras (one per head, the heads 80-110 degrees apart) with 3 px of Gaussian noise, triangulated -- this
   stands for a user's clicks and is the only ground truth the run sees.
 
+Walks and runs stay where the cameras see them for any length (``[subject] area_m =``
+:data:`AREA_M`): a path that would go further than 1 m from its centre loops inside that distance,
+turning round, and the area shrinks where a camera would still lose the trunk
+(:func:`toolkit.synthetic.generator.build_scene`); shorter walks are the paths drawn without the
+field (a 30-frame run loops).
+
 Each scene goes through ``toolkit.pipeline.soft_body.run`` (clouds -> patches
 -> initial model -> tracking -> global fit).  Printed per scene and as the
 median and worst decile over scenes:
@@ -36,7 +42,7 @@ median and worst decile over scenes:
   and after the global fit;
 * surface distance (mm): mean distance from points spread uniformly over the
   true body mesh (:class:`toolkit.body.BodyModel`, the mesh the scene was
-  rendered from) to the fitted model's surface mesh, every 4th frame;
+  rendered from) to the fitted model's surface mesh, every 4th frame (``--surface-every``);
 * time per frame (s) of the clouds and of the fit (tracking + global fit).
 
 Losing the person: every run measures each frame's confidence and does not
@@ -79,12 +85,17 @@ CLICK_NOISE_PX = 3.0
 #: A frame further than this from the truth (MPJPE, mm) is lost: never to be reported as tracked.
 LOST_MM = 60.0
 
+#: ``[subject] area_m`` of the scenes: a walk or run that would go further from its centre loops inside it,
+#: shrunk further where the cameras would not see it (:func:`toolkit.synthetic.generator.build_scene`).
+AREA_M = 1.0
+
 DEPTH_SPEC = """seed = {seed}
 frames = {frames}
 fps = 30
 [subject]
 height_m = {height:.3f}
 motion = "{motion}"
+area_m = """ + repr(AREA_M) + """
 [cameras]
 count = 1
 layout = "studio"
@@ -102,6 +113,7 @@ fps = 25
 [subject]
 height_m = {height:.3f}
 motion = "{motion}"
+area_m = """ + repr(AREA_M) + """
 pattern = "checks_all"
 [cameras]
 count = 6
@@ -245,7 +257,7 @@ def fitted_run(run_dir: Path):
 
 def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool = True,
              silhouette_weight: float | None = None, click_draw: int = 0, refine: bool | None = None,
-             overrides: dict | None = None, start: str = "clicks") -> dict:
+             overrides: dict | None = None, start: str = "clicks", surface_every: int = 4) -> dict:
     """Run one scene through the pipeline and score it.
 
     ``silhouette_weight``: tracking's and the global fit's (None: the defaults).  ``click_draw``: which
@@ -255,7 +267,8 @@ def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool 
     (:class:`toolkit.softbody.init.RefineConfig` ``enabled``; None: the default).  ``overrides``:
     :func:`parse_overrides`'s table, applied last (:func:`apply_overrides`).  ``start``: how a trinocular
     run starts, ``"clicks"`` (the clicked joints) or ``"detector"`` (no clicks: the built-in detector's
-    keypoints triangulated across the heads; row name ``..._det``).
+    keypoints triangulated across the heads; row name ``..._det``).  ``surface_every``: the surface
+    distance is measured on every this many frames.
     """
     from toolkit.pipeline.soft_body import SoftBodyRunConfig, run
     from toolkit.softbody import SoftBodyParams
@@ -296,7 +309,7 @@ def evaluate(name: str, kind: str, text: str, root: Path, rng, global_fit: bool 
                                                1).tolist()  # --json only: per joint, mm
         out[f"surface_{stage}"] = float(np.mean([surface_distance_mm(scene.body_mesh(t), model,
                                                                      SoftBodyParams(z[pk][t]), rng)
-                                                 for t in range(0, len(j), 4)]))
+                                                 for t in range(0, len(j), surface_every)]))
     return out
 
 
@@ -431,6 +444,9 @@ def main(argv=None) -> int:
     ap.add_argument("--starts", default="clicks",
                     help="comma-separated starts of the trinocular runs, each its own row: clicks (the clicked "
                          "joints), detector (no clicks: the built-in detector's joints; rows ..._det)")
+    ap.add_argument("--surface-every", type=int, default=4,
+                    help="measure the surface distance on every this many frames (default %(default)s; "
+                         "e.g. 20 for 300-frame scenes)")
     ap.add_argument("--pictures", type=Path, default=None,
                     help="draw each source's worst runs (worst decile, at least one) into this folder")
     ap.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
@@ -462,7 +478,7 @@ def main(argv=None) -> int:
                 rows.append(evaluate(name, kind, text, args.cache, rng, not args.tracking_only,
                                      args.silhouette_weight, click_draw=draw,
                                      refine=None if args.refine == "default" else args.refine == "on",
-                                     overrides=overrides, start=st))
+                                     overrides=overrides, start=st, surface_every=max(1, args.surface_every)))
             except InputError as e:   # a start the run refuses (the detector found no person): said, not scored
                 failed.append(f"{name} ({st}): {e}")
                 print(f"{name} ({st}) refused: {e}", flush=True)

@@ -53,10 +53,15 @@ def test_an_arm_held_down_under_a_swung_arm_is_lost(swung):
     # down lies in the mask): without the missed outline the frame would be trusted
     assert wrong.residual >= cfg.trusted_residual and wrong.silhouette >= cfg.trusted_silhouette
     assert wrong.coverage >= cfg.lost_coverage
-    # another body where the swung arm is (a second person touching the subject): their outline is no miss
+    # another body where the swung arm is (a second person touching the subject, standing there: a piece
+    # as long as a person): their outline is no miss
     arm = np.linspace(model.joints(up)[3], model.joints(up)[4], 20)   # the left forearm, taken for another body's
-    other = frame_confidence(model, down, points, silhouettes=sil, others=arm)
+    person = np.linspace(arm[-1] * [1, 1, 0], arm[-1] * [1, 1, 0] + [0, 0, 1.7], 60)
+    other = frame_confidence(model, down, points, silhouettes=sil, others=np.vstack([arm, person]))
     assert other.missed_outline < cfg.lost_missed_outline and other.verdict == "trusted"
+    # the arm's points alone, a piece shorter than a person, are the subject's limb the model left: missed
+    alone = frame_confidence(model, down, points, silhouettes=sil, others=arm)
+    assert alone.missed_outline > cfg.lost_missed_outline and alone.verdict == "lost"
     # switched off
     off = frame_confidence(model, down, points, silhouettes=sil, config=ConfidenceConfig(lost_missed_outline=0.99))
     assert off.verdict == "trusted" and off.missed_outline == pytest.approx(wrong.missed_outline)

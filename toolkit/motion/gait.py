@@ -18,6 +18,14 @@ RUN_CADENCE_HZ = (2.6, 3.0)
 #: A walk or run goes along a straight line only if it stays within this
 #: distance of the origin; otherwise it follows a circle, metres.
 LINE_HALF_LENGTH_M = 3.0
+#: A walk or run kept within ``area_m`` of its centre (:func:`_loop_path`) turns round on
+#: semicircles of this share of ``area_m``; the straight stretches between them take the rest.
+LOOP_TURN_SHARE = 0.5
+#: Fastest turn (radians per second) of the pelvis on a loop's semicircles: the person slows down
+#: there (shorter steps at the same cadence) when the straight stretches' speed would turn faster.
+LOOP_TURN_RATE = 3.0
+#: Samples of the drawn path checked against ``area_m``.
+AREA_CHECK_SAMPLES = 200
 #: Normalised horizontal speed of the ankle at the start of swing (Hermite
 #: slope; 0 = starts at rest, 1 = starts at the mean swing speed).
 SWING_START_SLOPE = 0.8
@@ -153,6 +161,69 @@ def _gait_path(ctx: _Ctx, speed: float, running: bool):
             # tangent direction (-sin, cos) * sign -> heading angle
             head = th + (0.0 if ccw else np.pi)
             return pos, head
+    if ctx.area_m is not None:
+        pos, _ = path(np.linspace(0.0, travel, AREA_CHECK_SAMPLES))
+        if np.max(np.linalg.norm(pos - pos.mean(axis=0), axis=1)) > ctx.area_m:
+            path = _loop_path(ctx, heading0, speed)
+    return path
+
+
+def _loop_path(ctx: _Ctx, heading0: float, speed: float):
+    """A closed loop within ``ctx.area_m`` of the origin: two straight stretches joined by semicircles.
+
+    The loop (a stadium) has turns of radius ``r = LOOP_TURN_SHARE * area_m`` and straight stretches
+    of length ``2 (area_m - r)``; the pelvis starts at the apex of one turn, heading ``heading0``
+    (across the stretches), and goes round the loop, counter-clockwise or clockwise (drawn:
+    ``loop_direction``), as often as the sequence lasts.  So the pelvis stays within ``area_m`` of the
+    origin along the stretches and within ``r`` across them, whatever the length of the sequence.
+    On the straight stretches the pelvis moves at ``speed``; on the turns at most at
+    ``LOOP_TURN_RATE * r`` (a person turning round on a small circle slows down).
+
+    Parameters
+    ----------
+    ctx : _Ctx
+        ``area_m`` set; draws the direction (recorded in ``ctx.params``, with ``path = "loop"``).
+    heading0 : float
+        Heading at arc length 0, radians.
+    speed : float
+        Speed on the straight stretches, metres per second.
+
+    Returns
+    -------
+    callable
+        ``path(s)``: ``s`` (N,) = ``speed`` times the time, metres (any real value: the loop repeats) ->
+        positions (N, 2) metres and headings (N,) radians, continuous (one turn adds 2 pi).
+    """
+    ctx.params["path"] = "loop"
+    sign = 1.0 if ctx.choice("loop_direction", ("ccw", "cw")) == "ccw" else -1.0
+    r = LOOP_TURN_SHARE * ctx.area_m
+    a = ctx.area_m - r                                    # half the straight stretch
+    fwd0 = np.array([-np.sin(heading0), np.cos(heading0)])
+    along = sign * np.array([fwd0[1], -fwd0[0]])          # the stretches' direction; the start at +along
+    lengths = np.array([0.5 * np.pi * r, 2 * a, np.pi * r, 2 * a, 0.5 * np.pi * r])
+    ends = np.cumsum(lengths)
+    turn_speed = min(speed, LOOP_TURN_RATE * r)
+    durations = lengths / np.array([turn_speed, speed, turn_speed, speed, turn_speed])
+    t_ends = np.r_[0.0, np.cumsum(durations)]
+
+    def path(s):
+        laps, t = np.divmod(np.asarray(s, float) / speed, t_ends[-1])
+        u = np.interp(t, t_ends, np.r_[0.0, ends])      # arc length within the lap
+        x, y, turn = np.empty_like(u), np.empty_like(u), np.empty_like(u)
+        first, top, left, bottom, last = (u < ends[0], (u >= ends[0]) & (u < ends[1]),
+                                          (u >= ends[1]) & (u < ends[2]), (u >= ends[2]) & (u < ends[3]),
+                                          u >= ends[3])
+        # the turn at +along (first and last quarter), the stretch back, the turn at -along, the stretch out
+        phi = u / r
+        x[first], y[first], turn[first] = a + r * np.cos(phi[first]), r * np.sin(phi[first]), phi[first]
+        x[top], y[top], turn[top] = a - (u[top] - ends[0]), r, 0.5 * np.pi
+        phi = 0.5 * np.pi + (u - ends[1]) / r
+        x[left], y[left], turn[left] = -a + r * np.cos(phi[left]), r * np.sin(phi[left]), phi[left]
+        x[bottom], y[bottom], turn[bottom] = -a + (u[bottom] - ends[2]), -r, 1.5 * np.pi
+        phi = 1.5 * np.pi + (u - ends[3]) / r
+        x[last], y[last], turn[last] = a + r * np.cos(phi[last]), r * np.sin(phi[last]), phi[last]
+        pos = x[:, None] * along[None] + y[:, None] * fwd0[None]
+        return pos, heading0 + sign * (turn + 2 * np.pi * laps)
     return path
 
 

@@ -60,7 +60,8 @@ def _check_args(name, n_frames, fps):
 
 
 def synthesize_motion(name: str, proportions: BodyProportions, n_frames: int, fps: float,
-                      rng: np.random.Generator | int | None = None, observer=None) -> Motion:
+                      rng: np.random.Generator | int | None = None, observer=None,
+                      area_m: float | None = None) -> Motion:
     """Generate a motion and its ground truth (angles, foot contacts, parameters).
 
     Parameters
@@ -78,6 +79,12 @@ def synthesize_motion(name: str, proportions: BodyProportions, n_frames: int, fp
         heading, position, which arm waves or leg kicks).
     observer : Observer, optional
         Receives one ``joints3d`` report per frame (``name="motion/<name>"``).
+    area_m : float, optional
+        Walks and runs: the largest distance (metres) of the pelvis path from its mean position.  A
+        path drawn as usual that goes further is replaced by a closed loop inside that distance
+        (:func:`toolkit.motion.gait._loop_path`; the person turns round and comes back), so that a
+        sequence of any length stays where the cameras look.  None (the default): paths as drawn.
+        Other motions ignore it.
 
     Returns
     -------
@@ -86,13 +93,18 @@ def synthesize_motion(name: str, proportions: BodyProportions, n_frames: int, fp
     Raises
     ------
     InputError
-        Unknown motion name, or non-positive ``n_frames`` or ``fps``.
+        Unknown motion name, or non-positive ``n_frames`` or ``fps``, or ``area_m`` not a positive
+        number.
     """
     _check_args(name, n_frames, fps)
+    if area_m is not None and (isinstance(area_m, bool) or not isinstance(area_m, (int, float, np.integer,
+                                                                                   np.floating))
+                               or not np.isfinite(area_m) or area_m <= 0):
+        raise InputError("area_m", "a positive distance in metres, or None", repr(area_m))
     if not isinstance(proportions, BodyProportions):
         raise InputError("proportions", "a BodyProportions", type(proportions).__name__)
     rng = np.random.default_rng(rng)
-    ctx = _Ctx(proportions, int(n_frames), float(fps), rng)
+    ctx = _Ctx(proportions, int(n_frames), float(fps), rng, None if area_m is None else float(area_m))
     plan = _BUILDERS[name](ctx)
     motion = plan if isinstance(plan, Motion) else _finish(ctx, plan, name)
     obs = as_observer(observer)
@@ -102,7 +114,8 @@ def synthesize_motion(name: str, proportions: BodyProportions, n_frames: int, fp
 
 
 def generate_motion(name: str, proportions: BodyProportions, n_frames: int, fps: float,
-                    rng: np.random.Generator | int | None = None, observer=None) -> np.ndarray:
+                    rng: np.random.Generator | int | None = None, observer=None,
+                    area_m: float | None = None) -> np.ndarray:
     """Joint positions of a procedural motion.
 
     Same arguments as :func:`synthesize_motion`.
@@ -119,5 +132,5 @@ def generate_motion(name: str, proportions: BodyProportions, n_frames: int, fps:
     >>> j.shape
     (50, 14, 3)
     """
-    return synthesize_motion(name, proportions, n_frames, fps, rng, observer).joints
+    return synthesize_motion(name, proportions, n_frames, fps, rng, observer, area_m).joints
 

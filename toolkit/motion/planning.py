@@ -121,8 +121,9 @@ def _heading_vectors(yaw):
 class _Ctx:
     """Inputs of one motion plan; draws and records parameters."""
 
-    def __init__(self, proportions: BodyProportions, n_frames: int, fps: float, rng):
+    def __init__(self, proportions: BodyProportions, n_frames: int, fps: float, rng, area_m: float | None = None):
         self.p = proportions
+        self.area_m = area_m      # walks and runs keep the pelvis within this of their centre (None: no bound)
         self.fps = float(fps)
         self.t = np.arange(n_frames) / self.fps
         self.T = n_frames

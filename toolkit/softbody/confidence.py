@@ -46,6 +46,14 @@ A fifth measure needs the last trusted frame's joints (``previous``):
   frame's level: the jump is what shows.  A fit that comes from the frame's
   own joints (a re-initialisation) is measured without it.
 
+and one more, measured on every fit (those from the frame's own joints too):
+
+* **heading**: how far the body's heading (the horizontal direction it faces, from its hips and
+  shoulders: :func:`body_heading`) turned since the last trusted frame (radians).  Front and back look
+  alike to one depth camera, and a model facing away from the person fits the side it sees; in its own
+  frame the flipped body's joints barely move, so the motion measure does not see it.  A person turns
+  at most ``turn_rate`` per frame; beyond ``lost_turn`` plus that the frame is lost.
+
 The frame's **confidence** is the least of the shares, each divided by its
 ``trusted_*`` level (clipped to 1; the motion's share: ``trusted_step``
 over the move; the missed outline's: the explained share over its lost
@@ -68,7 +76,7 @@ from toolkit.softbody.distance import distance
 from toolkit.softbody.model import SoftBodyModel, SoftBodyParams
 
 __all__ = ["ConfidenceConfig", "FrameConfidence", "frame_confidence", "body_frame_joints", "joint_steps",
-           "largest_step",
+           "largest_step", "body_heading", "heading_change",
            "VERDICTS"]
 
 #: What a frame's confidence says.
@@ -125,6 +133,23 @@ class ConfidenceConfig:
         the runs; wrists 0.12 m), tracked frames' fits up to 0.22 m; the stereo runner's forearm with few
         points of its own jumped 0.51 m in one frame and stayed off (0.2-0.7 m) at full confidence
         otherwise.
+    lost_turn, turn_rate : float
+        A frame whose body heading (:func:`body_heading`) turned further than ``lost_turn + turn_rate * n``
+        (radians) from the last trusted frame's, ``n`` frames before, is lost (the measure says lost or
+        not).  ``turn_rate`` (0.3 rad per frame: 430 degrees per second at 25 fps) is above what a person
+        turns (the scene generator's turns reach 3.1 rad/s, its walks and runs 3.8 rad/s: 0.15 rad per
+        frame at 25 fps); ``lost_turn`` (0.5 rad) allows for the fit's error in the hips' and shoulders'
+        line.  A body flipped front to back (pi) is lost up to 8 frames after the last trusted frame.
+        Tried and not kept: 0.15 rad per frame with the re-initialisations also tried turned round (a 300-frame
+        depth walk, ``bench_softbody --sources depth --motions walk,run --frames 300 --seed 27000``, took a
+        turned-round start 11 frames after its last trusted frame, when the person had turned by 61 degrees
+        (the flipped fit 118 degrees from the last trusted one), and kept it: 32.3 -> 300.5 mm).
+    other_body_extent : float
+        Points not taken for the subject's count as another body's (their outline rays no miss) only in
+        pieces (points linked within :data:`OTHER_LINK`) at least this long (the diagonal of their bounding
+        box, metres): a second person, the floor.  A smaller piece beyond the tracker's gate is more likely
+        the subject's own limb the model left (arms raised in a jump: 53-88 patch centres); its outline
+        rays count as missed.  0: every piece is another body's.
 
     Notes
     -----
@@ -152,6 +177,9 @@ class ConfidenceConfig:
     lost_missed_outline: float = 0.05
     lost_step: float = 0.3
     trusted_step: float = 0.3
+    lost_turn: float = 0.5
+    turn_rate: float = 0.3
+    other_body_extent: float = 1.0
 
     def __post_init__(self):
         for name in ("inlier_distance", "residual_gate", "coverage_distance", "missed_distance"):
@@ -165,6 +193,12 @@ class ConfidenceConfig:
         if not 0.0 <= self.lost_missed_outline < 1.0:
             raise InputError("ConfidenceConfig.lost_missed_outline", "a share in [0, 1)",
                              repr(self.lost_missed_outline))
+        if not self.other_body_extent >= 0:
+            raise InputError("ConfidenceConfig.other_body_extent", "a length >= 0 in metres",
+                             repr(self.other_body_extent))
+        if not (self.lost_turn > 0 and self.turn_rate >= 0):
+            raise InputError("ConfidenceConfig.lost_turn/turn_rate", "lost_turn > 0 and turn_rate >= 0 (radians, "
+                             "radians per frame)", f"{self.lost_turn}, {self.turn_rate}")
         if not 0.0 < self.trusted_step <= self.lost_step:
             raise InputError("ConfidenceConfig.trusted_step/lost_step", "0 < trusted_step <= lost_step (metres per "
                              "frame)", f"{self.trusted_step}, {self.lost_step}")
@@ -187,6 +221,11 @@ class FrameConfidence(NamedTuple):
     missed_outline : float
         The largest share over the cameras of the outline rays passing ``missed_distance`` or further from
         the model; NaN without masks.
+    turn : float
+        How far the body's heading turned since the last trusted frame (:func:`heading_change`), radians in
+        [0, pi]; NaN where not measured.
+    turned : bool
+        The heading measure alone calls the frame lost (a turn no person makes in that time).
     """
 
     residual: float
@@ -196,6 +235,8 @@ class FrameConfidence(NamedTuple):
     verdict: str
     step: float = float("nan")
     missed_outline: float = float("nan")
+    turn: float = float("nan")
+    turned: bool = False
 
 
 def body_frame_joints(joints) -> np.ndarray:
@@ -260,6 +301,91 @@ def largest_step(joints, previous, frames: int = 1) -> float:
     return float(np.max(joint_steps(joints, previous))) / max(int(frames), 1)
 
 
+#: Points of other bodies closer than this to each other are one piece (:func:`other_bodies`), metres: a
+#: second person half hidden behind the subject leaves fragments 0.2-1.0 m long with gaps under this.
+OTHER_LINK = 0.25
+
+
+def other_bodies(points, min_extent: float, link: float = OTHER_LINK) -> np.ndarray:
+    """The points of ``points`` in pieces at least ``min_extent`` long: other bodies, not a limb's piece.
+
+    Parameters
+    ----------
+    points : array_like of shape (M, 3)
+        Points not taken for the subject's, metres.
+    min_extent : float
+        Least extent of a piece (the diagonal of its bounding box), metres; 0 keeps every point.
+    link : float
+        Points closer than this are linked into one piece, metres.
+
+    Returns
+    -------
+    ndarray of shape (K, 3)
+        Metres.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    pts = np.asarray(points, float).reshape(-1, 3)
+    if min_extent <= 0 or len(pts) == 0:
+        return pts
+    pairs = cKDTree(pts).query_pairs(link, output_type="ndarray")
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(pts), len(pts)))
+    n, label = connected_components(graph, directed=False)
+    lo = np.full((n, 3), np.inf)
+    hi = np.full((n, 3), -np.inf)
+    np.minimum.at(lo, label, pts)
+    np.maximum.at(hi, label, pts)
+    return pts[np.linalg.norm(hi - lo, axis=1)[label] >= min_extent]
+
+
+#: A body whose hips' and shoulders' line is shorter than this horizontally (metres; lying, or the line
+#: upright) has no heading.
+MIN_HEADING_SPAN = 0.05
+
+
+def body_heading(joints) -> np.ndarray:
+    """The horizontal direction a body faces, from its hips and shoulders (radians, about z).
+
+    Parameters
+    ----------
+    joints : array_like of shape (..., 14, 3)
+        Metres, world, z up, ``SKELETON_14`` order.
+
+    Returns
+    -------
+    ndarray of shape (...)
+        Radians: the angle of the forward direction (z x (right hip - left hip + right shoulder - left
+        shoulder)) from the x axis; NaN where that line is shorter than :data:`MIN_HEADING_SPAN` horizontally.
+    """
+    from toolkit.skeleton import SKELETON_14
+
+    j = np.asarray(joints, float)
+    idx = {n: SKELETON_14.index(n) for n in ("l_hip", "r_hip", "l_shoulder", "r_shoulder")}
+    right = (j[..., idx["r_hip"], :2] - j[..., idx["l_hip"], :2]
+             + j[..., idx["r_shoulder"], :2] - j[..., idx["l_shoulder"], :2])
+    span = np.linalg.norm(right, axis=-1)
+    heading = np.arctan2(right[..., 0], -right[..., 1])   # forward = z x right = (-right_y, right_x)
+    return np.where(span >= MIN_HEADING_SPAN, heading, np.nan)
+
+
+def heading_change(joints, previous) -> float:
+    """How far the body's heading (:func:`body_heading`) turned from ``previous`` to ``joints``.
+
+    Parameters
+    ----------
+    joints, previous : array_like of shape (14, 3)
+        Metres, world.
+
+    Returns
+    -------
+    float
+        Radians in [0, pi]; NaN where either has no heading.
+    """
+    d = float(body_heading(joints) - body_heading(previous))
+    return abs(float(np.angle(np.exp(1j * d)))) if np.isfinite(d) else float("nan")
+
+
 def _coverage(model: SoftBodyModel, params: SoftBodyParams, tree: cKDTree, config: ConfidenceConfig,
               viewpoints) -> float:
     from toolkit.softbody.residuals import coverage_samples
@@ -320,7 +446,7 @@ def _silhouette(model: SoftBodyModel, params: SoftBodyParams, views, config: Con
 
 def frame_confidence(model: SoftBodyModel, params: SoftBodyParams, points, *, silhouettes=None, viewpoints=None,
                      config: ConfidenceConfig = ConfidenceConfig(), previous=None,
-                     frames_since: int = 1, others=None) -> FrameConfidence:
+                     frames_since: int = 1, others=None, reference=None) -> FrameConfidence:
     """How far one fitted frame can be trusted.
 
     Parameters
@@ -343,6 +469,9 @@ def frame_confidence(model: SoftBodyModel, params: SoftBodyParams, points, *, si
     others : array_like of shape (M, 3), optional
         Points not fitted as the subject's (other bodies', undecided ones; metres, world): outline rays passing
         within ``missed_distance`` of them are left out of the missed outline.
+    reference : array_like of shape (14, 3), optional
+        The last trusted frame's joints (metres, world), ``frames_since`` frames before, for the heading
+        measure (:func:`heading_change`), also for a fit from the frame's own joints; None: not measured.
 
     Returns
     -------
@@ -356,7 +485,7 @@ def frame_confidence(model: SoftBodyModel, params: SoftBodyParams, points, *, si
     near = d < config.residual_gate
     residual = float(np.mean(d[near] < config.inlier_distance)) if near.any() else 0.0
     coverage = _coverage(model, params, cKDTree(pts), config, viewpoints)
-    oth = None if others is None else np.asarray(others, float).reshape(-1, 3)
+    oth = None if others is None else other_bodies(others, config.other_body_extent)
     sil, missed = _silhouette(model, params, silhouettes, config, oth) if silhouettes else (nan, nan)
     measured = [(residual, config.lost_residual, config.trusted_residual),
                 (coverage, config.lost_coverage, config.trusted_coverage),
@@ -367,6 +496,10 @@ def frame_confidence(model: SoftBodyModel, params: SoftBodyParams, points, *, si
         measured.append((config.trusted_step / max(step, 1e-9), config.trusted_step / config.lost_step, 1.0))
     if np.isfinite(missed):   # the outline explained; full confidence at the lost level (says lost or not)
         measured.append((1.0 - missed, 1.0 - config.lost_missed_outline, 1.0 - config.lost_missed_outline))
+    turn = nan if reference is None else heading_change(model.joints(params), reference)
     confidence = float(np.clip(min(v / hi for v, _, hi in measured), 0.0, 1.0))
     lost = any(v < lo for v, lo, _ in measured)
-    return FrameConfidence(residual, coverage, sil, confidence, "lost" if lost else "trusted", step, missed)
+    # says lost or not: a turn no person makes in that time (a front/back flip)
+    turned = bool(np.isfinite(turn) and turn > config.lost_turn + config.turn_rate * max(int(frames_since), 1))
+    return FrameConfidence(residual, coverage, sil, confidence, "lost" if lost or turned else "trusted", step,
+                           missed, turn, turned)

@@ -616,7 +616,7 @@ def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, con
             if held:
                 obs.report("text", text=f"frame {t}: a limb jumped, fitted again held", level="INFO", frame=t)
         pts = check_points(cloud, "cloud")
-        fitted, said_lost = f.state in ("ok", "crowded"), False
+        fitted, said_lost, c = f.state in ("ok", "crowded"), False, None
         if confidence is not None:
             f, c, fitted, said_lost, again = _confident_fit(model, f, cloud, pts, views, t, (last, t_last), config,
                                                             confidence, reinit, recover, obs)
@@ -630,6 +630,8 @@ def track_sequence(model: SoftBodyModel, params0: SoftBodyParams, clouds, *, con
         # a frame the confidence calls lost keeps its fit (held, not trusted), one the tracker could not fit
         # the previous pose
         p = f.params.replace(pose=canonical_pose(f.params.pose)) if fitted or said_lost else prev
+        if said_lost and c is not None and c.turned:
+            p = last   # a body turned round (front and back exchanged) is no start for the next frame
         out[t] = p.vector
         fits.append(f)
         if fitted:
@@ -670,10 +672,11 @@ def _confident_fit(model: SoftBodyModel, f, cloud, pts: np.ndarray, views, t: in
     last, t_last = trusted_before
     previous = None if t_last is None else model.joints(last)
 
-    def judged(g, own_joints=False):   # a fit from the frame's own joints: no motion measure
+    def judged(g, own_joints=False):   # a fit from the frame's own joints: no motion measure (its heading is)
         return frame_confidence(model, g.params, pts[g.subject], silhouettes=views, viewpoints=config.viewpoints,
                                 config=confidence, previous=None if own_joints else previous,
-                                frames_since=1 if t_last is None else t - t_last, others=pts[~g.subject])
+                                frames_since=1 if t_last is None else t - t_last, others=pts[~g.subject],
+                                reference=previous)
 
     fitted, said_lost, again = f.state in ("ok", "crowded"), False, False
     c = judged(f) if fitted else None

@@ -37,7 +37,7 @@ from toolkit.motion import generate_motion, motion_from_bvh
 from toolkit.observe import Observer, as_observer
 from toolkit.skeleton import SKELETON_14
 from toolkit.body.model import BodyMesh, BodyModel, BodyShape, dress
-from toolkit.synthetic.depth_sensor import DepthCameraOutput, DepthCameraSpec, render_depth_camera
+from toolkit.synthetic.depth_sensor import DepthCameraOutput, DepthCameraSpec, depth_camera_for, render_depth_camera
 from toolkit.synthetic.environment import BACKGROUND_COLOUR, SURROUNDING_COLOURS, field_model, make_environment
 from toolkit.synthetic.players import (Crossing, draw_players, frame_group, group_extent, place_players,
                                        player_streams, turn_to_camera)
@@ -113,8 +113,73 @@ class Scene:
         return [(p.index, p.body.mesh(p.joints[t])) for p in self.players if np.isfinite(p.joints[t]).all()]
 
 
+#: Joints of the subject that a spec with ``[subject] area_m`` keeps inside every camera's image (and a
+#: depth camera's range) in every frame: the trunk and head, where the body is (a hand or a foot swinging
+#: past the image's edge is allowed).
+VIEW_JOINTS = ("head", "neck", "l_shoulder", "r_shoulder", "l_hip", "r_hip")
+#: A walk or run whose trunk leaves a camera's view is drawn again with its area shrunk by this factor ...
+AREA_SHRINK = 0.8
+#: ... at most this many times (the last draw is kept).
+AREA_TRIES = 8
+
+
+def frames_out_of_view(cameras, joints: np.ndarray, depth_range_m=None) -> np.ndarray:
+    """Which frames have a :data:`VIEW_JOINTS` joint outside a camera's image (or depth range).
+
+    Parameters
+    ----------
+    cameras : sequence of Camera
+    joints : ndarray of shape (T, 14, 3)
+        Metres, world.
+    depth_range_m : tuple of float, optional
+        ``(near, far)`` metres along each camera's optical axis the joints must lie within (a depth
+        camera's valid readings); None: in front of the camera.
+
+    Returns
+    -------
+    ndarray of shape (T,), bool
+    """
+    idx = [SKELETON_14.joint_names.index(n) for n in VIEW_JOINTS]
+    J = np.asarray(joints, float)[:, idx]
+    T = len(J)
+    near, far = depth_range_m if depth_range_m is not None else (1e-6, np.inf)
+    out = np.zeros(T, bool)
+    for cam in cameras:
+        z = cam.to_cam(J.reshape(-1, 3))[:, 2].reshape(T, -1)
+        uv = cam.project(J.reshape(-1, 3)).reshape(T, -1, 2)
+        inside = ((uv[..., 0] >= 0) & (uv[..., 0] < cam.width) & (uv[..., 1] >= 0) & (uv[..., 1] < cam.height)
+                  & (z >= near) & (z <= far))
+        out |= ~inside.all(axis=1)
+    return out
+
+
 def build_scene(spec: SceneSpec) -> Scene:
-    """Draw the person (or people), motion and cameras of ``spec`` (no rendering)."""
+    """Draw the person (or people), motion and cameras of ``spec`` (no rendering).
+
+    With ``[subject] area_m`` (walks and runs; :func:`toolkit.motion.synthesize_motion`'s ``area_m``) the
+    scene is drawn again, from the same seed, with the area shrunk by :data:`AREA_SHRINK` while a frame's
+    trunk (:data:`VIEW_JOINTS`) is outside a source camera's image or, with a ``[depth_camera]``, the depth
+    camera's image and range (:func:`frames_out_of_view`), at most :data:`AREA_TRIES` times: a sequence
+    of any length then stays where every camera sees it.  A path drawn within the area and in view is
+    the one drawn without the field.
+    """
+    if spec.players is not None or spec.area_m is None or spec.motion not in ("walk", "run"):
+        return _build_scene(spec, spec.area_m)
+    area = spec.area_m
+    for _ in range(AREA_TRIES - 1):
+        scene = _build_scene(spec, area)
+        out = frames_out_of_view(scene.rig, scene.joints)
+        if spec.depth_camera is not None:
+            dspec = DepthCameraSpec.from_table(spec.depth_camera, spec.source)
+            out |= frames_out_of_view([depth_camera_for(dspec, scene.joints)], scene.joints, dspec.range_m)
+        if not out.any():
+            return scene
+        area *= AREA_SHRINK
+    return _build_scene(spec, area)
+
+
+def _build_scene(spec: SceneSpec, area_m: float | None) -> Scene:
+    """:func:`build_scene` with the walk's or run's area ``area_m`` (metres; None: the path as drawn)."""
     seqs = np.random.SeedSequence(spec.seed).spawn(len(RNG_STREAMS))
     rngs = {name: np.random.default_rng(s) for name, s in zip(RNG_STREAMS, seqs)}
     if spec.players is not None:
@@ -129,7 +194,7 @@ def build_scene(spec: SceneSpec) -> Scene:
     if spec.motion_is_bvh:
         joints = motion_from_bvh(spec.motion, props, spec.frames, spec.fps, rngs["motion"])
     else:
-        joints = generate_motion(spec.motion, props, spec.frames, spec.fps, rngs["motion"])
+        joints = generate_motion(spec.motion, props, spec.frames, spec.fps, rngs["motion"], area_m=area_m)
     centre = np.r_[np.nanmean(joints[:, 1, :2], axis=0), 0.0]
     kw = {}
     if spec.subject_px is not None:  # a size asked for: keep only the motion's own extent in view

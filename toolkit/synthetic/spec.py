@@ -22,7 +22,9 @@ Example (``datasets_synthetic/default.toml``)::
 Optional fields that widen the scene space (the scene zoo, ``benchmarks/bench_zoo.py``):
 ``[subject] outfit`` (``"random"`` or ``"like_background"``: a kit close to the
 pitch or the backdrop), ``shirt_rgb`` / ``trousers_rgb`` (RGB in [0, 1]) and
-``pattern``; ``[cameras] heads`` and ``baseline_m`` (``layout = "trinocular"``: heads of three
+``pattern``; ``[subject] area_m`` (walks and runs: the largest distance of the pelvis from the path's
+centre, metres; a longer path becomes a loop inside it that stays in every camera's view, see
+:func:`toolkit.synthetic.generator.build_scene`); ``[cameras] heads`` and ``baseline_m`` (``layout = "trinocular"``: heads of three
 cameras 0.2-0.4 m apart, 2-4 m from the subject, see :func:`toolkit.synthetic.rigs.make_rig`;
 ``count`` is 3 per head); ``[cameras] spacing_deg`` (azimuth between neighbouring cameras,
 a number or ``[lo, hi]``) and ``subject_px`` (broadcast: subject height in
@@ -62,6 +64,8 @@ from toolkit.synthetic.marker_spec import MarkerSpec
 MAX_FRAMES = 100_000
 MAX_CAMERAS = 32
 HEIGHT_RANGE_M = (1.40, 2.10)
+#: ``[subject] area_m`` limits (the pelvis's largest distance from a walk's or run's centre), metres.
+AREA_RANGE_M = (0.2, 10.0)
 LAYOUTS = ("broadcast", "studio", "trinocular")
 #: ``[cameras] baseline_m`` limits of a trinocular head (distance between its cameras), metres.
 BASELINE_RANGE_M = (0.2, 0.4)
@@ -174,6 +178,7 @@ class SceneSpec:
     heads: int = 0
     baseline_m: tuple | None = None
     players: PlayersSpec | None = None  # several people ([players]); None: the subject alone
+    area_m: float | None = None  # walks and runs kept within this of their centre and in view; None: as drawn
     source: str = "<spec>"
     text: str = field(default="", repr=False)
 
@@ -345,7 +350,8 @@ def _subject_table(d: dict, source: str, base_dir: Path | None) -> tuple:
     """
     S = lambda k: f"{source}: {k}"  # noqa: E731
     sub = _get(d, "subject", f"{source}: ", dict)
-    _check_keys(sub, {"height_m", "motion", "outfit", "shirt_rgb", "trousers_rgb", "pattern"}, "subject", source)
+    _check_keys(sub, {"height_m", "motion", "outfit", "shirt_rgb", "trousers_rgb", "pattern", "area_m"}, "subject",
+                source)
     h = float(_get(sub, "height_m", f"{source}: subject.", (int, float)))
     if not HEIGHT_RANGE_M[0] <= h <= HEIGHT_RANGE_M[1]:
         raise InputError(S("subject.height_m"), f"a stature between {HEIGHT_RANGE_M[0]} and {HEIGHT_RANGE_M[1]} m",
@@ -369,6 +375,18 @@ def _subject_table(d: dict, source: str, base_dir: Path | None) -> tuple:
     if pattern is not None and pattern not in PATTERNS:
         raise InputError(S("subject.pattern"), f"one of {list(PATTERNS)}", repr(pattern))
     return h, motion, outfit, shirt_rgb, trousers_rgb, pattern
+
+
+def _subject_area(d: dict, source: str) -> float | None:
+    """``[subject] area_m``: a distance within :data:`AREA_RANGE_M` (metres), or None when absent."""
+    sub = d.get("subject", {})
+    if "area_m" not in sub:
+        return None
+    v = sub["area_m"]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not AREA_RANGE_M[0] <= v <= AREA_RANGE_M[1]:
+        raise InputError(f"{source}: subject.area_m", f"a distance from {AREA_RANGE_M[0]:g} to {AREA_RANGE_M[1]:g} m",
+                         repr(v))
+    return float(v)
 
 
 def _cameras_table(d: dict, source: str) -> tuple:
@@ -523,6 +541,7 @@ def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) 
     if not 0 < fps <= 1000:
         raise InputError(S("fps"), "a frame rate in (0, 1000]", str(fps))
     h, motion, outfit, shirt_rgb, trousers_rgb, pattern = _subject_table(d, source, base_dir)
+    area = _subject_area(d, source)
     markers = _get(d, "markers", f"{source}: ", dict, None)
     if markers is not None:  # a marker capture: its cameras are [markers].cameras, no videos are rendered
         if "cameras" in d:
@@ -539,6 +558,9 @@ def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) 
     if players is not None and markers is not None:
         raise InputError(S("players"), "no [players] table in a marker capture (one person wears the markers)",
                          "a [players] table")
+    if players is not None and area is not None:
+        raise InputError(S("subject.area_m"), "no area with a [players] table (the players' paths are the "
+                         "table's)", repr(area))
     if players is not None and depth is not None:
         raise InputError(S("players"), "no [players] table with a [depth_camera] (the depth camera sees the "
                          "subject alone)", "a [players] table")
@@ -547,7 +569,8 @@ def parse_spec(text: str, source: str = "<spec>", base_dir: Path | None = None) 
                      outfit=outfit, shirt_rgb=shirt_rgb, trousers_rgb=trousers_rgb, pattern=pattern,
                      spacing_deg=spacing, subject_px=subject_px, novel_placement=placement,
                      sample_count=sc, engine=engine, supersample=ss, depth_camera=depth, heads=heads,
-                     baseline_m=baseline, markers=markers, players=players, source=source, text=text)
+                     baseline_m=baseline, markers=markers, players=players, area_m=area, source=source,
+                     text=text)
 
 
 def load_spec(path: str | Path) -> SceneSpec:
