@@ -323,15 +323,13 @@ def other_bodies(points, min_extent: float, link: float = OTHER_LINK) -> np.ndar
     ndarray of shape (K, 3)
         Metres.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    from toolkit.softbody.separate import linked_pieces
 
     pts = np.asarray(points, float).reshape(-1, 3)
     if min_extent <= 0 or len(pts) == 0:
         return pts
-    pairs = cKDTree(pts).query_pairs(link, output_type="ndarray")
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(pts), len(pts)))
-    n, label = connected_components(graph, directed=False)
+    label = linked_pieces(pts, link)
+    n = int(label.max()) + 1
     lo = np.full((n, 3), np.inf)
     hi = np.full((n, 3), -np.inf)
     np.minimum.at(lo, label, pts)
@@ -344,29 +342,30 @@ def other_bodies(points, min_extent: float, link: float = OTHER_LINK) -> np.ndar
 MIN_HEADING_SPAN = 0.05
 
 
-def body_heading(joints) -> np.ndarray:
+def body_heading(joints) -> float:
     """The horizontal direction a body faces, from its hips and shoulders (radians, about z).
 
     Parameters
     ----------
-    joints : array_like of shape (..., 14, 3)
+    joints : array_like of shape (14, 3)
         Metres, world, z up, ``SKELETON_14`` order.
 
     Returns
     -------
-    ndarray of shape (...)
-        Radians: the angle of the forward direction (z x (right hip - left hip + right shoulder - left
-        shoulder)) from the x axis; NaN where that line is shorter than :data:`MIN_HEADING_SPAN` horizontally.
+    float
+        Radians: the angle from the x axis of :func:`toolkit.multiview.anatomy.facing_direction`;
+        NaN where the hips' and shoulders' left-to-right line, summed, is shorter than
+        :data:`MIN_HEADING_SPAN` horizontally (lying, or that line upright).
     """
+    from toolkit.multiview.anatomy import facing_direction
     from toolkit.skeleton import SKELETON_14
 
     j = np.asarray(joints, float)
-    idx = {n: SKELETON_14.index(n) for n in ("l_hip", "r_hip", "l_shoulder", "r_shoulder")}
-    right = (j[..., idx["r_hip"], :2] - j[..., idx["l_hip"], :2]
-             + j[..., idx["r_shoulder"], :2] - j[..., idx["l_shoulder"], :2])
-    span = np.linalg.norm(right, axis=-1)
-    heading = np.arctan2(right[..., 0], -right[..., 1])   # forward = z x right = (-right_y, right_x)
-    return np.where(span >= MIN_HEADING_SPAN, heading, np.nan)
+    lr = sum(j[SKELETON_14.index("l_" + p)] - j[SKELETON_14.index("r_" + p)] for p in ("hip", "shoulder"))
+    f = facing_direction(j)
+    if not (np.isfinite(lr).all() and np.isfinite(f).all()) or np.hypot(lr[0], lr[1]) < MIN_HEADING_SPAN:
+        return float("nan")
+    return float(np.arctan2(f[1], f[0]))
 
 
 def heading_change(joints, previous) -> float:

@@ -38,7 +38,7 @@ from scipy.spatial import cKDTree
 from toolkit.softbody.distance import distance, primitive_distances
 from toolkit.softbody.model import SoftBodyModel, SoftBodyParams
 
-__all__ = ["Separation", "separate_subject", "link_distance", "NEAR_PERCENTILE"]
+__all__ = ["Separation", "separate_subject", "link_distance", "linked_pieces", "NEAR_PERCENTILE"]
 
 #: The near margin is widened by this percentile of the distances of the points within the gate to the
 #: predicted surface: when the prediction is off (a rough start, a fast turn), the subject's own points
@@ -86,6 +86,15 @@ class Separation:
     undecided: float
     near_points: np.ndarray
     distance: np.ndarray
+
+
+def linked_pieces(points: np.ndarray, link: float) -> np.ndarray:
+    """The piece of each point (M,) int: points closer than ``link`` (metres) are linked, and linked
+    points are one piece (connected components)."""
+    pts = np.asarray(points, float).reshape(-1, 3)
+    pairs = cKDTree(pts).query_pairs(link, output_type="ndarray")
+    g = coo_matrix((np.ones(len(pairs), bool), (pairs[:, 0], pairs[:, 1])), shape=(len(pts), len(pts)))
+    return connected_components(g, directed=False)[1]
 
 
 def link_distance(points: np.ndarray, floor: float, ceiling: float = 0.1) -> float:
@@ -149,10 +158,7 @@ def separate_subject(model: SoftBodyModel, params: SoftBodyParams, points: np.nd
     keep, other, stray = subject.copy(), seed.copy(), np.zeros(n, bool)
     idx = np.flatnonzero(~subject)                    # the pieces: undecided and seed points, linked
     if len(idx):
-        pairs = cKDTree(points[idx]).query_pairs(link, output_type="ndarray")
-        m = len(idx)
-        g = coo_matrix((np.ones(len(pairs), bool), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
-        _, lab = connected_components(g, directed=False)
+        lab = linked_pieces(points[idx], link)
         body = np.zeros(lab.max() + 1, bool)
         body[lab[seed[idx]]] = True
         touches = np.zeros(lab.max() + 1, bool)

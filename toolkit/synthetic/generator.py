@@ -145,10 +145,8 @@ def frames_out_of_view(cameras, joints: np.ndarray, depth_range_m=None) -> np.nd
     near, far = depth_range_m if depth_range_m is not None else (1e-6, np.inf)
     out = np.zeros(T, bool)
     for cam in cameras:
-        z = cam.to_cam(J.reshape(-1, 3))[:, 2].reshape(T, -1)
-        uv = cam.project(J.reshape(-1, 3)).reshape(T, -1, 2)
-        inside = ((uv[..., 0] >= 0) & (uv[..., 0] < cam.width) & (uv[..., 1] >= 0) & (uv[..., 1] < cam.height)
-                  & (z >= near) & (z <= far))
+        z = cam.depth_of(J)
+        inside = cam.in_image(cam.project(J)) & (z >= near) & (z <= far)
         out |= ~inside.all(axis=1)
     return out
 
